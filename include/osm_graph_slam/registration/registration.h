@@ -1,0 +1,36 @@
+#pragma once
+// Interface of every 3D registration back-end (ours and the PCL baselines). Implementations keep
+// PCL/TBB templates in their .cpp files; this header stays light.
+#include <Eigen/Geometry>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+
+namespace osm_graph_slam {
+
+struct RegistrationResult {
+  /// Maps source points into the target frame (p_target = transform * p_source).
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
+  bool converged = false;
+  /// Mean squared distance of inlier correspondences at the solution [m^2].
+  double fitness = std::numeric_limits<double>::infinity();
+  int iterations = 0;
+  double time_ms = 0.0;
+  std::string message;  ///< why it failed, when it did
+};
+
+class Registration {
+ public:
+  virtual ~Registration() = default;
+  virtual std::string name() const = 0;
+  /// Sets (and preprocesses, e.g. indexes and computes covariances of) the target cloud.
+  virtual void setTarget(const PointCloudConstPtr& target) = 0;
+  /// Aligns source to the current target starting from guess. Never throws on bad input:
+  /// returns converged = false with a message instead.
+  virtual RegistrationResult align(const PointCloudConstPtr& source,
+                                   const Eigen::Isometry3d& guess) = 0;
+};
+
+}  // namespace osm_graph_slam
