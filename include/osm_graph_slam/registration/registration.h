@@ -21,6 +21,17 @@ struct RegistrationResult {
   std::string message;  ///< why it failed, when it did
 };
 
+/// Parameters shared by every back-end; each back-end reads the fields it understands.
+struct RegistrationParams {
+  std::string method = "fast_gicp";  ///< fast_gicp (ours) | pcl_gicp | pcl_ndt
+  int num_threads = 0;               ///< 0 = all hardware threads
+  int max_iterations = 64;
+  double max_correspondence_distance = 1.0;  ///< [m]
+  double transformation_epsilon = 1e-4;      ///< convergence on the update norm
+  int k_correspondences = 20;                ///< neighbours for point covariances (GICP)
+  double ndt_resolution = 1.0;               ///< [m] (NDT)
+};
+
 class Registration {
  public:
   virtual ~Registration() = default;
@@ -32,5 +43,8 @@ class Registration {
   virtual RegistrationResult align(const PointCloudConstPtr& source,
                                    const Eigen::Isometry3d& guess) = 0;
 };
+
+/// Creates the back-end named by params.method; throws std::invalid_argument for an unknown name.
+std::unique_ptr<Registration> createRegistration(const RegistrationParams& params);
 
 }  // namespace osm_graph_slam
