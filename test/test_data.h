@@ -18,15 +18,17 @@ inline std::string sharedDataPath(const std::string& relative) {
   return sharedDataDir() + "/" + relative;
 }
 
-inline std::string sourceDir() { return OGS_SOURCE_DIR; }
+inline std::string sourceDir() {
+  return OGS_SOURCE_DIR;
+}
 
 }  // namespace osm_graph_slam::test
 
 /// Skips the current test with a clear message when a file of ../shared/data is absent.
-#define OGS_REQUIRE_SHARED_FILE(path)                                                   \
-  do {                                                                                  \
-    if (!std::filesystem::exists(path)) {                                               \
-      GTEST_SKIP() << "shared data file " << (path)                                     \
+#define OGS_REQUIRE_SHARED_FILE(path)                                                    \
+  do {                                                                                   \
+    if (!std::filesystem::exists(path)) {                                                \
+      GTEST_SKIP() << "shared data file " << (path)                                      \
                    << " is absent (tests read real data from ../shared/data); skipping"; \
-    }                                                                                   \
+    }                                                                                    \
   } while (0)

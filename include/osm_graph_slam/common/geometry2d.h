@@ -27,7 +27,9 @@ struct Pose2 {
     r << c, -s, s, c;
     return r;
   }
-  Eigen::Vector2d transform(const Eigen::Vector2d& p) const { return rotation() * p + translation(); }
+  Eigen::Vector2d transform(const Eigen::Vector2d& p) const {
+    return rotation() * p + translation();
+  }
   Pose2 operator*(const Pose2& o) const {
     const Eigen::Vector2d t = transform(o.translation());
     return {t.x(), t.y(), wrapAngle(theta + o.theta)};
