@@ -18,7 +18,7 @@ TEST(KittiBin, ReadsRealScanWithPlausibleContent) {
   EXPECT_GT(cloud.size(), 100000u);  // ~122k points per HDL-64E scan
   EXPECT_LT(cloud.size(), 140000u);
   double max_range = 0.0;
-  for (const auto& p : cloud) max_range = std::max(max_range, std::hypot(p.x, p.y));
+  for (const auto& p : cloud) max_range = std::max(max_range, std::hypot(double(p.x), double(p.y)));
   EXPECT_GT(max_range, 50.0);
   EXPECT_LT(max_range, 130.0);
 }
