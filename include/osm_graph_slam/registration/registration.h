@@ -30,6 +30,11 @@ struct RegistrationParams {
   double transformation_epsilon = 1e-4;      ///< convergence on the update norm
   int k_correspondences = 20;                ///< neighbours for point covariances (GICP)
   double ndt_resolution = 1.0;               ///< [m] (NDT)
+  double ndt_step_size = 0.1;                ///< [m] More-Thuente line search step (NDT)
+  /// GICP covariance regularisation: eigenvalues become (epsilon, 1, 1) (plane model).
+  double gicp_covariance_epsilon = 1e-3;
+  /// Fewer inlier correspondences than this fails the match (fast_gicp).
+  int min_correspondences = 20;
 };
 
 class Registration {
