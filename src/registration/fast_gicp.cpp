@@ -82,7 +82,8 @@ std::shared_ptr<PreparedCloud> prepare(const PointCloudConstPtr& cloud, int k, d
         mean /= double(found);
         cov = (second - double(found) * mean * mean.transpose()) / double(found);
         // Plane model: the smallest spread becomes epsilon, the two others 1 (GICP paper §3.2).
-        Eigen::SelfAdjointEigenSolver<Mat3> eig(cov);
+        Eigen::SelfAdjointEigenSolver<Mat3> eig;
+        eig.computeDirect(cov);
         const Vec3 values(epsilon, 1.0, 1.0);
         cov = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
       }
