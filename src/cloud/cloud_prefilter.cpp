@@ -220,8 +220,8 @@ PointCloudPtr CloudPrefilter::removeOutliersOctants(const PointCloudConstPtr& cl
   std::array<PointCloud, 8> filtered;
   auto run = [&] {
     tbb::parallel_for(0, 8, [&](int o) {
-      if (octants[o].core_size > 0) filterCore(params_, octants[o].cloud, octants[o].core_size,
-                                               filtered[o]);
+      if (octants[o].core_size > 0)
+        filterCore(params_, octants[o].cloud, octants[o].core_size, filtered[o]);
     });
   };
   if (params_.num_threads > 0) {

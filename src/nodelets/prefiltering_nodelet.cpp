@@ -1,11 +1,11 @@
 // PrefilteringNodelet: velodyne_points (any frame) -> CloudPrefilter -> filtered_points
 // (base_link). The sensor -> base_link transform comes from TF (static) or from parameters.
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <map>
 #include <memory>
@@ -40,12 +40,11 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     }
     pub_ = nh.advertise<sensor_msgs::PointCloud2>("filtered_points", 5);
     sub_ = nh.subscribe("velodyne_points", 5, &PrefilteringNodelet::onCloud, this);
-    NODELET_INFO("prefiltering: voxel %.2f m (%s), range [%.1f, %.1f] m, outliers %s%s -> %s",
-                 params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off",
-                 params_.min_range, params_.max_range,
-                 params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
-                 params_.parallel_octants ? " (8 octants in parallel)" : "",
-                 base_link_frame_.c_str());
+    NODELET_INFO(
+        "prefiltering: voxel %.2f m (%s), range [%.1f, %.1f] m, outliers %s%s -> %s",
+        params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off", params_.min_range,
+        params_.max_range, params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
+        params_.parallel_octants ? " (8 octants in parallel)" : "", base_link_frame_.c_str());
   }
 
   static CloudPrefilterParams readParams(ros::NodeHandle& pnh) {

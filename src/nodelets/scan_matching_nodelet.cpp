@@ -3,10 +3,10 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
 
@@ -57,6 +57,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     pnh.param("k_correspondences", r.k_correspondences, r.k_correspondences);
     pnh.param("ndt_resolution", r.ndt_resolution, r.ndt_resolution);
     pnh.param("ndt_step_size", r.ndt_step_size, r.ndt_step_size);
+    pnh.param("vgicp_resolution", r.vgicp_resolution, r.vgicp_resolution);
     pnh.param("gicp_covariance_epsilon", r.gicp_covariance_epsilon, r.gicp_covariance_epsilon);
     pnh.param("min_correspondences", r.min_correspondences, r.min_correspondences);
     pnh.param("keyframe_delta_trans", p.keyframe_delta_trans, p.keyframe_delta_trans);

@@ -24,11 +24,16 @@ Eigen::Isometry3d scaleMotion(const Eigen::Isometry3d& motion, double factor) {
 
 const char* toString(TrackStatus status) {
   switch (status) {
-    case TrackStatus::kFirstKeyframe: return "first_keyframe";
-    case TrackStatus::kMatched: return "matched";
-    case TrackStatus::kMatchFailed: return "match_failed";
-    case TrackStatus::kRejectedStamp: return "rejected_stamp";
-    case TrackStatus::kRejectedCloud: return "rejected_cloud";
+    case TrackStatus::kFirstKeyframe:
+      return "first_keyframe";
+    case TrackStatus::kMatched:
+      return "matched";
+    case TrackStatus::kMatchFailed:
+      return "match_failed";
+    case TrackStatus::kRejectedStamp:
+      return "rejected_stamp";
+    case TrackStatus::kRejectedCloud:
+      return "rejected_cloud";
   }
   return "unknown";
 }
@@ -86,9 +91,9 @@ bool KeyframeTracker::needsKeyframe(const Eigen::Isometry3d& relative, double st
 void KeyframeTracker::makeKeyframe(double stamp, const PointCloudConstPtr& cloud) {
   Keyframe next;
   next.id = has_keyframe_ ? keyframe_.id + 1 : 0;
-  next.accum_distance =
-      has_keyframe_ ? keyframe_.accum_distance + (keyframe_.pose.inverse() * pose_).translation().norm()
-                    : 0.0;
+  next.accum_distance = has_keyframe_ ? keyframe_.accum_distance +
+                                            (keyframe_.pose.inverse() * pose_).translation().norm()
+                                      : 0.0;
   next.stamp = stamp;
   next.pose = pose_;
   next.cloud = cloud;

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <nanoflann.hpp>
+#include <unordered_map>
 #include <vector>
 
 #include "registration_backends.h"
@@ -35,8 +36,15 @@ struct PointAdaptor {
   }
 };
 
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointAdaptor>,
-                                                   PointAdaptor, 3, uint32_t>;
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointAdaptor>,
+                                        PointAdaptor, 3, uint32_t>;
+
+struct VoxelHash {
+  size_t operator()(const Eigen::Vector3i& k) const {
+    return (size_t(k.x()) * 73856093u) ^ (size_t(k.y()) * 19349669u) ^ (size_t(k.z()) * 83492791u);
+  }
+};
 
 /// A cloud prepared for GICP: finite points, KD-tree and regularised covariances.
 struct PreparedCloud {
@@ -45,7 +53,44 @@ struct PreparedCloud {
   std::vector<Mat3> covariances;
   PointAdaptor adaptor;
   std::unique_ptr<KdTree> tree;
+  // Voxel distributions (VGICP target): mean of the points and mean of their covariances.
+  double voxel_resolution = 0.0;
+  std::vector<Vec3> voxel_means;
+  std::vector<Mat3> voxel_covariances;
+  std::vector<double> voxel_weights;  ///< number of points in the voxel
+  std::unordered_map<Eigen::Vector3i, int, VoxelHash> voxel_index;
 };
+
+Eigen::Vector3i voxelKey(const Vec3& p, double resolution) {
+  return (p / resolution).array().floor().cast<int>();
+}
+
+void buildVoxels(PreparedCloud& cloud, double resolution) {
+  if (cloud.voxel_resolution == resolution) return;
+  cloud.voxel_resolution = resolution;
+  cloud.voxel_means.clear();
+  cloud.voxel_covariances.clear();
+  cloud.voxel_weights.clear();
+  cloud.voxel_index.clear();
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    const Vec3 p = cloud.points[i].cast<double>();
+    const auto inserted =
+        cloud.voxel_index.emplace(voxelKey(p, resolution), int(cloud.voxel_means.size()));
+    if (inserted.second) {
+      cloud.voxel_means.push_back(Vec3::Zero());
+      cloud.voxel_covariances.push_back(Mat3::Zero());
+      cloud.voxel_weights.push_back(0.0);
+    }
+    const int v = inserted.first->second;
+    cloud.voxel_means[v] += p;
+    cloud.voxel_covariances[v] += cloud.covariances[i];
+    cloud.voxel_weights[v] += 1.0;
+  }
+  for (size_t v = 0; v < cloud.voxel_means.size(); ++v) {
+    cloud.voxel_means[v] /= cloud.voxel_weights[v];
+    cloud.voxel_covariances[v] /= cloud.voxel_weights[v];
+  }
+}
 
 std::shared_ptr<PreparedCloud> prepare(const PointCloudConstPtr& cloud, int k, double epsilon) {
   auto prepared = std::make_shared<PreparedCloud>();
@@ -60,36 +105,37 @@ std::shared_ptr<PreparedCloud> prepare(const PointCloudConstPtr& cloud, int k, d
   const size_t n = prepared->points.size();
   if (n == 0) return prepared;
   prepared->adaptor.points = &prepared->points;
-  prepared->tree = std::make_unique<KdTree>(3, prepared->adaptor,
-                                            nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  prepared->tree =
+      std::make_unique<KdTree>(3, prepared->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(20));
   prepared->covariances.resize(n);
   const size_t kk = std::min<size_t>(std::max(k, 3), n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
-    std::vector<uint32_t> idx(kk);
-    std::vector<float> dist(kk);
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const size_t found = prepared->tree->knnSearch(prepared->points[i].data(), kk, idx.data(),
-                                                     dist.data());
-      Vec3 mean = Vec3::Zero();
-      Mat3 second = Mat3::Zero();
-      for (size_t j = 0; j < found; ++j) {
-        const Vec3 q = prepared->points[idx[j]].cast<double>();
-        mean += q;
-        second += q * q.transpose();
-      }
-      Mat3 cov = Mat3::Identity() * epsilon;
-      if (found >= 3) {
-        mean /= double(found);
-        cov = (second - double(found) * mean * mean.transpose()) / double(found);
-        // Plane model: the smallest spread becomes epsilon, the two others 1 (GICP paper §3.2).
-        Eigen::SelfAdjointEigenSolver<Mat3> eig;
-        eig.computeDirect(cov);
-        const Vec3 values(epsilon, 1.0, 1.0);
-        cov = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
-      }
-      prepared->covariances[i] = cov;
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<uint32_t> idx(kk);
+        std::vector<float> dist(kk);
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const size_t found =
+              prepared->tree->knnSearch(prepared->points[i].data(), kk, idx.data(), dist.data());
+          Vec3 mean = Vec3::Zero();
+          Mat3 second = Mat3::Zero();
+          for (size_t j = 0; j < found; ++j) {
+            const Vec3 q = prepared->points[idx[j]].cast<double>();
+            mean += q;
+            second += q * q.transpose();
+          }
+          Mat3 cov = Mat3::Identity() * epsilon;
+          if (found >= 3) {
+            mean /= double(found);
+            cov = (second - double(found) * mean * mean.transpose()) / double(found);
+            // Plane model: the smallest spread becomes epsilon, the two others 1 (GICP paper §3.2).
+            Eigen::SelfAdjointEigenSolver<Mat3> eig;
+            eig.computeDirect(cov);
+            const Vec3 values(epsilon, 1.0, 1.0);
+            cov = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+          }
+          prepared->covariances[i] = cov;
+        }
+      });
   return prepared;
 }
 
@@ -126,19 +172,21 @@ struct NormalEquations {
 
 class FastGicp : public Registration {
  public:
-  explicit FastGicp(const RegistrationParams& params)
+  FastGicp(const RegistrationParams& params, bool voxelized)
       : params_(params),
+        voxelized_(voxelized),
         arena_(params.num_threads > 0 ? params.num_threads : tbb::task_arena::automatic) {}
 
-  std::string name() const override { return "fast_gicp"; }
+  std::string name() const override { return voxelized_ ? "fast_vgicp" : "fast_gicp"; }
 
   void setTarget(const PointCloudConstPtr& target) override {
     // A scan that becomes the new keyframe was just the source: reuse its tree and covariances.
     if (last_source_ && target && last_source_->source == target) {
       target_ = last_source_;
-      return;
+    } else {
+      arena_.execute([&] { target_ = prepare(target, params_.k_correspondences, epsilon()); });
     }
-    arena_.execute([&] { target_ = prepare(target, params_.k_correspondences, epsilon()); });
+    if (voxelized_ && target_->tree) buildVoxels(*target_, params_.vgicp_resolution);
   }
 
   RegistrationResult align(const PointCloudConstPtr& source,
@@ -161,19 +209,19 @@ class FastGicp : public Registration {
     RegistrationResult result;
     result.transform = guess;
     if (!target_ || target_->points.size() < minPoints()) {
-      result.message = "fast_gicp: target has fewer than " + std::to_string(minPoints()) +
-                       " valid points";
+      result.message =
+          name() + ": target has fewer than " + std::to_string(minPoints()) + " valid points";
       return result;
     }
     last_source_ = prepare(source, params_.k_correspondences, epsilon());
     const PreparedCloud& src = *last_source_;
     if (src.points.size() < minPoints()) {
-      result.message = "fast_gicp: source has fewer than " + std::to_string(minPoints()) +
-                       " valid points";
+      result.message =
+          name() + ": source has fewer than " + std::to_string(minPoints()) + " valid points";
       return result;
     }
     if (!guess.matrix().allFinite()) {
-      result.message = "fast_gicp: initial guess is not finite";
+      result.message = name() + ": initial guess is not finite";
       return result;
     }
 
@@ -184,82 +232,140 @@ class FastGicp : public Registration {
     for (int iter = 0; iter < params_.max_iterations; ++iter) {
       result.iterations = iter + 1;
       updateCorrespondences(src, t, corr);
-      eq = linearise(src, t, corr, true);
-      if (eq.inliers < params_.min_correspondences) {
-        result.message = "fast_gicp: only " + std::to_string(eq.inliers) +
-                         " correspondences within " +
-                         std::to_string(params_.max_correspondence_distance) + " m";
-        return result;
-      }
-      // Levenberg-Marquardt on the fixed correspondences: accept a step only if it lowers the cost.
-      Vec6 delta = Vec6::Zero();
-      bool accepted = false;
-      for (int attempt = 0; attempt < 10 && !accepted; ++attempt) {
-        Mat6 damped = eq.h;
-        damped.diagonal().array() += lambda * eq.h.diagonal().array().max(1e-9);
-        delta = damped.ldlt().solve(-eq.b);
-        if (!delta.allFinite()) break;
-        const Eigen::Isometry3d candidate = applyUpdate(delta, t);
-        const double cost = linearise(src, candidate, corr, false).cost;
-        if (cost <= eq.cost) {
-          t = candidate;
-          lambda = std::max(lambda / 10.0, 1e-12);
-          accepted = true;
-        } else {
-          lambda *= 10.0;
+      // Several Levenberg-Marquardt steps per (expensive) correspondence update: the
+      // correspondences barely change near the solution, the normal equations are cheap.
+      bool first_step_small = false;
+      for (int inner = 0; inner < kInnerSteps; ++inner) {
+        eq = linearise(src, t, corr, true);
+        if (eq.inliers < params_.min_correspondences) {
+          result.message = name() + ": only " + std::to_string(eq.inliers) +
+                           " correspondences within " +
+                           std::to_string(params_.max_correspondence_distance) + " m";
+          return result;
         }
+        Vec6 delta = Vec6::Zero();
+        const StepOutcome step = levenbergMarquardtStep(src, corr, eq, lambda, t, &delta);
+        if (step == StepOutcome::kNumericalFailure) {
+          result.message = name() + ": singular normal equations";
+          return result;
+        }
+        const bool small_step = step == StepOutcome::kNoDescent ||
+                                (delta.head<3>().norm() < params_.transformation_epsilon &&
+                                 delta.tail<3>().norm() < params_.transformation_epsilon);
+        if (inner == 0) first_step_small = small_step;
+        if (small_step) break;
       }
-      const bool small_step = delta.head<3>().norm() < params_.transformation_epsilon &&
-                              delta.tail<3>().norm() < params_.transformation_epsilon;
-      if (!accepted || small_step) {
-        // No descent left (or a negligible step): we are at the minimum for these
-        // correspondences; converged if they no longer move either.
+      if (first_step_small) {
+        // New correspondences did not move the solution: converged.
         result.converged = true;
         break;
       }
     }
-    updateCorrespondences(src, t, corr);
-    eq = linearise(src, t, corr, false);
+    // Fitness on nearest points (not voxel means) so that every method reports the same measure.
+    updateCorrespondences(src, t, corr, false);
+    eq = linearise(src, t, corr, false, false);
     result.transform = t;
-    result.fitness = eq.inliers > 0 ? eq.squared_distance / eq.inliers
-                                    : std::numeric_limits<double>::infinity();
+    result.fitness =
+        eq.inliers > 0 ? eq.squared_distance / eq.inliers : std::numeric_limits<double>::infinity();
     if (!result.converged) {
-      result.message = "fast_gicp: did not converge within " +
+      result.message = name() + ": did not converge within " +
                        std::to_string(params_.max_iterations) + " iterations";
     } else if (eq.inliers < params_.min_correspondences) {
       result.converged = false;
-      result.message = "fast_gicp: too few correspondences at the solution";
+      result.message = name() + ": too few correspondences at the solution";
     }
     return result;
   }
 
+  static constexpr int kInnerSteps = 4;
+  enum class StepOutcome { kAccepted, kNoDescent, kNumericalFailure };
+
+  /// One damped Gauss-Newton step on fixed correspondences; accepted only if it lowers the cost.
+  StepOutcome levenbergMarquardtStep(const PreparedCloud& src,
+                                     const std::vector<Correspondence>& corr,
+                                     const NormalEquations& eq, double& lambda,
+                                     Eigen::Isometry3d& t, Vec6* delta) const {
+    for (int attempt = 0; attempt < 10; ++attempt) {
+      Mat6 damped = eq.h;
+      damped.diagonal().array() += lambda * eq.h.diagonal().array().max(1e-9);
+      *delta = damped.ldlt().solve(-eq.b);
+      if (!delta->allFinite()) return StepOutcome::kNumericalFailure;
+      const Eigen::Isometry3d candidate = applyUpdate(*delta, t);
+      if (linearise(src, candidate, corr, false).cost <= eq.cost) {
+        t = candidate;
+        lambda = std::max(lambda / 10.0, 1e-12);
+        return StepOutcome::kAccepted;
+      }
+      lambda *= 10.0;
+    }
+    return StepOutcome::kNoDescent;
+  }
+
   void updateCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
                              std::vector<Correspondence>& corr) const {
+    updateCorrespondences(src, t, corr, voxelized_);
+  }
+
+  void updateCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                             std::vector<Correspondence>& corr, bool voxels) const {
+    if (voxels) {
+      updateVoxelCorrespondences(src, t, corr);
+      return;
+    }
     const double max_sq = params_.max_correspondence_distance * params_.max_correspondence_distance;
     const Mat3 r = t.linear();
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, src.points.size(), 512),
+        [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t i = range.begin(); i != range.end(); ++i) {
+            const Eigen::Vector3f p = (t * src.points[i].cast<double>()).cast<float>();
+            uint32_t index = 0;
+            float dist_sq = 0.0f;
+            const size_t found = target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
+            if (found == 0 || dist_sq > max_sq) {
+              corr[i].target = -1;
+              continue;
+            }
+            corr[i].target = static_cast<int>(index);
+            const Mat3 combined =
+                target_->covariances[index] + r * src.covariances[i] * r.transpose();
+            corr[i].information = combined.inverse();
+          }
+        });
+  }
+
+  /// VGICP: the correspondence of a point is the distribution of the target voxel it falls in.
+  void updateVoxelCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                                  std::vector<Correspondence>& corr) const {
+    const Mat3 r = t.linear();
+    const double res = target_->voxel_resolution;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, src.points.size(), 512),
                       [&](const tbb::blocked_range<size_t>& range) {
                         for (size_t i = range.begin(); i != range.end(); ++i) {
-                          const Eigen::Vector3f p = (t * src.points[i].cast<double>()).cast<float>();
-                          uint32_t index = 0;
-                          float dist_sq = 0.0f;
-                          const size_t found =
-                              target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
-                          if (found == 0 || dist_sq > max_sq) {
+                          const Vec3 p = t * src.points[i].cast<double>();
+                          const auto found = target_->voxel_index.find(voxelKey(p, res));
+                          if (found == target_->voxel_index.end()) {
                             corr[i].target = -1;
                             continue;
                           }
-                          corr[i].target = static_cast<int>(index);
-                          const Mat3 combined = target_->covariances[index] +
+                          corr[i].target = found->second;
+                          const Mat3 combined = target_->voxel_covariances[found->second] +
                                                 r * src.covariances[i] * r.transpose();
                           corr[i].information = combined.inverse();
                         }
                       });
   }
 
-  /// Cost (and, when with_derivatives, Gauss-Newton normal equations) for fixed correspondences.
   NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
                             const std::vector<Correspondence>& corr, bool with_derivatives) const {
+    return linearise(src, t, corr, with_derivatives, voxelized_);
+  }
+
+  /// Cost (and, when with_derivatives, Gauss-Newton normal equations) for fixed correspondences
+  /// to target points or (voxels) to target voxel distributions weighted by their point count.
+  NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                            const std::vector<Correspondence>& corr, bool with_derivatives,
+                            bool voxels) const {
     tbb::combinable<NormalEquations> partial;
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, src.points.size(), 512),
@@ -269,8 +375,11 @@ class FastGicp : public Registration {
           for (size_t i = range.begin(); i != range.end(); ++i) {
             if (corr[i].target < 0) continue;
             const Vec3 p = t * src.points[i].cast<double>();
-            const Vec3 residual = target_->points[corr[i].target].cast<double>() - p;
-            const Mat3& info = corr[i].information;
+            const int k = corr[i].target;
+            const Vec3 residual =
+                (voxels ? target_->voxel_means[k] : target_->points[k].cast<double>()) - p;
+            const double w = voxels ? target_->voxel_weights[k] : 1.0;
+            const Mat3 info = w * corr[i].information;
             acc.cost += residual.dot(info * residual);
             acc.squared_distance += residual.squaredNorm();
             ++acc.inliers;
@@ -295,6 +404,7 @@ class FastGicp : public Registration {
   }
 
   RegistrationParams params_;
+  bool voxelized_ = false;
   tbb::task_arena arena_;
   std::shared_ptr<PreparedCloud> target_;
   std::shared_ptr<PreparedCloud> last_source_;
@@ -303,7 +413,11 @@ class FastGicp : public Registration {
 }  // namespace
 
 std::unique_ptr<Registration> makeFastGicp(const RegistrationParams& params) {
-  return std::make_unique<FastGicp>(params);
+  return std::make_unique<FastGicp>(params, false);
+}
+
+std::unique_ptr<Registration> makeFastVgicp(const RegistrationParams& params) {
+  return std::make_unique<FastGicp>(params, true);
 }
 
 }  // namespace osm_graph_slam::detail

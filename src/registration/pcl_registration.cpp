@@ -55,11 +55,11 @@ class PclRegistration : public Registration {
     result.transform = guess;
     const PointCloudPtr src = finitePoints(source);
     if (!target_ || static_cast<int>(target_->size()) < min_points_) {
-      result.message = name_ + ": target has fewer than " + std::to_string(min_points_) +
-                       " valid points";
+      result.message =
+          name_ + ": target has fewer than " + std::to_string(min_points_) + " valid points";
     } else if (static_cast<int>(src->size()) < min_points_) {
-      result.message = name_ + ": source has fewer than " + std::to_string(min_points_) +
-                       " valid points";
+      result.message =
+          name_ + ": source has fewer than " + std::to_string(min_points_) + " valid points";
     } else {
       try {
         reg_.setInputSource(src);
@@ -101,7 +101,7 @@ class PclRegistration : public Registration {
 std::unique_ptr<Registration> makePclGicp(const RegistrationParams& params) {
   using Gicp = pcl::GeneralizedIterativeClosestPoint<PointT, PointT>;
   auto reg = std::make_unique<PclRegistration<Gicp>>("pcl_gicp", params,
-                                                      std::max(params.k_correspondences, 6));
+                                                     std::max(params.k_correspondences, 6));
   reg->impl().setCorrespondenceRandomness(params.k_correspondences);
   return reg;
 }

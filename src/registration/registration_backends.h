@@ -7,6 +7,7 @@
 namespace osm_graph_slam::detail {
 
 std::unique_ptr<Registration> makeFastGicp(const RegistrationParams& params);
+std::unique_ptr<Registration> makeFastVgicp(const RegistrationParams& params);
 std::unique_ptr<Registration> makePclGicp(const RegistrationParams& params);
 std::unique_ptr<Registration> makePclNdt(const RegistrationParams& params);
 

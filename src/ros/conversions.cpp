@@ -24,10 +24,18 @@ float readField(const uint8_t* data, uint8_t datatype) {
 size_t fieldSize(uint8_t datatype) {
   using sensor_msgs::PointField;
   switch (datatype) {
-    case PointField::INT8: case PointField::UINT8: return 1;
-    case PointField::INT16: case PointField::UINT16: return 2;
-    case PointField::INT32: case PointField::UINT32: case PointField::FLOAT32: return 4;
-    case PointField::FLOAT64: return 8;
+    case PointField::INT8:
+    case PointField::UINT8:
+      return 1;
+    case PointField::INT16:
+    case PointField::UINT16:
+      return 2;
+    case PointField::INT32:
+    case PointField::UINT32:
+    case PointField::FLOAT32:
+      return 4;
+    case PointField::FLOAT64:
+      return 8;
   }
   return 0;
 }
@@ -125,8 +133,8 @@ Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& p) {
 }
 
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& t) {
-  return makeIsometry(t.translation.x, t.translation.y, t.translation.z, t.rotation.w,
-                      t.rotation.x, t.rotation.y, t.rotation.z);
+  return makeIsometry(t.translation.x, t.translation.y, t.translation.z, t.rotation.w, t.rotation.x,
+                      t.rotation.y, t.rotation.z);
 }
 
 Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double pitch, double yaw) {

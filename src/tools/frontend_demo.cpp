@@ -42,7 +42,8 @@ std::vector<fs::path> binFiles(const fs::path& dir) {
 }
 
 double ms(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since)
+      .count();
 }
 
 /// Runs prefilter + tracker over one sequence of scans; returns false if nothing could be read.
@@ -90,10 +91,11 @@ bool runSequence(const fs::path& dir, const KeyframeTrackerParams& params, doubl
                 r.message.c_str());
   }
   const double n = static_cast<double>(files.size());
-  std::printf("keyframes %llu, matched %d/%zu, mean prefilter %.1f ms, mean tracking %.1f ms, "
-              "%.1f scans/s (* = new keyframe)\n",
-              static_cast<unsigned long long>(tracker.keyframeCount()), matched, files.size() - 1,
-              pf_total / n, reg_total / n, 1000.0 * n / (pf_total + reg_total));
+  std::printf(
+      "keyframes %llu, matched %d/%zu, mean prefilter %.1f ms, mean tracking %.1f ms, "
+      "%.1f scans/s (* = new keyframe)\n",
+      static_cast<unsigned long long>(tracker.keyframeCount()), matched, files.size() - 1,
+      pf_total / n, reg_total / n, 1000.0 * n / (pf_total + reg_total));
   return true;
 }
 
@@ -106,10 +108,14 @@ int main(int argc, char** argv) {
   double rate_hz = 10.0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--data" && i + 1 < argc) data = argv[++i];
-    else if (arg == "--scans" && i + 1 < argc) scan_dirs.push_back(argv[++i]);
-    else if (arg == "--method" && i + 1 < argc) params.registration.method = argv[++i];
-    else if (arg == "--rate" && i + 1 < argc) rate_hz = std::atof(argv[++i]);
+    if (arg == "--data" && i + 1 < argc)
+      data = argv[++i];
+    else if (arg == "--scans" && i + 1 < argc)
+      scan_dirs.push_back(argv[++i]);
+    else if (arg == "--method" && i + 1 < argc)
+      params.registration.method = argv[++i];
+    else if (arg == "--rate" && i + 1 < argc)
+      rate_hz = std::atof(argv[++i]);
     else {
       std::cerr << "usage: frontend_demo [--data DIR] [--scans DIR ...] [--method M] [--rate HZ]\n";
       return 2;

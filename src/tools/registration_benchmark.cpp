@@ -80,6 +80,9 @@ struct MethodStats {
   std::string message;
 };
 
+int g_k_correspondences = RegistrationParams().k_correspondences;
+double g_epsilon = RegistrationParams().transformation_epsilon;
+
 MethodStats runMethod(const std::string& method, int runs, int threads, const PointCloudPtr& target,
                       const PointCloudPtr& source, const Eigen::Isometry3d& truth) {
   MethodStats stats;
@@ -87,6 +90,8 @@ MethodStats runMethod(const std::string& method, int runs, int threads, const Po
   RegistrationParams params;
   params.method = method;
   params.num_threads = threads;
+  params.k_correspondences = g_k_correspondences;
+  params.transformation_epsilon = g_epsilon;
   std::vector<double> set_ms, align_ms, total_ms;
   RegistrationResult result;
   for (int i = 0; i < runs; ++i) {
@@ -117,14 +122,26 @@ int main(int argc, char** argv) {
   int runs = 5;
   int threads = 0;
   bool json = false;
+  double voxel = CloudPrefilterParams().voxel_leaf_size;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--json") json = true;
-    else if (arg == "--data" && i + 1 < argc) data = argv[++i];
-    else if (arg == "--runs" && i + 1 < argc) runs = std::max(1, std::atoi(argv[++i]));
-    else if (arg == "--threads" && i + 1 < argc) threads = std::atoi(argv[++i]);
+    if (arg == "--json")
+      json = true;
+    else if (arg == "--data" && i + 1 < argc)
+      data = argv[++i];
+    else if (arg == "--runs" && i + 1 < argc)
+      runs = std::max(1, std::atoi(argv[++i]));
+    else if (arg == "--threads" && i + 1 < argc)
+      threads = std::atoi(argv[++i]);
+    else if (arg == "--k" && i + 1 < argc)
+      g_k_correspondences = std::atoi(argv[++i]);
+    else if (arg == "--epsilon" && i + 1 < argc)
+      g_epsilon = std::atof(argv[++i]);
+    else if (arg == "--voxel" && i + 1 < argc)
+      voxel = std::atof(argv[++i]);
     else {
-      std::cerr << "usage: registration_benchmark [--data DIR] [--runs N] [--threads N] [--json]\n";
+      std::cerr << "usage: registration_benchmark [--data DIR] [--runs N] [--threads N] [--k N] "
+                   "[--epsilon E] [--voxel M] [--json]\n";
       return 2;
     }
   }
@@ -144,6 +161,7 @@ int main(int argc, char** argv) {
   // Prefilter: full pipeline, and outlier removal alone (whole cloud vs octants).
   CloudPrefilterParams pf_params;
   pf_params.num_threads = threads;
+  pf_params.voxel_leaf_size = voxel;
   CloudPrefilter prefilter(pf_params);
   std::vector<double> pf_ms;
   CloudPrefilterResult fa, fb;
@@ -173,13 +191,14 @@ int main(int argc, char** argv) {
   octantBench(cropped, &full_whole, &full_oct, &full_nw, &full_no);
 
   std::vector<MethodStats> methods;
-  for (const char* m : {"fast_gicp", "pcl_gicp", "pcl_ndt"}) {
-    methods.push_back(runMethod(m, m == std::string("fast_gicp") ? runs : std::max(1, runs / 2 + 1),
-                                threads, fa.cloud, fb.cloud, truth));
+  for (const char* m : {"fast_gicp", "fast_vgicp", "pcl_gicp", "pcl_ndt"}) {
+    methods.push_back(
+        runMethod(m, std::string(m).rfind("fast", 0) == 0 ? runs : std::max(1, runs / 2 + 1),
+                  threads, fa.cloud, fb.cloud, truth));
   }
   const double prefilter_ms = median(pf_ms);
   const MethodStats& ours = methods[0];
-  const MethodStats& gicp = methods[1];
+  const MethodStats& gicp = methods[2];
   const double speed_ratio = gicp.total_ms / ours.total_ms;
   // Per scan the tracker prefilters once and aligns once (the keyframe's covariances are reused).
   const double scans_per_s = 1000.0 / (prefilter_ms + ours.align_ms);
@@ -200,11 +219,11 @@ int main(int argc, char** argv) {
       << ",\"kept_octants\":" << full_no << "},\"methods\":[";
     for (size_t i = 0; i < methods.size(); ++i) {
       const auto& m = methods[i];
-      o << (i ? "," : "") << "{\"name\":\"" << m.name << "\",\"converged\":"
-        << (m.converged ? "true" : "false") << ",\"set_target_ms\":" << m.set_target_ms
-        << ",\"align_ms\":" << m.align_ms << ",\"total_ms\":" << m.total_ms
-        << ",\"iterations\":" << m.iterations << ",\"fitness\":" << m.fitness
-        << ",\"translation_error_cm\":" << m.trans_err_cm
+      o << (i ? "," : "") << "{\"name\":\"" << m.name
+        << "\",\"converged\":" << (m.converged ? "true" : "false")
+        << ",\"set_target_ms\":" << m.set_target_ms << ",\"align_ms\":" << m.align_ms
+        << ",\"total_ms\":" << m.total_ms << ",\"iterations\":" << m.iterations
+        << ",\"fitness\":" << m.fitness << ",\"translation_error_cm\":" << m.trans_err_cm
         << ",\"rotation_error_deg\":" << m.rot_err_deg
         << ",\"speed_ratio_vs_pcl_gicp\":" << gicp.total_ms / m.total_ms << "}";
     }
@@ -216,12 +235,14 @@ int main(int argc, char** argv) {
   std::printf("KITTI 00 94->95, %d runs (median), threads=%d (hardware %u)\n", runs, threads, hw);
   std::printf("prefilter: %zu -> %zu points, %.1f ms\n", raw_a->size(), fa.cloud->size(),
               prefilter_ms);
-  std::printf("outlier removal on voxelized cloud (%zu pts): whole %.1f ms, octants %.1f ms, "
-              "speed-up %.2fx (kept %zu vs %zu)\n",
-              voxelized->size(), vox_whole, vox_oct, vox_whole / vox_oct, vox_nw, vox_no);
-  std::printf("outlier removal on full-res cloud (%zu pts): whole %.1f ms, octants %.1f ms, "
-              "speed-up %.2fx (kept %zu vs %zu)\n",
-              cropped->size(), full_whole, full_oct, full_whole / full_oct, full_nw, full_no);
+  std::printf(
+      "outlier removal on voxelized cloud (%zu pts): whole %.1f ms, octants %.1f ms, "
+      "speed-up %.2fx (kept %zu vs %zu)\n",
+      voxelized->size(), vox_whole, vox_oct, vox_whole / vox_oct, vox_nw, vox_no);
+  std::printf(
+      "outlier removal on full-res cloud (%zu pts): whole %.1f ms, octants %.1f ms, "
+      "speed-up %.2fx (kept %zu vs %zu)\n",
+      cropped->size(), full_whole, full_oct, full_whole / full_oct, full_nw, full_no);
   std::printf("%-10s %9s %9s %9s %5s %9s %9s %9s %s\n", "method", "target_ms", "align_ms",
               "total_ms", "iter", "fitness", "err_cm", "err_deg", "x_vs_pcl_gicp");
   for (const auto& m : methods) {

@@ -39,7 +39,9 @@ std::string patchworkScan(int i) {
 }
 
 /// The mounting used in the test: velodyne 0.27 m ahead of and 1.73 m above base_link.
-Eigen::Isometry3d sensorToBase() { return fromXyzRpy(0.27, 0.0, 1.73, 0.0, 0.0, 0.0); }
+Eigen::Isometry3d sensorToBase() {
+  return fromXyzRpy(0.27, 0.0, 1.73, 0.0, 0.0, 0.0);
+}
 
 struct Received {
   std::mutex mutex;
@@ -109,19 +111,20 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   OGS_REQUIRE_SHARED_FILE(patchworkScan(kScans - 1));
   ros::NodeHandle nh;
   Received rx;
-  auto odom_sub = nh.subscribe<nav_msgs::Odometry>("odom", 20, [&](const nav_msgs::OdometryConstPtr& m) {
-    std::lock_guard<std::mutex> lock(rx.mutex);
-    rx.odom.push_back(*m);
-  });
+  auto odom_sub =
+      nh.subscribe<nav_msgs::Odometry>("odom", 20, [&](const nav_msgs::OdometryConstPtr& m) {
+        std::lock_guard<std::mutex> lock(rx.mutex);
+        rx.odom.push_back(*m);
+      });
   auto kf_sub = nh.subscribe<KeyFrame>("keyframe", 20, [&](const KeyFrameConstPtr& m) {
     std::lock_guard<std::mutex> lock(rx.mutex);
     rx.keyframes.push_back(*m);
   });
-  auto status_sub =
-      nh.subscribe<ScanMatchingStatus>("scan_matching_status", 20, [&](const ScanMatchingStatusConstPtr& m) {
-        std::lock_guard<std::mutex> lock(rx.mutex);
-        rx.status.push_back(*m);
-      });
+  auto status_sub = nh.subscribe<ScanMatchingStatus>("scan_matching_status", 20,
+                                                     [&](const ScanMatchingStatusConstPtr& m) {
+                                                       std::lock_guard<std::mutex> lock(rx.mutex);
+                                                       rx.status.push_back(*m);
+                                                     });
   auto filtered_sub = nh.subscribe<sensor_msgs::PointCloud2>(
       "filtered_points", 20, [&](const sensor_msgs::PointCloud2ConstPtr& m) {
         std::lock_guard<std::mutex> lock(rx.mutex);
@@ -147,7 +150,8 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   writeBag(bag_path, ros::Time::now());
 
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("velodyne_points", 10);
-  ASSERT_TRUE(waitFor([&] { return pub.getNumSubscribers() > 0 && odom_sub.getNumPublishers() > 0; }, 60.0))
+  ASSERT_TRUE(
+      waitFor([&] { return pub.getNumSubscribers() > 0 && odom_sub.getNumPublishers() > 0; }, 60.0))
       << "the front-end nodelets did not come up";
   auto count = [&](auto member) {
     std::lock_guard<std::mutex> lock(rx.mutex);
@@ -169,7 +173,8 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
       continue;
     }
     ++valid_sent;
-    ASSERT_TRUE(waitFor([&] { return count([&] { return int(rx.odom.size()); }) >= valid_sent; }, 120.0))
+    ASSERT_TRUE(
+        waitFor([&] { return count([&] { return int(rx.odom.size()); }) >= valid_sent; }, 120.0))
         << "no odometry for scan " << valid_sent - 1;
   }
   bag.close();
@@ -193,7 +198,8 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   EXPECT_EQ(last.child_frame_id, "base_link");
   const Eigen::Isometry3d final_pose = fromPoseMsg(last.pose.pose);
 
-  const auto tf = tf_buffer.lookupTransform("odom", "base_link", last.header.stamp, ros::Duration(2.0));
+  const auto tf =
+      tf_buffer.lookupTransform("odom", "base_link", last.header.stamp, ros::Duration(2.0));
   const Eigen::Isometry3d tf_pose = fromTransformMsg(tf.transform);
   EXPECT_LT((tf_pose.inverse() * final_pose).translation().norm(), 1e-6);
 

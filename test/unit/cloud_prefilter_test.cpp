@@ -60,11 +60,11 @@ TEST(CloudPrefilterTest, EmptyNanOnlyAndSinglePointGiveEmptyResultWithReason) {
 TEST(CloudPrefilterTest, RemovesInvalidPointsAndCropsRange) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   PointCloud input;
-  input.push_back(pointAt(1.0f, 0, 0));     // too close (min 2 m)
-  input.push_back(pointAt(5.0f, 0, 0));     // kept
-  input.push_back(pointAt(0, -50.0f, 3));   // kept
-  input.push_back(pointAt(120.0f, 0, 0));   // too far (max 100 m)
-  input.push_back(pointAt(nan, 2.0f, 0));   // invalid
+  input.push_back(pointAt(1.0f, 0, 0));    // too close (min 2 m)
+  input.push_back(pointAt(5.0f, 0, 0));    // kept
+  input.push_back(pointAt(0, -50.0f, 3));  // kept
+  input.push_back(pointAt(120.0f, 0, 0));  // too far (max 100 m)
+  input.push_back(pointAt(nan, 2.0f, 0));  // invalid
   const auto result = CloudPrefilter(onlyBasicSteps()).filter(input);
   ASSERT_TRUE(result.ok) << result.reason;
   ASSERT_EQ(result.cloud->size(), 2u);

@@ -90,7 +90,8 @@ inline PointCloudPtr syntheticScene(int points_per_surface = 1500, unsigned seed
 
 inline PointCloudPtr transformed(const PointCloud& cloud, const Eigen::Isometry3d& t) {
   PointCloudPtr out(new PointCloud(cloud));
-  for (auto& p : out->points) p.getVector3fMap() = (t * p.getVector3fMap().cast<double>()).cast<float>();
+  for (auto& p : out->points)
+    p.getVector3fMap() = (t * p.getVector3fMap().cast<double>()).cast<float>();
   return out;
 }
 

@@ -39,9 +39,10 @@ TEST(KeyframeTrackerTest, OdometryAgreesWithDirectRegistrationOverSixScans) {
     ASSERT_FALSE(last.failed()) << "scan " << i << ": " << last.message;
     keyframe_ids.push_back(last.keyframe_id);
     std::cout << "[patchwork] scan " << i << " keyframe " << last.keyframe_id
-              << (last.new_keyframe ? " (new)" : "") << " t = " << last.pose.translation().transpose()
-              << " fitness " << last.registration.fitness << " iterations "
-              << last.registration.iterations << "\n";
+              << (last.new_keyframe ? " (new)" : "")
+              << " t = " << last.pose.translation().transpose() << " fitness "
+              << last.registration.fitness << " iterations " << last.registration.iterations
+              << "\n";
   }
   // ~0.74 m per scan: keyframes 0 (scan 0) and 1 (scan 3, 2.2 m > 2 m); scan 5 matches keyframe 1.
   EXPECT_EQ(tracker.keyframeCount(), 2u);

@@ -54,6 +54,19 @@ TEST(RegistrationTest, DefaultRecoversKittiMotionFromIdentity) {
   EXPECT_LT(result.fitness, 0.1);
 }
 
+TEST(RegistrationTest, VoxelizedGicpRecoversKittiMotionFromIdentity) {
+  OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("kitti00/000095.bin"));
+  const auto pair = loadKittiPair();
+  const auto result = alignKitti("fast_vgicp", pair);
+  ASSERT_TRUE(result.converged) << result.message;
+  const double et = translationError(pair.truth, result.transform);
+  const double er = rotationErrorDeg(pair.truth, result.transform);
+  std::cout << "[kitti 94->95 fast_vgicp] translation error " << et * 100 << " cm, rotation error "
+            << er << " deg, " << result.time_ms << " ms\n";
+  EXPECT_LT(et, 0.03);
+  EXPECT_LT(er, 0.1);
+}
+
 TEST(RegistrationTest, PclBaselinesRecoverKittiMotion) {
   OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("kitti00/000095.bin"));
   const auto pair = loadKittiPair();
@@ -112,7 +125,7 @@ TEST(RegistrationTest, BadInputFailsCleanlyForEveryMethod) {
   const auto single = cloudOf({{1, 2, 3}});
   Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
   guess.translation() << 0.3, 0.2, 0.1;
-  for (const std::string method : {"fast_gicp", "pcl_gicp", "pcl_ndt"}) {
+  for (const std::string method : {"fast_gicp", "fast_vgicp", "pcl_gicp", "pcl_ndt"}) {
     RegistrationParams params;
     params.method = method;
     for (const auto& bad : {empty, nan_only, single, PointCloudPtr()}) {

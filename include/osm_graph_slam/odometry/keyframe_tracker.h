@@ -14,24 +14,24 @@ namespace osm_graph_slam {
 
 struct KeyframeTrackerParams {
   RegistrationParams registration;
-  double keyframe_delta_trans = 2.0;   ///< [m] new keyframe after this translation
-  double keyframe_delta_angle = 0.26;  ///< [rad] ... or this rotation
-  double keyframe_delta_time = 2.0;    ///< [s] ... or this time
+  double keyframe_delta_trans = 2.0;    ///< [m] new keyframe after this translation
+  double keyframe_delta_angle = 0.26;   ///< [rad] ... or this rotation
+  double keyframe_delta_time = 2.0;     ///< [s] ... or this time
   bool constant_velocity_guess = true;  ///< false: guess = last pose (zero motion)
   /// A match whose fitness (mean squared inlier distance) exceeds this is rejected [m^2].
   double max_fitness = 1.0;
   /// A match that moves further than this from the constant-velocity prediction is rejected.
   double max_correction_trans = 2.0;   ///< [m]
   double max_correction_angle = 0.35;  ///< [rad]
-  int min_points = 50;  ///< scans with fewer points are rejected without matching
+  int min_points = 50;                 ///< scans with fewer points are rejected without matching
 };
 
 enum class TrackStatus {
-  kFirstKeyframe,   ///< first scan: became keyframe 0 at the identity pose
-  kMatched,         ///< registration accepted
-  kMatchFailed,     ///< registration failed/rejected: the prediction was kept (flag raised)
-  kRejectedStamp,   ///< stamp not after the last one: ignored, state unchanged
-  kRejectedCloud,   ///< empty/too small cloud: ignored, state unchanged
+  kFirstKeyframe,  ///< first scan: became keyframe 0 at the identity pose
+  kMatched,        ///< registration accepted
+  kMatchFailed,    ///< registration failed/rejected: the prediction was kept (flag raised)
+  kRejectedStamp,  ///< stamp not after the last one: ignored, state unchanged
+  kRejectedCloud,  ///< empty/too small cloud: ignored, state unchanged
 };
 
 const char* toString(TrackStatus status);
@@ -40,18 +40,20 @@ struct Keyframe {
   uint64_t id = 0;
   double stamp = 0.0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
-  double accum_distance = 0.0;                              ///< [m] since keyframe 0
+  double accum_distance = 0.0;                             ///< [m] since keyframe 0
   PointCloudConstPtr cloud;
 };
 
 struct TrackResult {
   TrackStatus status = TrackStatus::kRejectedCloud;
-  bool failed() const { return status != TrackStatus::kFirstKeyframe && status != TrackStatus::kMatched; }
+  bool failed() const {
+    return status != TrackStatus::kFirstKeyframe && status != TrackStatus::kMatched;
+  }
   /// True when the pose below is a fresh estimate (matched, predicted or first keyframe).
   bool has_pose() const {
     return status != TrackStatus::kRejectedStamp && status != TrackStatus::kRejectedCloud;
   }
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();              ///< base_link in odom
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
   Eigen::Isometry3d relative_to_keyframe = Eigen::Isometry3d::Identity();
   uint64_t keyframe_id = 0;  ///< keyframe matched against (the new one if new_keyframe)
   bool new_keyframe = false;
