@@ -232,8 +232,8 @@ class FastGicp : public Registration {
     for (int iter = 0; iter < params_.max_iterations; ++iter) {
       result.iterations = iter + 1;
       updateCorrespondences(src, t, corr);
-      // Several Levenberg-Marquardt steps per (expensive) correspondence update: the
-      // correspondences barely change near the solution, the normal equations are cheap.
+      // kInnerSteps Levenberg-Marquardt steps per correspondence update (measured: 1 is as
+      // fast as 2-4 on the KITTI pair, the nearest-neighbour search dominates either way).
       bool first_step_small = false;
       for (int inner = 0; inner < kInnerSteps; ++inner) {
         eq = linearise(src, t, corr, true);
@@ -277,7 +277,7 @@ class FastGicp : public Registration {
     return result;
   }
 
-  static constexpr int kInnerSteps = 4;
+  static constexpr int kInnerSteps = 1;
   enum class StepOutcome { kAccepted, kNoDescent, kNumericalFailure };
 
   /// One damped Gauss-Newton step on fixed correspondences; accepted only if it lowers the cost.
