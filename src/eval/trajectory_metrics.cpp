@@ -151,6 +151,14 @@ TrajectoryErrors evaluateTrajectory(const Trajectory& estimate, const Trajectory
     rpe_t.push_back(delta.translation().norm());                 // eq. 4.4
     rpe_r.push_back(rotationAngle(delta));                       // eq. 4.5
   }
+  double travelled = 0.0;
+  for (size_t k = 0; k < est.size(); ++k) {
+    if (k > 0) travelled += (gt[k].translation() - gt[k - 1].translation()).norm();
+    out.estimate_positions.push_back(est[k].translation());
+    out.ground_truth_positions.push_back(gt[k].translation());
+    out.distance_along_path.push_back(travelled);
+  }
+  out.ate_per_pose = ate;
   out.ate = computeErrorStats(ate);
   out.rpe_trans = computeErrorStats(rpe_t);
   out.rpe_rot = computeErrorStats(rpe_r);

@@ -37,6 +37,10 @@ struct TrajectoryErrors {
   size_t kitti_segments = 0;
   double kitti_trans_percent = 0.0;  ///< mean translational drift [%] (0 when no segment fits)
   double kitti_rot_deg_per_100m = 0.0;
+  // Per associated pose, for plots: aligned estimate and ground-truth positions, the ATE term
+  // and the distance travelled along the ground truth.
+  std::vector<Eigen::Vector3d> estimate_positions, ground_truth_positions;
+  std::vector<double> ate_per_pose, distance_along_path;
 };
 
 /// Pairs (estimate index, ground-truth index) whose stamps differ by at most max_dt; each
