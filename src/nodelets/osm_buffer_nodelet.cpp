@@ -2,9 +2,9 @@
 // Thin adapter over OsmBuffer: parameters, gps/fix -> ENU origin, slam/pose -> query, publishers.
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/NavSatFix.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
 #include <memory>
@@ -32,10 +32,18 @@ class OsmBufferNodelet : public nodelet::Nodelet {
     readParams();
     logger_ = std::make_shared<const Logger>([this](LogLevel level, const std::string& m) {
       switch (level) {
-        case LogLevel::kDebug: NODELET_DEBUG_STREAM(m); break;
-        case LogLevel::kInfo: NODELET_INFO_STREAM(m); break;
-        case LogLevel::kWarn: NODELET_WARN_STREAM(m); break;
-        case LogLevel::kError: NODELET_ERROR_STREAM(m); break;
+        case LogLevel::kDebug:
+          NODELET_DEBUG_STREAM(m);
+          break;
+        case LogLevel::kInfo:
+          NODELET_INFO_STREAM(m);
+          break;
+        case LogLevel::kWarn:
+          NODELET_WARN_STREAM(m);
+          break;
+        case LogLevel::kError:
+          NODELET_ERROR_STREAM(m);
+          break;
       }
     });
     if (!createSource()) return;
@@ -104,7 +112,7 @@ class OsmBufferNodelet : public nodelet::Nodelet {
       source_ptr_ = file;
     } else {
       NODELET_ERROR_STREAM("~source must be 'overpass' or 'file', not '" << source_
-                                                                        << "'; osm_buffer idle");
+                                                                         << "'; osm_buffer idle");
       return false;
     }
     NODELET_INFO_STREAM("OSM buildings from " << source_ptr_->describe());
@@ -123,7 +131,8 @@ class OsmBufferNodelet : public nodelet::Nodelet {
       if (buffer_) return;  // the origin is set once
     }
     if (!validFix(*fix)) {
-      NODELET_WARN_THROTTLE(10.0, "ignoring gps/fix without a valid fix (status %d, lat %f, lon %f)",
+      NODELET_WARN_THROTTLE(10.0,
+                            "ignoring gps/fix without a valid fix (status %d, lat %f, lon %f)",
                             fix->status.status, fix->latitude, fix->longitude);
       return;
     }
@@ -183,8 +192,7 @@ class OsmBufferNodelet : public nodelet::Nodelet {
     std_msgs::Header header;
     header.frame_id = map_frame_;
     header.stamp = last_stamp_.isZero() ? ros::Time::now() : last_stamp_;
-    buildings_pub_.publish(
-        buildingArrayToMsg(q.buildings, header, p, buffer_params_.query_radius));
+    buildings_pub_.publish(buildingArrayToMsg(q.buildings, header, p, buffer_params_.query_radius));
     if (markers_pub_.getNumSubscribers() > 0 || ids != last_ids_) {
       markers_pub_.publish(buildingMarkers(q.buildings, header));
     }

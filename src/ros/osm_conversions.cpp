@@ -11,7 +11,9 @@ geometry_msgs::Point toPoint(const Eigen::Vector2d& v, double z = 0.0) {
   return p;
 }
 
-Eigen::Vector2d fromPoint(const geometry_msgs::Point& p) { return {p.x, p.y}; }
+Eigen::Vector2d fromPoint(const geometry_msgs::Point& p) {
+  return {p.x, p.y};
+}
 
 }  // namespace
 
@@ -55,8 +57,8 @@ Building buildingFromMsg(const BuildingMsg& msg, const EnuConverter* enu) {
 }
 
 BuildingArray buildingArrayToMsg(const std::vector<Building>& buildings,
-                                 const std_msgs::Header& header, const Eigen::Vector2d& query_centre,
-                                 double query_radius) {
+                                 const std_msgs::Header& header,
+                                 const Eigen::Vector2d& query_centre, double query_radius) {
   BuildingArray msg;
   msg.header = header;
   msg.query_center = toPoint(query_centre);

@@ -1,7 +1,7 @@
 // rostest for the osm_buffer nodelet: origin from the first valid fix, buildings around the
 // pose from the local Overpass test server (real Karlsruhe extract), markers, refill on motion.
-#include <gtest/gtest.h>
 #include <geometry_msgs/PoseStamped.h>
+#include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <nodelet/NodeletUnload.h>
 #include <ros/ros.h>
@@ -31,7 +31,8 @@ struct Inbox {
 };
 
 /// Expected ids: outline within radius of p, from the file read independently of the server.
-std::set<int64_t> expectedIds(const std::vector<Building>& all, const Eigen::Vector2d& p, double r) {
+std::set<int64_t> expectedIds(const std::vector<Building>& all, const Eigen::Vector2d& p,
+                              double r) {
   std::set<int64_t> ids;
   for (const Building& b : all) {
     if (outlineDistance(b.outline_enu, p) <= r) ids.insert(b.id);
@@ -94,7 +95,8 @@ TEST(OsmBufferNodelet, OriginBuildingsAndMarkers) {
   load.request.type = "osm_graph_slam/OsmBufferNodelet";
   ASSERT_TRUE(ros::service::call(manager + "/load_nodelet", load));
   ASSERT_TRUE(load.response.success);
-  ASSERT_TRUE(spinUntil([&] { return fix_pub.getNumSubscribers() > 0 && pose_pub.getNumSubscribers() > 0; }, 20.0));
+  ASSERT_TRUE(spinUntil(
+      [&] { return fix_pub.getNumSubscribers() > 0 && pose_pub.getNumSubscribers() > 0; }, 20.0));
 
   // No origin yet: an invalid fix (no fix status) must not set it.
   sensor_msgs::NavSatFix fix;
@@ -125,8 +127,8 @@ TEST(OsmBufferNodelet, OriginBuildingsAndMarkers) {
   std::vector<Building> all = data.buildings;
   for (Building& b : all) enu.project(b);
 
-  for (const Eigen::Vector2d& p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(40, 5),
-                                   Eigen::Vector2d(90, 10)}) {
+  for (const Eigen::Vector2d& p :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(40, 5), Eigen::Vector2d(90, 10)}) {
     geometry_msgs::PoseStamped pose;
     pose.header.frame_id = "map";
     pose.pose.position.x = p.x();
@@ -140,9 +142,8 @@ TEST(OsmBufferNodelet, OriginBuildingsAndMarkers) {
           pose.header.stamp = ros::Time::now();
           pose_pub.publish(pose);
           std::lock_guard<std::mutex> l(inbox.mutex);
-          if (!inbox.buildings ||
-              std::hypot(inbox.buildings->query_center.x - p.x(),
-                         inbox.buildings->query_center.y - p.y()) > 1e-6) {
+          if (!inbox.buildings || std::hypot(inbox.buildings->query_center.x - p.x(),
+                                             inbox.buildings->query_center.y - p.y()) > 1e-6) {
             return false;
           }
           got.clear();
@@ -150,8 +151,8 @@ TEST(OsmBufferNodelet, OriginBuildingsAndMarkers) {
           return got == expected;
         },
         30.0);
-    EXPECT_TRUE(arrived) << "at " << p.transpose() << ": got " << got.size() << " buildings, expected "
-                         << expected.size();
+    EXPECT_TRUE(arrived) << "at " << p.transpose() << ": got " << got.size()
+                         << " buildings, expected " << expected.size();
     std::lock_guard<std::mutex> l(inbox.mutex);
     ASSERT_TRUE(inbox.buildings);
     EXPECT_EQ(inbox.buildings->header.frame_id, "map");

@@ -26,8 +26,8 @@ BuildingMsg buildingToMsg(const Building& building);
 Building buildingFromMsg(const BuildingMsg& msg, const EnuConverter* enu = nullptr);
 
 BuildingArray buildingArrayToMsg(const std::vector<Building>& buildings,
-                                 const std_msgs::Header& header, const Eigen::Vector2d& query_centre,
-                                 double query_radius);
+                                 const std_msgs::Header& header,
+                                 const Eigen::Vector2d& query_centre, double query_radius);
 std::vector<Building> buildingsFromMsg(const BuildingArray& msg, const EnuConverter* enu = nullptr);
 
 /// Outlines (one LINE_LIST) and reference corners (one SPHERE_LIST), preceded by DELETEALL.
