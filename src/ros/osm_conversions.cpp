@@ -17,8 +17,8 @@ Eigen::Vector2d fromPoint(const geometry_msgs::Point& p) {
 
 }  // namespace
 
-BuildingMsg buildingToMsg(const Building& building) {
-  BuildingMsg msg;
+OsmBuilding buildingToMsg(const Building& building) {
+  OsmBuilding msg;
   msg.id = building.id;
   msg.outline.reserve(building.outline_enu.size());
   for (const auto& v : building.outline_enu) msg.outline.push_back(toPoint(v));
@@ -40,7 +40,7 @@ BuildingMsg buildingToMsg(const Building& building) {
   return msg;
 }
 
-Building buildingFromMsg(const BuildingMsg& msg, const EnuConverter* enu) {
+Building buildingFromMsg(const OsmBuilding& msg, const EnuConverter* enu) {
   Building b;
   b.id = msg.id;
   for (const auto& p : msg.outline) b.outline_enu.push_back(fromPoint(p));

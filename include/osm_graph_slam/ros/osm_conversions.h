@@ -1,10 +1,6 @@
 #pragma once
-// Building <-> osm_graph_slam/Building(Array) messages and rviz markers.
-//
-// The message osm_graph_slam/Building would become the C++ type osm_graph_slam::Building, the
-// name of the core struct. Include the messages through this header: it renames the message
-// typedef to osm_graph_slam::BuildingMsg (BuildingArray keeps its name). Never include
-// <osm_graph_slam/Building.h> directly in a file that also sees the core Building.
+// Building <-> osm_graph_slam/OsmBuilding(Array) messages and rviz markers. (The message is
+// called OsmBuilding so that its C++ type does not clash with the core struct Building.)
 #include <std_msgs/Header.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -14,16 +10,14 @@
 #include "osm_graph_slam/osm/building.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 
-#define Building BuildingMsg
-#include <osm_graph_slam/Building.h>
 #include <osm_graph_slam/BuildingArray.h>
-#undef Building
+#include <osm_graph_slam/OsmBuilding.h>
 
 namespace osm_graph_slam {
 
-BuildingMsg buildingToMsg(const Building& building);
+OsmBuilding buildingToMsg(const Building& building);
 /// enu (optional) refills outline_geo from the ENU outline.
-Building buildingFromMsg(const BuildingMsg& msg, const EnuConverter* enu = nullptr);
+Building buildingFromMsg(const OsmBuilding& msg, const EnuConverter* enu = nullptr);
 
 BuildingArray buildingArrayToMsg(const std::vector<Building>& buildings,
                                  const std_msgs::Header& header,
