@@ -28,10 +28,6 @@ using Clock = std::chrono::steady_clock;
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kNegInf = -std::numeric_limits<double>::infinity();
 
-double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  return a.x() * b.y() - a.y() * b.x();
-}
-
 /// Finite, non-degenerate segments only (bad input never reaches the search).
 std::vector<LineSegment2> sanitize(const std::vector<LineSegment2>& in) {
   std::vector<LineSegment2> out;
@@ -54,8 +50,10 @@ class TargetIndex {
 
   TargetIndex(const std::vector<LineSegment2>& target, double radius, double cell, bool brute)
       : brute_(brute), stamp_(target.size(), 0) {
-    for (const auto& s : target) segs_.push_back({s.start, s.direction(), {}, s.length()});
-    for (auto& s : segs_) s.n = {-s.u.y(), s.u.x()};
+    for (const auto& s : target) {
+      const Eigen::Vector2d u = s.direction();
+      segs_.push_back({s.start, u, Eigen::Vector2d(-u.y(), u.x()), s.length()});
+    }
     if (brute_ || target.empty()) return;
     Eigen::Vector2d lo(HUGE_VAL, HUGE_VAL), hi(-HUGE_VAL, -HUGE_VAL);
     for (const auto& s : target) {
@@ -445,8 +443,10 @@ void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchF
   const bool edge = feature == MatchFeature::kEdge;
   const double xy = edge ? p.edge_information_xy : p.line_information_xy;
   const double th = edge ? p.edge_information_theta : p.line_information_theta;
+  const double top = 100.0 * p.weight_coverage;  // fitness of a perfect, complete match
   const double scale =
-      p.weight_coverage > 0 ? std::clamp(s.fitness / (100.0 * p.weight_coverage), 0.0, 1.0) : 1.0;
+      top > p.min_fitness ? std::clamp((s.fitness - p.min_fitness) / (top - p.min_fitness), 0.0, 1.0)
+                          : 1.0;
   r.information.setZero();
   Eigen::Matrix2d txy = xy * Eigen::Matrix2d::Identity();
   if (r.two_dof) {

@@ -59,7 +59,8 @@ WeightedPoints mergeOnGrid(const std::vector<Eigen::Vector2d>& pts, double res) 
 }
 
 struct Line {
-  Eigen::Vector2d point, dir;  // dir unit
+  Eigen::Vector2d point = Eigen::Vector2d::Zero();
+  Eigen::Vector2d dir = Eigen::Vector2d::UnitX();  // unit
 };
 
 /// Weighted total least squares line of a subset.

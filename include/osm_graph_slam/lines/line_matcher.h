@@ -34,11 +34,13 @@ struct LineMatcherParams {
   double max_translation_fitness = 3.0;  ///< MaxTranslation [m]
   /// Per-segment distance truncation and nearest-neighbour search radius: a clutter segment with
   /// no counterpart costs this much instead of its distance to an arbitrary far wall [m].
-  double max_correspondence_distance = 1.5;
+  double max_correspondence_distance = 1.0;
   double max_correspondence_angle_deg = 20.0;  ///< nearest neighbours must be this parallel
   double matched_distance = 0.3;  ///< a source segment this close to its neighbour is matched [m]
   // --- result ---
-  double min_fitness = 0.0;        ///< below: success = false
+  /// Below: success = false. Local matching sees a building partly (unseen walls cost the full
+  /// correspondence distance), so good local matches score around -40..+40, global ones 50..100.
+  double min_fitness = -50.0;
   int min_matched_segments = 1;
   double two_dof_max_angle_deg = 15.0;  ///< matched walls all within this: only 2 DOF
   double two_dof_along_scale = 1e-3;    ///< information kept along the unconstrained direction
@@ -81,7 +83,8 @@ struct LineMatchResult {
   bool two_dof = false;
   Eigen::Vector2d constrained_normal = Eigen::Vector2d::Zero();
   /// Information of (x, y, theta) of `transform`, translation in the target frame: by feature
-  /// type, scaled by fitness / (100 B) in [0, 1]; nearly zero along the wall when two_dof.
+  /// type, scaled by (fitness - min_fitness) / (100 B - min_fitness) in [0, 1]; nearly zero
+  /// along the wall when two_dof.
   Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
   double avg_distance = 0.0, coverage = 0.0, translation = 0.0;  ///< terms of the fitness
   LineMatchStats stats;
