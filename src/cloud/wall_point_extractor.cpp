@@ -139,15 +139,22 @@ PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStat
   const auto t0 = Clock::now();
   WallPointStats stats;
   stats.input = cloud.size();
+  auto since = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
   PointCloudPtr above = cutBelowHorizon(cloud, params_, stats);
+  stats.cut_ms = since(t0);
   if (stats.finite < stats.input) {
     logger_->warnOnce("wall_nan", "WallPointExtractor: dropping non-finite points (first seen: " +
                                       std::to_string(stats.input - stats.finite) + " of " +
                                       std::to_string(stats.input) + ")");
   }
   stats.above_horizon = above->size();
+  const auto t1 = Clock::now();
   PointCloudPtr sparse = voxelize(above, params_.voxel_size);
   stats.voxelized = sparse->size();
+  stats.voxel_ms = since(t1);
+  const auto t2 = Clock::now();
 
   auto walls = std::make_shared<PointCloud>();
   if (sparse->size() >= 3) {
@@ -168,6 +175,7 @@ PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStat
       walls->push_back(pt);
     }
   }
+  stats.normal_ms = since(t2);
   walls->width = walls->size();
   walls->height = 1;
   walls->is_dense = true;

@@ -15,7 +15,7 @@ namespace osm_graph_slam {
 struct LineSegmentExtractorParams {
   /// Coincident points (a wall column flattened to z = 0) are merged on this 2D grid and weighted
   /// by their count; cluster sizes count merged points. 0 disables merging.
-  double merge_resolution = 0.1;
+  double merge_resolution = 0.15;
   double distance_threshold = 0.1;  ///< RANSAC inlier distance to the line [m]
   int max_iterations = 80;          ///< RANSAC hypotheses per extracted line
   /// The second sample is drawn from the first one's cell of this size: walls are local, so a
