@@ -77,7 +77,8 @@ bool isVerticalSurface(const Eigen::Matrix3f& cov, float max_sin) {
 }
 
 /// Step 2 (ours): nanoflann kNN + closed-form 3x3 eigen decomposition, TBB over points.
-std::vector<char> verticalMaskNanoflann(const PointCloud& cloud, const WallPointExtractorParams& p) {
+std::vector<char> verticalMaskNanoflann(const PointCloud& cloud,
+                                        const WallPointExtractorParams& p) {
   std::vector<char> keep(cloud.size(), 0);
   CloudAdaptor adaptor{cloud};
   KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
@@ -135,7 +136,8 @@ WallPointExtractor::WallPointExtractor(const WallPointExtractorParams& params,
   }
 }
 
-PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStats* stats_out) const {
+PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud,
+                                          WallPointStats* stats_out) const {
   const auto t0 = Clock::now();
   WallPointStats stats;
   stats.input = cloud.size();
@@ -159,8 +161,8 @@ PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStat
   auto walls = std::make_shared<PointCloud>();
   if (sparse->size() >= 3) {
     std::vector<char> keep;
-    const int threads = params_.num_threads > 0 ? params_.num_threads
-                                                : int(std::thread::hardware_concurrency());
+    const int threads =
+        params_.num_threads > 0 ? params_.num_threads : int(std::thread::hardware_concurrency());
     if (params_.normal_backend == "pcl") {
       keep = verticalMaskPcl(sparse, params_);
     } else {

@@ -21,10 +21,14 @@ class LineExtractionNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     logger_ = std::make_shared<Logger>([this](LogLevel level, const std::string& msg) {
-      if (level == LogLevel::kError) NODELET_ERROR_STREAM(msg);
-      else if (level == LogLevel::kWarn) NODELET_WARN_STREAM(msg);
-      else if (level == LogLevel::kInfo) NODELET_INFO_STREAM(msg);
-      else NODELET_DEBUG_STREAM(msg);
+      if (level == LogLevel::kError)
+        NODELET_ERROR_STREAM(msg);
+      else if (level == LogLevel::kWarn)
+        NODELET_WARN_STREAM(msg);
+      else if (level == LogLevel::kInfo)
+        NODELET_INFO_STREAM(msg);
+      else
+        NODELET_DEBUG_STREAM(msg);
     });
     WallPointExtractorParams wp;
     pnh.param("wall/horizon_height", wp.horizon_height, wp.horizon_height);
@@ -59,10 +63,11 @@ class LineExtractionNodelet : public nodelet::Nodelet {
     segments_pub_ = nh.advertise<LineSegmentArray>("line_segments", 10);
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("line_markers", 2);
     keyframe_sub_ = nh.subscribe("keyframe", 10, &LineExtractionNodelet::onKeyFrame, this);
-    NODELET_INFO("line_extraction: horizon %.2f m, voxel %.2f m, k %d, normal angle %.1f deg; "
-                 "RANSAC threshold %.2f m, min cluster %d, min length %.1f m",
-                 wp.horizon_height, wp.voxel_size, wp.k_neighbors, wp.max_normal_angle_deg,
-                 lp.distance_threshold, lp.min_cluster_size, lp.min_segment_length);
+    NODELET_INFO(
+        "line_extraction: horizon %.2f m, voxel %.2f m, k %d, normal angle %.1f deg; "
+        "RANSAC threshold %.2f m, min cluster %d, min length %.1f m",
+        wp.horizon_height, wp.voxel_size, wp.k_neighbors, wp.max_normal_angle_deg,
+        lp.distance_threshold, lp.min_cluster_size, lp.min_segment_length);
   }
 
  private:
@@ -72,7 +77,8 @@ class LineExtractionNodelet : public nodelet::Nodelet {
       pcl::fromROSMsg(kf->cloud, cloud);
     } catch (const std::exception& e) {
       logger_->warnOnce("bad_cloud", std::string("line_extraction: cannot convert the keyframe "
-                                                 "cloud (publishing no segments): ") + e.what());
+                                                 "cloud (publishing no segments): ") +
+                                         e.what());
       cloud.clear();
     }
     WallPointStats wstats;
@@ -82,7 +88,8 @@ class LineExtractionNodelet : public nodelet::Nodelet {
 
     auto out = boost::make_shared<LineSegmentArray>();
     out->header.stamp = kf->header.stamp;
-    out->header.frame_id = kf->cloud.header.frame_id.empty() ? base_frame_ : kf->cloud.header.frame_id;
+    out->header.frame_id =
+        kf->cloud.header.frame_id.empty() ? base_frame_ : kf->cloud.header.frame_id;
     out->keyframe_id = kf->id;
     out->segments.reserve(segments.size());
     for (const auto& s : segments) {

@@ -195,9 +195,9 @@ Summary summarize(const std::vector<FrameRow>& rows) {
     ++s.n;
   }
   const double n = std::max(1, s.n);
-  for (double* v : {&s.wall, &s.wall_pcl, &s.seg, &s.seg_pcl, &s.match, &s.brute, &s.wall_cpu,
-                    &s.seg_cpu, &s.match_cpu,
-                    &s.edge_pairs_total, &s.edge_pairs_in_bounds, &s.evaluated})
+  for (double* v :
+       {&s.wall, &s.wall_pcl, &s.seg, &s.seg_pcl, &s.match, &s.brute, &s.wall_cpu, &s.seg_cpu,
+        &s.match_cpu, &s.edge_pairs_total, &s.edge_pairs_in_bounds, &s.evaluated})
     *v /= n;
   if (s.local_n) s.local /= s.local_n;
   return s;
@@ -218,7 +218,8 @@ void printRows(const char* title, const std::vector<FrameRow>& rows) {
         r.err_m, r.err_deg, r.local_ms_per_building);
   const Summary s = summarize(rows);
   std::printf(
-      "mean per keyframe: walls %.2f ms (PCL normals %.2f, ratio %.1fx) | segments %.2f ms (PCL SAC "
+      "mean per keyframe: walls %.2f ms (PCL normals %.2f, ratio %.1fx) | segments %.2f ms (PCL "
+      "SAC "
       "loop %.2f, ratio %.1fx) | global matching %.3f ms (brute force %.3f, ratio %.1fx) | "
       "extraction + global matching %.2f ms | local %.3f ms/building | search space %.0f edge "
       "pairs -> %.0f in bounds -> %.0f evaluated | max error %.3f m %.3f deg | %d/%d matched\n",
@@ -226,9 +227,10 @@ void printRows(const char* title, const std::vector<FrameRow>& rows) {
       s.seg_pcl / std::max(1e-9, s.seg), s.match, s.brute, s.brute / std::max(1e-9, s.match),
       s.wall + s.seg + s.match, s.local, s.edge_pairs_total, s.edge_pairs_in_bounds, s.evaluated,
       s.max_err_m, s.max_err_deg, s.matched, s.n);
-  std::printf("CPU time per keyframe (all threads; unaffected by waiting for a core): walls %.2f "
-              "ms, segments %.2f ms, global matching %.3f ms, sum %.2f ms\n",
-              s.wall_cpu, s.seg_cpu, s.match_cpu, s.wall_cpu + s.seg_cpu + s.match_cpu);
+  std::printf(
+      "CPU time per keyframe (all threads; unaffected by waiting for a core): walls %.2f "
+      "ms, segments %.2f ms, global matching %.3f ms, sum %.2f ms\n",
+      s.wall_cpu, s.seg_cpu, s.match_cpu, s.wall_cpu + s.seg_cpu + s.match_cpu);
 }
 
 std::string jsonSummary(const char* key, const std::vector<FrameRow>& rows) {
@@ -240,8 +242,7 @@ std::string jsonSummary(const char* key, const std::vector<FrameRow>& rows) {
     << ",\"global_match_brute_force_ms\":" << s.brute
     << ",\"extraction_plus_global_ms\":" << s.wall + s.seg + s.match
     << ",\"wall_cpu_ms\":" << s.wall_cpu << ",\"segment_cpu_ms\":" << s.seg_cpu
-    << ",\"global_match_cpu_ms\":" << s.match_cpu
-    << ",\"local_match_ms_per_building\":" << s.local
+    << ",\"global_match_cpu_ms\":" << s.match_cpu << ",\"local_match_ms_per_building\":" << s.local
     << ",\"edge_pairs_total\":" << s.edge_pairs_total
     << ",\"edge_pairs_in_bounds\":" << s.edge_pairs_in_bounds
     << ",\"hypotheses_evaluated\":" << s.evaluated << ",\"max_error_m\":" << s.max_err_m
@@ -346,8 +347,10 @@ int main(int argc, char** argv) {
     } else if (a == "--threads" && i + 1 < argc) {
       threads = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: %s [--data DIR] [--repeat N] [--threads N] [--json] [--voxel M] [--k N] "
-                   "[--merge M] [--iterations N]\n", argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--data DIR] [--repeat N] [--threads N] [--json] [--voxel M] [--k N] "
+                   "[--merge M] [--iterations N]\n",
+                   argv[0]);
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
@@ -359,9 +362,10 @@ int main(int argc, char** argv) {
                 jsonSummary("kitti", kitti).c_str(), jsonSummary("simulated", sim).c_str());
     return 0;
   }
-  std::printf("line_benchmark: %d threads, median of %d runs per stage (thesis: 464 ms extraction "
-              "+ 996 ms global matching per keyframe on 8 cores; target <= 15 ms on 2 cores)\n",
-              threads, repeat);
+  std::printf(
+      "line_benchmark: %d threads, median of %d runs per stage (thesis: 464 ms extraction "
+      "+ 996 ms global matching per keyframe on 8 cores; target <= 15 ms on 2 cores)\n",
+      threads, repeat);
   if (kitti.empty())
     std::printf("\n(no KITTI scans under %s: real-scan rows skipped)\n", data.c_str());
   else

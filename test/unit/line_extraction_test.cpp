@@ -35,8 +35,8 @@ TEST(WallPointExtractor, KeepsWallsDropsGroundRoofAndBelowHorizon) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int i = 0; i < 4000; ++i) {
     cloud.push_back(point(10.0 + 0.01 * u(rng), -8 + 16 * u(rng), -1.0 + 6 * u(rng)));  // wall x=10
-    cloud.push_back(point(-8 + 16 * u(rng), -8 + 16 * u(rng), -1.7));                    // ground
-    cloud.push_back(point(-12 + 4 * u(rng), -8 + 16 * u(rng), 3.0 + 0.01 * u(rng)));     // canopy/roof
+    cloud.push_back(point(-8 + 16 * u(rng), -8 + 16 * u(rng), -1.7));                   // ground
+    cloud.push_back(point(-12 + 4 * u(rng), -8 + 16 * u(rng), 3.0 + 0.01 * u(rng)));  // canopy/roof
   }
   WallPointStats stats;
   const auto walls = WallPointExtractor().extract(cloud, &stats);
@@ -68,7 +68,7 @@ TEST(WallPointExtractor, BadInputGivesEmptyOrFiniteOutput) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   PointCloud bad;
   for (int i = 0; i < 100; ++i) bad.push_back(point(nan, 1, 1));
-  for (int i = 0; i < 100; ++i) bad.push_back(point(5, 5, 1));  // duplicates
+  for (int i = 0; i < 100; ++i) bad.push_back(point(5, 5, 1));            // duplicates
   for (int i = 0; i < 100; ++i) bad.push_back(point(5 + 0.1 * i, 5, 1));  // collinear
   bad.push_back(point(std::numeric_limits<float>::infinity(), 0, 1));
   WallPointStats stats;
@@ -165,5 +165,6 @@ TEST(LineGeometry, DistancesAndEdges) {
   EXPECT_TRUE(v[0].virtual_edge);
   // Parallel walls: no edge.
   EXPECT_TRUE(
-      extractEdges({LineSegment2({0, 0}, {8, 0}), LineSegment2({0, 3}, {8, 3})}, EdgeParams()).empty());
+      extractEdges({LineSegment2({0, 0}, {8, 0}), LineSegment2({0, 3}, {8, 3})}, EdgeParams())
+          .empty());
 }

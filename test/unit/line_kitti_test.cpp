@@ -63,10 +63,11 @@ TEST(LineKitti, SegmentsLieOnVerticalStructure) {
   std::sort(lengths.begin(), lengths.end());
   double total = 0.0;
   for (double l : lengths) total += l;
-  std::printf("[kitti 94] %zu points -> %zu above horizon -> %zu voxels -> %zu wall points -> %zu "
-              "segments, length min %.2f median %.2f max %.2f total %.1f m\n",
-              wstats.input, wstats.above_horizon, wstats.voxelized, wstats.walls, segments.size(),
-              lengths.front(), lengths[lengths.size() / 2], lengths.back(), total);
+  std::printf(
+      "[kitti 94] %zu points -> %zu above horizon -> %zu voxels -> %zu wall points -> %zu "
+      "segments, length min %.2f median %.2f max %.2f total %.1f m\n",
+      wstats.input, wstats.above_horizon, wstats.voxelized, wstats.walls, segments.size(),
+      lengths.front(), lengths[lengths.size() / 2], lengths.back(), total);
   ASSERT_GE(segments.size(), 10u);
   EXPECT_LE(segments.size(), 64u);
   EXPECT_GE(lengths.back(), 8.0);  // at least one long facade
@@ -91,7 +92,8 @@ TEST(LineKitti, SegmentsLieOnVerticalStructure) {
       std::printf("  low: length %.2f at range %.1f, z %.2f..%.2f\n", s.length(),
                   s.midpoint().norm(), zmin, zmax);
   }
-  std::printf("[kitti 94] %d of %zu segments on >= 1 m tall structure\n", vertical, segments.size());
+  std::printf("[kitti 94] %d of %zu segments on >= 1 m tall structure\n", vertical,
+              segments.size());
   EXPECT_GE(vertical, int(0.9 * segments.size()));
 }
 
@@ -104,15 +106,15 @@ TEST(LineKitti, ScanToScanMatchingRecoversGroundTruthMotion) {
   const auto seg95 = segmentsOf(readScan("000095.bin"));
   // Source: scan 95, target: scan 94, no prior motion (identity guess).
   const LineMatchResult r = LineMatcher().matchGlobal(seg95, seg94, Pose2());
-  std::printf("[kitti 95->94] (%.4f, %.4f, %.4f deg) vs gt (%.4f, %.4f, %.4f deg): error %.3f m "
-              "%.3f deg, fitness %.1f matched %d/%zu %s, edge pairs %zu/%zu evaluated %zu+%zu, "
-              "%.2f ms\n",
-              r.transform.x, r.transform.y, r.transform.theta / kDeg, gt.x, gt.y, gt.theta / kDeg,
-              std::hypot(r.transform.x - gt.x, r.transform.y - gt.y),
-              std::abs(wrapAngle(r.transform.theta - gt.theta)) / kDeg, r.fitness,
-              r.matched_segments, seg95.size(), toString(r.feature), r.stats.edge_pairs_in_bounds,
-              r.stats.edge_pairs_total, r.stats.hypotheses_evaluated, r.stats.line_pairs_evaluated,
-              r.stats.ms);
+  std::printf(
+      "[kitti 95->94] (%.4f, %.4f, %.4f deg) vs gt (%.4f, %.4f, %.4f deg): error %.3f m "
+      "%.3f deg, fitness %.1f matched %d/%zu %s, edge pairs %zu/%zu evaluated %zu+%zu, "
+      "%.2f ms\n",
+      r.transform.x, r.transform.y, r.transform.theta / kDeg, gt.x, gt.y, gt.theta / kDeg,
+      std::hypot(r.transform.x - gt.x, r.transform.y - gt.y),
+      std::abs(wrapAngle(r.transform.theta - gt.theta)) / kDeg, r.fitness, r.matched_segments,
+      seg95.size(), toString(r.feature), r.stats.edge_pairs_in_bounds, r.stats.edge_pairs_total,
+      r.stats.hypotheses_evaluated, r.stats.line_pairs_evaluated, r.stats.ms);
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_LT(std::hypot(r.transform.x - gt.x, r.transform.y - gt.y), 0.10);
   EXPECT_LT(std::abs(wrapAngle(r.transform.theta - gt.theta)), 0.5 * kDeg);

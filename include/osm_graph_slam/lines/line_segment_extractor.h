@@ -21,8 +21,8 @@ struct LineSegmentExtractorParams {
   /// The second sample is drawn from the first one's cell of this size: walls are local, so a
   /// pair of points on the same wall is found in far fewer draws than with uniform sampling.
   double sample_cell = 3.0;
-  double cluster_tolerance = 0.6;  ///< largest gap along the line inside one cluster [m]
-  int min_cluster_size = 10;       ///< merged points a segment needs
+  double cluster_tolerance = 0.6;   ///< largest gap along the line inside one cluster [m]
+  int min_cluster_size = 10;        ///< merged points a segment needs
   double min_segment_length = 1.0;  ///< [m]
   int max_segments = 64;
   int max_consecutive_rejects = 8;  ///< stop after this many rejected clusters in a row
@@ -46,7 +46,8 @@ class LineSegmentExtractor {
   std::vector<LineSegment2> extract(const std::vector<Eigen::Vector2d>& points,
                                     LineSegmentStats* stats = nullptr) const;
   /// Same on the x, y of a (flattened) cloud.
-  std::vector<LineSegment2> extract(const PointCloud& cloud, LineSegmentStats* stats = nullptr) const;
+  std::vector<LineSegment2> extract(const PointCloud& cloud,
+                                    LineSegmentStats* stats = nullptr) const;
 
   const LineSegmentExtractorParams& params() const { return params_; }
 
