@@ -22,6 +22,9 @@ struct LidarModel {
   double range_noise_sigma = 0.02;  ///< [m]
   double dropout_probability = 0.02;
   double intensity_noise_sigma = 0.02;
+  /// Weak returns are lost: a return needs reflectivity * cos(incidence) * (20 m / range)^2 above
+  /// this (grazing far ground, dark far surfaces), which brings an HDL-64E to ~120k points.
+  double detection_threshold = 0.005;
   double mount_height = 1.73;  ///< above the ground [m] (sets calib / trajectory)
 
   /// Velodyne HDL-64E: 64 beams, +2.0 deg ... -24.8 deg (upper block 1/3 deg, lower 1/2 deg
