@@ -84,9 +84,10 @@ SimulatedScan simulateScan(const World& world, const LidarModel& model, const Se
             const Eigen::Vector3d dir_w = T.linear() * dir_s;
             RayHit hit;
             if (!world.castRay(T.translation(), dir_w, model.max_range, moving, hit)) continue;
-            const double signal = hit.reflectivity * hit.cos_incidence * (400.0 / (hit.range * hit.range));
-        if (signal < model.detection_threshold) continue;
-        const double noisy = hit.range + model.range_noise_sigma * rng.gaussian();
+            const double signal =
+                hit.reflectivity * hit.cos_incidence * (400.0 / (hit.range * hit.range));
+            if (signal < model.detection_threshold) continue;
+            const double noisy = hit.range + model.range_noise_sigma * rng.gaussian();
             if (noisy < model.min_range || noisy > model.max_range) continue;
             const Eigen::Vector3d p_col = dir_s * noisy;
             local[i] = (to_stamp * p_col).cast<float>();

@@ -343,8 +343,45 @@ bool World::castRay(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double m
     }
   }
 
-  // 2D DDA over the grid, limited to [0, best].
   const Eigen::Vector2d o2 = o.head<2>(), d2 = d.head<2>();
+  auto testItem = [&](int32_t item) {
+    if (item >= 0) {
+      const Wall& w = walls_[item];
+      const double denom = d2.x() * w.e.y() - d2.y() * w.e.x();
+      if (std::abs(denom) < 1e-12) return;
+      const Eigen::Vector2d ao = w.a - o2;
+      const double tt = (ao.x() * w.e.y() - ao.y() * w.e.x()) / denom;
+      if (tt <= kEps || tt >= best) return;
+      const double u = (ao.x() * d2.y() - ao.y() * d2.x()) / denom;
+      if (u < 0.0 || u > 1.0) return;
+      const double z = o.z() + tt * d.z();
+      if (z < w.z0 || z > w.z1) return;
+      best = tt;
+      const SimBuilding& b = buildings[w.building];
+      hit.label = SimLabel::kBuilding;
+      hit.object = w.building;
+      hit.reflectivity = b.reflectivity;
+      hit.cos_incidence = std::abs(denom) / w.e.norm();
+    } else {
+      const int32_t pi = -1 - item;
+      double tt, ci;
+      if (intersectPrimitive(primitives[pi], o, d, best, tt, ci)) {
+        best = tt;
+        hit.label = primitives[pi].label;
+        hit.object = pi;
+        hit.reflectivity = primitives[pi].reflectivity;
+        hit.cos_incidence = ci;
+      }
+    }
+  };
+  if (!use_grid) {  // reference: every wall and primitive
+    for (size_t i = 0; i < walls_.size(); ++i) testItem(int32_t(i));
+    for (size_t i = 0; i < primitives.size(); ++i) testItem(-1 - int32_t(i));
+    if (hit.label == SimLabel::kNone) return false;
+    hit.range = best;
+    return true;
+  }
+  // 2D DDA over the grid, limited to [0, best].
   const Eigen::Vector2d hi = grid_min_ + cell_size * Eigen::Vector2d(nx_, ny_);
   double t_enter = 0.0, t_exit = best;
   for (int k = 0; k < 2; ++k) {
@@ -372,37 +409,7 @@ bool World::castRay(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double m
                      : kInf;
     while (true) {
       const size_t cell = size_t(iy) * nx_ + ix;
-      for (uint32_t k = cell_start_[cell]; k < cell_start_[cell + 1]; ++k) {
-        const int32_t item = items_[k];
-        if (item >= 0) {
-          const Wall& w = walls_[item];
-          const double denom = d2.x() * w.e.y() - d2.y() * w.e.x();
-          if (std::abs(denom) < 1e-12) continue;
-          const Eigen::Vector2d ao = w.a - o2;
-          const double tt = (ao.x() * w.e.y() - ao.y() * w.e.x()) / denom;
-          if (tt <= kEps || tt >= best) continue;
-          const double u = (ao.x() * d2.y() - ao.y() * d2.x()) / denom;
-          if (u < 0.0 || u > 1.0) continue;
-          const double z = o.z() + tt * d.z();
-          if (z < w.z0 || z > w.z1) continue;
-          best = tt;
-          const SimBuilding& b = buildings[w.building];
-          hit.label = SimLabel::kBuilding;
-          hit.object = w.building;
-          hit.reflectivity = b.reflectivity;
-          hit.cos_incidence = std::abs(denom) / w.e.norm();
-        } else {
-          const int32_t pi = -1 - item;
-          double tt, ci;
-          if (intersectPrimitive(primitives[pi], o, d, best, tt, ci)) {
-            best = tt;
-            hit.label = primitives[pi].label;
-            hit.object = pi;
-            hit.reflectivity = primitives[pi].reflectivity;
-            hit.cos_incidence = ci;
-          }
-        }
-      }
+      for (uint32_t k = cell_start_[cell]; k < cell_start_[cell + 1]; ++k) testItem(items_[k]);
       const double cell_exit = std::min(tmx, tmy);
       if (best <= cell_exit || cell_exit >= t_exit) break;
       if (tmx < tmy) {

@@ -96,7 +96,9 @@ fs::path writeKittiRawFixture(const fs::path& root, const std::vector<std::strin
     r.au = 9.81;
     r.wu = 0.2;
     r.pos_accuracy = 0.05;
-    EXPECT_TRUE(writeOxtsFile((drive / "oxts" / "data" / (std::string(name) + ".txt")).string(), r));
+    fs::create_directories(drive / "oxts" / "data");
+    EXPECT_TRUE(
+        writeOxtsFile((drive / "oxts" / "data" / (std::string(name) + ".txt")).string(), r));
   }
   writeFile(drive / "velodyne_points" / "timestamps.txt", stamps);
   writeFile(drive / "oxts" / "timestamps.txt", stamps);
@@ -273,9 +275,9 @@ TEST(Kitti2Bag, RealKitti00OdometryLayoutWithGroundTruthInLidarFrame) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     const auto& p = m.pose.pose;
     T.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
-    T.linear() = Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y,
-                                    p.orientation.z)
-                     .toRotationMatrix();
+    T.linear() =
+        Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z)
+            .toRotationMatrix();
     return T;
   };
   const Eigen::Isometry3d rel = toIso(gt[0].second).inverse() * toIso(gt[1].second);
@@ -294,7 +296,8 @@ TEST(Mulran2Bag, FixtureOfDocumentedFormats) {
   for (int i = 0; i < 3; ++i) {
     const int64_t ts = t0 + i * 100000000LL;
     std::vector<float> pts;
-    for (int k = 0; k < 64; ++k) pts.insert(pts.end(), {float(k) * 0.5f, -float(i), 0.25f * k, 17.0f + k});
+    for (int k = 0; k < 64; ++k)
+      pts.insert(pts.end(), {float(k) * 0.5f, -float(i), 0.25f * k, 17.0f + k});
     scans.push_back(pts);
     writeScan(data / "Ouster" / (std::to_string(ts) + ".bin"), pts);
     stamps += std::to_string(ts) + ",ouster\n";
@@ -313,7 +316,8 @@ TEST(Mulran2Bag, FixtureOfDocumentedFormats) {
     for (int c = 0; c < polar.cols; ++c) polar.at<uint8_t>(r, c) = uint8_t((r * 7 + c) % 256);
   }
   fs::create_directories(data / "radar" / "polar");
-  ASSERT_TRUE(cv::imwrite((data / "radar" / "polar" / (std::to_string(radar_ts) + ".png")).string(), polar));
+  ASSERT_TRUE(cv::imwrite((data / "radar" / "polar" / (std::to_string(radar_ts) + ".png")).string(),
+                          polar));
   stamps += std::to_string(radar_ts) + ",radar\n";
   writeFile(data / "data_stamp.csv", stamps);
   writeFile(data / "gps.csv", gps);

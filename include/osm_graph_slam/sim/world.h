@@ -88,6 +88,7 @@ class World {
   GroundModel ground;
   float ground_reflectivity = 0.18f;
   double cell_size = 2.0;  ///< grid cell [m]
+  bool use_grid = true;    ///< false: test every wall and primitive (benchmark reference)
 
   /// Builds the grid; call after filling buildings/primitives (casting before is an error).
   void finalize();
