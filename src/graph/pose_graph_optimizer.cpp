@@ -136,8 +136,8 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
   solver.gradient_tolerance = options.gradient_tolerance;
   solver.parameter_tolerance = options.parameter_tolerance;
   solver.num_threads = std::max(1, options.num_threads);
-  solver.minimizer_progress_to_stdout = options.verbose;
-  solver.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  solver.initial_trust_region_radius = options.initial_trust_region_radius;
+  solver.logging_type = ceres::SILENT;
 
   ceres::Solver::Summary summary;
   const auto solve_start = std::chrono::steady_clock::now();
@@ -166,6 +166,7 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
       break;
   }
   result.final_chi2 = chi2Of(gp.residuals);
+  if (options.verbose) result.report = summary.FullReport();
   result.time_ms = msSince(start);
   return result;
 }

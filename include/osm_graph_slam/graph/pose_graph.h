@@ -91,10 +91,11 @@ struct OptimizerOptions {
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
   int num_threads = 1;  ///< residual/Jacobian evaluation threads
+  double initial_trust_region_radius = 1e4;  ///< Ceres' default; larger = closer to Gauss-Newton
   /// Closed-form Jacobians for SE2 and SE3 edges (fast). false: automatic differentiation of the
   /// same error (kept as a cross-check).
   bool analytic_jacobians = true;
-  bool verbose = false;  ///< Ceres progress to stdout
+  bool verbose = false;  ///< fill OptimizationResult::report with Ceres' full report
 };
 
 struct OptimizationResult {
@@ -110,6 +111,7 @@ struct OptimizationResult {
   int num_fixed_vertices = 0;
   int num_edges = 0;  ///< active edges (level ≤ the requested level)
   std::string linear_solver;
+  std::string report;  ///< Ceres' full report (only with OptimizerOptions::verbose)
 };
 
 class PoseGraph {
