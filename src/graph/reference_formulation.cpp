@@ -177,7 +177,7 @@ ReferenceSolveResult solveReferenceFormulation(const PoseGraph& graph,
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver.sparse_linear_algebra_library_type =
       ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ? ceres::SUITE_SPARSE
-                                                                             : ceres::EIGEN_SPARSE;
+                                                                            : ceres::EIGEN_SPARSE;
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;

@@ -6,9 +6,9 @@
 //                   [--autodiff]
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -29,7 +29,7 @@ struct Args {
   int max_iterations = 100;
   bool autodiff = false;
   bool verbose = false;
-  double radius = 1e4;
+  double radius = OptimizerOptions().initial_trust_region_radius;
 };
 
 void usage() {
@@ -125,10 +125,12 @@ int main(int argc, char** argv) {
     const OptimizationResult o = copy.optimize(INT_MAX, options);
     ours_cpu.push_back(cpuMs() - cpu_start);
     ours_ms.push_back(o.time_ms);
-    ours = {o.initial_chi2, o.final_chi2, 0.0, 0.0, o.iterations, toString(o.termination),
-            o.success};
+    ours = {o.initial_chi2,          o.final_chi2, 0.0, 0.0, o.iterations,
+            toString(o.termination), o.success};
     linear_solver = o.linear_solver;
-    if (args.verbose) std::cerr << o.report << "ours: total " << o.time_ms << " ms, solve " << o.solve_ms << " ms\n";
+    if (args.verbose)
+      std::cerr << o.report << "ours: total " << o.time_ms << " ms, solve " << o.solve_ms
+                << " ms\n";
 
     cpu_start = cpuMs();
     const ReferenceSolveResult s = solveReferenceFormulation(graph, options, &ref_solution);
@@ -149,7 +151,8 @@ int main(int argc, char** argv) {
   // The reference solution scored by PoseGraph's own g2o-convention χ² (same objective check).
   const double ref_chi2_by_ours = ref_solution.chi2();
   const double ratio = ours.ms / ref.ms;
-  const double chi2_rel = std::abs(ours.final_chi2 - ref.final_chi2) / std::max(1e-12, ref.final_chi2);
+  const double chi2_rel =
+      std::abs(ours.final_chi2 - ref.final_chi2) / std::max(1e-12, ref.final_chi2);
 
   if (args.json) {
     std::printf(
@@ -184,8 +187,7 @@ int main(int argc, char** argv) {
               ref.initial_chi2, ref.final_chi2, ref.iterations, ref.ms, ref.cpu_ms,
               ref.termination.c_str());
   std::printf("reference final chi2 scored by PoseGraph: %.8g\n", ref_chi2_by_ours);
-  std::printf(
-      "ratio ours/reference: wall %.3f, cpu %.3f   final chi2 relative difference: %.2e\n", ratio,
-      cpu_ratio, chi2_rel);
+  std::printf("ratio ours/reference: wall %.3f, cpu %.3f   final chi2 relative difference: %.2e\n",
+              ratio, cpu_ratio, chi2_rel);
   return 0;
 }

@@ -91,7 +91,10 @@ struct OptimizerOptions {
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
   int num_threads = 1;  ///< residual/Jacobian evaluation threads
-  double initial_trust_region_radius = 1e4;  ///< Ceres' default; larger = closer to Gauss-Newton
+  /// Levenberg–Marquardt starting radius. Large (nearly Gauss–Newton first steps) suits pose
+  /// graphs: 3–7 iterations on the public datasets instead of 7–29 with Ceres' default 1e4;
+  /// rejected steps shrink it quickly when the start is poor.
+  double initial_trust_region_radius = 1e12;
   /// Closed-form Jacobians for SE2 and SE3 edges (fast). false: automatic differentiation of the
   /// same error (kept as a cross-check).
   bool analytic_jacobians = true;
