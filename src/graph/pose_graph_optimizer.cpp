@@ -85,7 +85,8 @@ double chi2Of(const std::vector<ActiveResidual>& residuals) {
   return sum;
 }
 
-ceres::SparseLinearAlgebraLibraryType sparseLibrary() {
+ceres::SparseLinearAlgebraLibraryType sparseLibrary(SparseLibrary wanted = SparseLibrary::kAuto) {
+  if (wanted == SparseLibrary::kEigenSparse) return ceres::EIGEN_SPARSE;
   if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
     return ceres::SUITE_SPARSE;
   }
@@ -130,7 +131,7 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
   solver.minimizer_type = ceres::TRUST_REGION;
   solver.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver.sparse_linear_algebra_library_type = sparseLibrary();
+  solver.sparse_linear_algebra_library_type = sparseLibrary(options.sparse_library);
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;

@@ -175,9 +175,10 @@ ReferenceSolveResult solveReferenceFormulation(const PoseGraph& graph,
 
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  const bool suite_sparse = options.sparse_library != SparseLibrary::kEigenSparse &&
+                            ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE);
   solver.sparse_linear_algebra_library_type =
-      ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ? ceres::SUITE_SPARSE
-                                                                            : ceres::EIGEN_SPARSE;
+      suite_sparse ? ceres::SUITE_SPARSE : ceres::EIGEN_SPARSE;
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;
