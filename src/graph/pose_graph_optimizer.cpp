@@ -47,6 +47,7 @@ GraphProblem buildProblem(const std::map<int, PoseGraph::Edge>& edges,
   GraphProblem gp;
   ceres::Problem::Options options;
   options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;  // shared static manifolds
+  options.disable_all_safety_checks = true;  // blocks and sizes are validated by PoseGraph
   gp.problem = std::make_unique<ceres::Problem>(options);
   for (const auto& [id, edge] : edges) {
     if (edge.level > level) continue;
