@@ -5,6 +5,7 @@
 
 #include <chrono>
 
+#include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/registration/registration.h"
 
 namespace osm_graph_slam::test {

@@ -159,6 +159,17 @@ std::vector<RankedCandidate> LoopDetector::rankCandidates(const ScanContext& que
   return ranked;
 }
 
+void LoopDetector::addOdometryNearest(const ScanContext& query, size_t nearest,
+                                      std::vector<RankedCandidate>& ranked) const {
+  for (const auto& c : ranked) {
+    if (c.index == nearest) return;
+  }
+  RankedCandidate c;
+  c.index = nearest;
+  c.match = matchScanContexts(query, entries_[nearest].descriptor, params_.scan_context);
+  if (c.match.distance <= params_.max_descriptor_distance) ranked.push_back(c);
+}
+
 Matrix6d LoopDetector::informationFromFitness(double fitness) const {
   const double rms = std::sqrt(std::max(0.0, fitness));
   const double st = std::clamp(params_.translation_stddev_per_rms * rms,
@@ -171,6 +182,60 @@ Matrix6d LoopDetector::informationFromFitness(double fitness) const {
   return info;
 }
 
+std::optional<LoopClosure> LoopDetector::verifyCandidate(
+    const Query& query, const RankedCandidate& candidate, Eigen::Isometry3d guess,
+    const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
+  const LoopDatabaseEntry& target = entries_[candidate.index];
+  ++stats_.verified;
+  if (coarse_registration_) {
+    coarse_registration_->setTarget(target.coarse_cloud);
+    const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
+    if (coarse.converged) guess = coarse.transform;
+  }
+  fine_registration_->setTarget(target.cloud);
+  const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
+  CandidateOutcome outcome;
+  outcome.id = target.id;
+  outcome.descriptor_distance = candidate.match.distance;
+  outcome.fitness = fine.fitness;
+  outcome.transform = fine.transform;
+  auto reject = [&](const char* verdict, int& counter) -> std::optional<LoopClosure> {
+    ++counter;
+    outcome.verdict = verdict;
+    stats_.outcomes.push_back(outcome);
+    return std::nullopt;
+  };
+  if (!fine.converged || !(fine.fitness <= params_.max_fitness)) {
+    return reject("fitness", stats_.rejected_fitness);
+  }
+  outcome.overlap =
+      overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
+  if (outcome.overlap < params_.min_overlap) return reject("overlap", stats_.rejected_overlap);
+  if (odom_pose && params_.check_odometry_consistency) {
+    const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * (*odom_pose);
+    const double gap = std::max(0.0, accum_distance - target.accum_distance);
+    const double dt = (odom_relative.translation() - fine.transform.translation()).norm();
+    const double dyaw = std::abs(wrapPi(yawOf(odom_relative) - yawOf(fine.transform)));
+    const double t_tol = params_.odometry_translation_tolerance_base +
+                         params_.odometry_translation_tolerance_per_meter * gap;
+    const double yaw_tol =
+        params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
+    if (dt > t_tol || dyaw > yaw_tol) return reject("odometry", stats_.rejected_odometry);
+  }
+  outcome.verdict = "accepted";
+  stats_.outcomes.push_back(outcome);
+  LoopClosure loop;
+  loop.from_id = query.id;
+  loop.to_id = target.id;
+  loop.relative_pose = fine.transform;
+  loop.information = informationFromFitness(fine.fitness);
+  loop.descriptor_distance = candidate.match.distance;
+  loop.descriptor_yaw = candidate.match.yaw;
+  loop.fitness = fine.fitness;
+  loop.overlap = outcome.overlap;
+  return loop;
+}
+
 std::optional<LoopClosure> LoopDetector::verify(const Query& query,
                                                 const std::vector<RankedCandidate>& ranked,
                                                 const std::optional<Eigen::Isometry3d>& odom_pose,
@@ -178,51 +243,26 @@ std::optional<LoopClosure> LoopDetector::verify(const Query& query,
   std::optional<LoopClosure> best;
   for (const auto& candidate : ranked) {
     const LoopDatabaseEntry& target = entries_[candidate.index];
-    Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
-    guess.linear() = Eigen::AngleAxisd(candidate.match.yaw, Eigen::Vector3d::UnitZ()).matrix();
-    ++stats_.verified;
-    if (coarse_registration_) {
-      coarse_registration_->setTarget(target.coarse_cloud);
-      const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
-      if (coarse.converged) guess = coarse.transform;
+    // Rotation from the descriptor. Translation: first from odometry when there is one (so that
+    // on repetitive facades registration settles in the alias nearest to the odometry), then,
+    // if that fails, zero (revisits in the other lane are closer to zero than drifted odometry).
+    std::vector<Eigen::Isometry3d> seeds;
+    Eigen::Isometry3d seed = Eigen::Isometry3d::Identity();
+    seed.linear() = Eigen::AngleAxisd(candidate.match.yaw, Eigen::Vector3d::UnitZ()).matrix();
+    if (odom_pose && params_.seed_translation_from_odometry) {
+      Eigen::Isometry3d from_odometry = seed;
+      from_odometry.translation() = (target.odom_pose.inverse() * (*odom_pose)).translation();
+      seeds.push_back(from_odometry);
+      if (params_.retry_zero_translation_seed) seeds.push_back(seed);
+    } else {
+      seeds.push_back(seed);
     }
-    fine_registration_->setTarget(target.cloud);
-    const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
-    if (!fine.converged || !(fine.fitness <= params_.max_fitness)) {
-      ++stats_.rejected_fitness;
-      continue;
+    for (const auto& guess : seeds) {
+      auto loop = verifyCandidate(query, candidate, guess, odom_pose, accum_distance);
+      if (!loop) continue;
+      if (!best || loop->fitness < best->fitness) best = loop;
+      break;
     }
-    const double overlap =
-        overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
-    if (overlap < params_.min_overlap) {
-      ++stats_.rejected_overlap;
-      continue;
-    }
-    if (odom_pose && params_.check_odometry_consistency) {
-      const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * (*odom_pose);
-      const double gap = std::max(0.0, accum_distance - target.accum_distance);
-      const double dt = (odom_relative.translation() - fine.transform.translation()).norm();
-      const double dyaw = std::abs(wrapPi(yawOf(odom_relative) - yawOf(fine.transform)));
-      const double t_tol = params_.odometry_translation_tolerance_base +
-                           params_.odometry_translation_tolerance_per_meter * gap;
-      const double yaw_tol =
-          params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
-      if (dt > t_tol || dyaw > yaw_tol) {
-        ++stats_.rejected_odometry;
-        continue;
-      }
-    }
-    if (best && best->fitness <= fine.fitness) continue;
-    LoopClosure loop;
-    loop.from_id = query.id;
-    loop.to_id = target.id;
-    loop.relative_pose = fine.transform;
-    loop.information = informationFromFitness(fine.fitness);
-    loop.descriptor_distance = candidate.match.distance;
-    loop.descriptor_yaw = candidate.match.yaw;
-    loop.fitness = fine.fitness;
-    loop.overlap = overlap;
-    best = loop;
   }
   return best;
 }
@@ -248,7 +288,9 @@ std::optional<LoopClosure> LoopDetector::detect(const LoopKeyframe& keyframe) {
     return std::nullopt;
   }
   start = Clock::now();
-  const auto ranked = rankCandidates(query.descriptor, std::move(candidates));
+  const size_t nearest = candidates.front();  // phase 1 returns the closest first
+  auto ranked = rankCandidates(query.descriptor, std::move(candidates));
+  if (params_.verify_odometry_nearest) addOdometryNearest(query.descriptor, nearest, ranked);
   stats_.phase2_candidates = static_cast<int>(ranked.size());
   stats_.ranking_ms = msSince(start);
   if (ranked.empty()) {

@@ -103,7 +103,8 @@ SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_peri
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const double setback = 8.0;  // street half width to the facades
   // Repetitive facade street along y = 0: identical buildings both sides, identical poles.
-  for (double x = -20.0; x <= length_x + 20.0; x += facade_period) {
+  // Intersections at both ends stay open.
+  for (double x = facade_period; x <= length_x - facade_period; x += facade_period) {
     for (double side : {-1.0, 1.0}) {
       SyntheticBox b;
       b.half_size = {0.35 * facade_period, 6.0};

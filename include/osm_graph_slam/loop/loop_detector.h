@@ -40,6 +40,9 @@ struct LoopDetectorParams {
   int ring_key_candidates = 20;          ///< kept after the ring-key distance
   int num_candidates = 3;                ///< k: verified by registration
   double max_descriptor_distance = 0.6;  ///< Scan Context distance [0, 1]
+  /// Also verify the candidate nearest to the odometry position (repetitive facades make the
+  /// descriptor ranking ambiguous between aliases one facade period apart).
+  bool verify_odometry_nearest = true;
 
   // Phase 3: verification.
   double voxel_size = 0.4;           ///< [m] downsampling of the stored clouds (0 = none)
@@ -47,14 +50,16 @@ struct LoopDetectorParams {
   double coarse_voxel_size = 1.0;    ///< [m] coarse stage cloud resolution
   double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
   RegistrationParams registration;   ///< fine stage back-end and settings
-  double max_fitness = 0.1;          ///< [m^2] mean squared inlier distance
+  double max_fitness = 0.2;          ///< [m^2] mean squared inlier distance
   double overlap_distance = 0.5;     ///< [m] a source point is an inlier within this distance
   double min_overlap = 0.5;          ///< inlier fraction of the query cloud
+  bool seed_translation_from_odometry = true;  ///< else the seed translation is zero
+  bool retry_zero_translation_seed = true;     ///< second try with zero translation
   bool check_odometry_consistency = true;
-  double odometry_translation_tolerance_base = 3.0;      ///< [m]
-  double odometry_translation_tolerance_per_meter = 0.03;  ///< [m/m] of distance gap
-  double odometry_yaw_tolerance_base = 0.1;              ///< [rad]
-  double odometry_yaw_tolerance_per_meter = 0.001;       ///< [rad/m] of distance gap
+  double odometry_translation_tolerance_base = 2.0;        ///< [m]
+  double odometry_translation_tolerance_per_meter = 0.01;  ///< [m/m] of distance gap
+  double odometry_yaw_tolerance_base = 0.05;               ///< [rad]
+  double odometry_yaw_tolerance_per_meter = 0.0002;        ///< [rad/m] of distance gap
 
   // Information matrix: stddev = scale * RMS residual (sqrt(fitness)), clamped.
   double translation_stddev_per_rms = 1.0;   ///< [m/m]
@@ -83,8 +88,19 @@ struct LoopClosure {
   double overlap = 0.0;         ///< inlier fraction
 };
 
+/// Verification of one candidate.
+struct CandidateOutcome {
+  uint64_t id = 0;
+  double descriptor_distance = 1.0;
+  double fitness = 0.0;
+  double overlap = 0.0;
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
+  std::string verdict;  ///< accepted | fitness | overlap | odometry
+};
+
 /// What happened to one query, for diagnostics and benchmarks.
 struct LoopQueryStats {
+  std::vector<CandidateOutcome> outcomes;
   double descriptor_ms = 0.0;
   double candidates_ms = 0.0;
   double ranking_ms = 0.0;
@@ -152,7 +168,14 @@ class LoopDetector {
                                     const std::vector<RankedCandidate>& ranked,
                                     const std::optional<Eigen::Isometry3d>& odom_pose,
                                     double accum_distance);
+  std::optional<LoopClosure> verifyCandidate(const Query& query,
+                                             const RankedCandidate& candidate,
+                                             Eigen::Isometry3d guess,
+                                             const std::optional<Eigen::Isometry3d>& odom_pose,
+                                             double accum_distance);
   Matrix6d informationFromFitness(double fitness) const;
+  void addOdometryNearest(const ScanContext& query, size_t nearest,
+                          std::vector<RankedCandidate>& ranked) const;
   size_t indexLimitForDistance(double accum_distance) const;
 
   LoopDetectorParams params_;
