@@ -35,8 +35,8 @@ class PclGicpTestRegistration : public Registration {
     r.converged = gicp.hasConverged();
     r.transform = Eigen::Isometry3d(gicp.getFinalTransformation().cast<double>());
     r.fitness = gicp.getFitnessScore(params_.max_correspondence_distance);
-    r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                    .count();
+    r.time_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return r;
   }
 

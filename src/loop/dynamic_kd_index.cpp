@@ -19,8 +19,9 @@ struct FlatDataset {
   }
 };
 
-using Tree = nanoflann::KDTreeSingleIndexDynamicAdaptor<
-    nanoflann::L2_Simple_Adaptor<float, FlatDataset>, FlatDataset, -1, uint32_t>;
+using Tree =
+    nanoflann::KDTreeSingleIndexDynamicAdaptor<nanoflann::L2_Simple_Adaptor<float, FlatDataset>,
+                                               FlatDataset, -1, uint32_t>;
 
 /// k-nearest result set that ignores indices at or beyond a limit (e.g. the most recent
 /// keyframes, which are excluded from loop search).
@@ -32,10 +33,9 @@ class LimitedKnnResult {
   bool addPoint(float dist, uint32_t index) {
     if (index >= limit_) return true;
     if (items_.size() == k_ && dist >= items_.back().second) return true;
-    auto it = std::upper_bound(items_.begin(), items_.end(), dist,
-                               [](float d, const std::pair<size_t, float>& e) {
-                                 return d < e.second;
-                               });
+    auto it =
+        std::upper_bound(items_.begin(), items_.end(), dist,
+                         [](float d, const std::pair<size_t, float>& e) { return d < e.second; });
     items_.insert(it, {index, dist});
     if (items_.size() > k_) items_.pop_back();
     return true;
@@ -87,7 +87,9 @@ DynamicKdIndex::DynamicKdIndex(int dimension)
 
 DynamicKdIndex::~DynamicKdIndex() = default;
 
-size_t DynamicKdIndex::size() const { return impl_->dataset.kdtree_get_point_count(); }
+size_t DynamicKdIndex::size() const {
+  return impl_->dataset.kdtree_get_point_count();
+}
 
 bool DynamicKdIndex::add(const float* values) {
   if (values == nullptr) return false;

@@ -24,7 +24,9 @@ double yawOf(const Eigen::Isometry3d& pose) {
   return std::atan2(x.y(), x.x());
 }
 
-double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+double wrapPi(double a) {
+  return std::atan2(std::sin(a), std::cos(a));
+}
 
 }  // namespace
 
@@ -93,10 +95,9 @@ LoopDetector::~LoopDetector() = default;
 size_t LoopDetector::indexLimitForDistance(double accum_distance) const {
   // Keyframes arrive in trajectory order, so accumulated distances are non-decreasing.
   const double limit = accum_distance - params_.min_accum_distance_gap;
-  auto it = std::upper_bound(entries_.begin(), entries_.end(), limit,
-                             [](double value, const LoopDatabaseEntry& e) {
-                               return value < e.accum_distance;
-                             });
+  auto it = std::upper_bound(
+      entries_.begin(), entries_.end(), limit,
+      [](double value, const LoopDatabaseEntry& e) { return value < e.accum_distance; });
   return static_cast<size_t>(it - entries_.begin());
 }
 
@@ -105,15 +106,15 @@ std::vector<size_t> LoopDetector::odometryCandidates(const Eigen::Isometry3d& od
   const size_t limit = indexLimitForDistance(accum_distance);
   if (limit == 0) return {};
   const Eigen::Vector3f position = odom_pose.translation().cast<float>();
-  const auto near = position_index_->radius(
-      position.data(), static_cast<float>(params_.search_radius_max), limit);
+  const auto near = position_index_->radius(position.data(),
+                                            static_cast<float>(params_.search_radius_max), limit);
   std::vector<size_t> out;
   out.reserve(near.size());
   for (const auto& [index, dist_sq] : near) {
     const double gap = accum_distance - entries_[index].accum_distance;
-    const double radius = std::min(
-        params_.search_radius_max,
-        params_.search_radius_base + params_.search_radius_per_meter * std::max(0.0, gap));
+    const double radius =
+        std::min(params_.search_radius_max,
+                 params_.search_radius_base + params_.search_radius_per_meter * std::max(0.0, gap));
     if (dist_sq <= radius * radius) out.push_back(index);
   }
   return out;
@@ -137,8 +138,8 @@ std::vector<RankedCandidate> LoopDetector::rankCandidates(const ScanContext& que
     std::vector<std::pair<float, size_t>> by_ring;
     by_ring.reserve(indices.size());
     for (size_t index : indices) {
-      by_ring.push_back({(entries_[index].descriptor.ring_key - query.ring_key).squaredNorm(),
-                         index});
+      by_ring.push_back(
+          {(entries_[index].descriptor.ring_key - query.ring_key).squaredNorm(), index});
     }
     std::nth_element(by_ring.begin(), by_ring.begin() + keep_ring, by_ring.end());
     indices.clear();
@@ -151,9 +152,8 @@ std::vector<RankedCandidate> LoopDetector::rankCandidates(const ScanContext& que
     c.match = matchScanContexts(query, entries_[index].descriptor, params_.scan_context);
     if (c.match.distance <= params_.max_descriptor_distance) ranked.push_back(c);
   }
-  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
-    return a.match.distance < b.match.distance;
-  });
+  std::sort(ranked.begin(), ranked.end(),
+            [](const auto& a, const auto& b) { return a.match.distance < b.match.distance; });
   const size_t k = static_cast<size_t>(std::max(1, params_.num_candidates));
   if (ranked.size() > k) ranked.resize(k);
   return ranked;
@@ -174,15 +174,15 @@ Matrix6d LoopDetector::informationFromFitness(double fitness) const {
   const double rms = std::sqrt(std::max(0.0, fitness));
   const double st = std::clamp(params_.translation_stddev_per_rms * rms,
                                params_.min_translation_stddev, params_.max_translation_stddev);
-  const double sr = std::clamp(params_.rotation_stddev_per_rms * rms,
-                               params_.min_rotation_stddev, params_.max_rotation_stddev);
+  const double sr = std::clamp(params_.rotation_stddev_per_rms * rms, params_.min_rotation_stddev,
+                               params_.max_rotation_stddev);
   Matrix6d info = Matrix6d::Zero();
   info.diagonal() << 1.0 / (st * st), 1.0 / (st * st), 1.0 / (st * st), 1.0 / (sr * sr),
       1.0 / (sr * sr), 1.0 / (sr * sr);
   return info;
 }
 
-std::optional<LoopClosure> LoopDetector::verifyCandidate(
+std::optional<DetectedLoop> LoopDetector::verifyCandidate(
     const Query& query, const RankedCandidate& candidate, Eigen::Isometry3d guess,
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const LoopDatabaseEntry& target = entries_[candidate.index];
@@ -199,7 +199,7 @@ std::optional<LoopClosure> LoopDetector::verifyCandidate(
   outcome.descriptor_distance = candidate.match.distance;
   outcome.fitness = fine.fitness;
   outcome.transform = fine.transform;
-  auto reject = [&](const char* verdict, int& counter) -> std::optional<LoopClosure> {
+  auto reject = [&](const char* verdict, int& counter) -> std::optional<DetectedLoop> {
     ++counter;
     outcome.verdict = verdict;
     stats_.outcomes.push_back(outcome);
@@ -224,7 +224,7 @@ std::optional<LoopClosure> LoopDetector::verifyCandidate(
   }
   outcome.verdict = "accepted";
   stats_.outcomes.push_back(outcome);
-  LoopClosure loop;
+  DetectedLoop loop;
   loop.from_id = query.id;
   loop.to_id = target.id;
   loop.relative_pose = fine.transform;
@@ -236,11 +236,11 @@ std::optional<LoopClosure> LoopDetector::verifyCandidate(
   return loop;
 }
 
-std::optional<LoopClosure> LoopDetector::verify(const Query& query,
+std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
                                                 const std::vector<RankedCandidate>& ranked,
                                                 const std::optional<Eigen::Isometry3d>& odom_pose,
                                                 double accum_distance) {
-  std::optional<LoopClosure> best;
+  std::optional<DetectedLoop> best;
   for (const auto& candidate : ranked) {
     const LoopDatabaseEntry& target = entries_[candidate.index];
     // Rotation from the descriptor. Translation: first from odometry when there is one (so that
@@ -267,7 +267,7 @@ std::optional<LoopClosure> LoopDetector::verify(const Query& query,
   return best;
 }
 
-std::optional<LoopClosure> LoopDetector::detect(const LoopKeyframe& keyframe) {
+std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
   stats_ = LoopQueryStats();
   auto start = Clock::now();
   Query query;
@@ -307,7 +307,7 @@ std::optional<LoopClosure> LoopDetector::detect(const LoopKeyframe& keyframe) {
   return loop;
 }
 
-std::optional<LoopClosure> LoopDetector::relocalize(const LoopKeyframe& keyframe) {
+std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyframe) {
   stats_ = LoopQueryStats();
   if (!keyframe.cloud || keyframe.cloud->empty()) {
     stats_.reason = "relocalisation cloud has no points";
@@ -375,7 +375,7 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   return true;
 }
 
-std::optional<LoopClosure> LoopDetector::process(const LoopKeyframe& keyframe) {
+std::optional<DetectedLoop> LoopDetector::process(const LoopKeyframe& keyframe) {
   auto loop = detect(keyframe);
   const LoopQueryStats stats = stats_;
   addKeyframe(keyframe);

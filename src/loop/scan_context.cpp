@@ -6,7 +6,9 @@
 namespace osm_graph_slam {
 namespace {
 
-int wrapIndex(int i, int n) { return ((i % n) + n) % n; }
+int wrapIndex(int i, int n) {
+  return ((i % n) + n) % n;
+}
 
 void computeKeys(ScanContext& sc) {
   const int rings = static_cast<int>(sc.cells.rows());
@@ -35,8 +37,8 @@ ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams&
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
     const double range = std::hypot(p.x, p.y);
     if (range >= params.max_radius || range < params.min_radius) continue;
-    const double height = std::min(static_cast<double>(p.z) + params.sensor_height,
-                                   params.max_height);
+    const double height =
+        std::min(static_cast<double>(p.z) + params.sensor_height, params.max_height);
     if (height < params.min_height) continue;  // ground returns: noise, no structure
     const int ring = std::min(rings - 1, static_cast<int>(range / ring_width));
     const double azimuth = std::atan2(p.y, p.x) + M_PI;  // [0, 2 pi]

@@ -53,8 +53,7 @@ double intersectPole(const SyntheticPole& pole, const Eigen::Vector3d& o,
 }  // namespace
 
 PointCloudPtr simulateSyntheticScan(const SyntheticWorld& world, const Eigen::Vector2d& position,
-                                    double yaw, const SyntheticLidarParams& params,
-                                    uint32_t seed) {
+                                    double yaw, const SyntheticLidarParams& params, uint32_t seed) {
   std::vector<const SyntheticBox*> boxes;
   std::vector<const SyntheticPole*> poles;
   for (const auto& b : world.boxes) {
@@ -72,9 +71,8 @@ PointCloudPtr simulateSyntheticScan(const SyntheticWorld& world, const Eigen::Ve
     const double azimuth = 2.0 * M_PI * col / params.columns;  // in the sensor frame
     for (int beam = 0; beam < params.beams; ++beam) {
       const double elevation =
-          (params.min_elevation_deg +
-           (params.max_elevation_deg - params.min_elevation_deg) * beam /
-               std::max(1, params.beams - 1)) *
+          (params.min_elevation_deg + (params.max_elevation_deg - params.min_elevation_deg) * beam /
+                                          std::max(1, params.beams - 1)) *
           M_PI / 180.0;
       const Eigen::Vector3d local(std::cos(elevation) * std::cos(azimuth),
                                   std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
@@ -96,8 +94,7 @@ PointCloudPtr simulateSyntheticScan(const SyntheticWorld& world, const Eigen::Ve
   return cloud;
 }
 
-SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_period,
-                            uint32_t seed) {
+SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_period, uint32_t seed) {
   SyntheticWorld world;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -132,8 +129,9 @@ SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_peri
         box.height = 4.0 + 18.0 * u(rng);
         world.boxes.push_back(box);
         if (u(rng) < 0.6) {
-          world.poles.push_back({a + dir * (s + w * u(rng)) + left * side * (setback - 2.0 - u(rng)),
-                                 0.1 + 0.25 * u(rng), 3.0 + 6.0 * u(rng)});
+          world.poles.push_back(
+              {a + dir * (s + w * u(rng)) + left * side * (setback - 2.0 - u(rng)),
+               0.1 + 0.25 * u(rng), 3.0 + 6.0 * u(rng)});
         }
         if (u(rng) < 0.4) {
           SyntheticBox car;
@@ -153,11 +151,10 @@ SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_peri
   return world;
 }
 
-std::vector<Eigen::Vector3d> loopTownRoute(double length_x, double length_y,
-                                           double extra_distance, double spacing, double offset,
-                                           double lateral_offset) {
-  const std::vector<Eigen::Vector2d> corners = {
-      {0, 0}, {length_x, 0}, {length_x, length_y}, {0, length_y}, {0, 0}, {extra_distance, 0}};
+std::vector<Eigen::Vector3d> loopTownRoute(double length_x, double length_y, double extra_distance,
+                                           double spacing, double offset, double lateral_offset) {
+  const std::vector<Eigen::Vector2d> corners = {{0, 0},        {length_x, 0}, {length_x, length_y},
+                                                {0, length_y}, {0, 0},        {extra_distance, 0}};
   std::vector<Eigen::Vector3d> out;
   double s = offset;  // distance of the next pose from the start of the current segment
   for (size_t i = 0; i + 1 < corners.size(); ++i) {

@@ -71,11 +71,10 @@ struct PoseError {
   double rotation_deg = 0.0;
 };
 
-PoseError errorOf(const LoopClosure& loop, const Drive& d) {
+PoseError errorOf(const DetectedLoop& loop, const Drive& d) {
   const Eigen::Isometry3d truth = d.truth[loop.to_id].inverse() * d.truth[loop.from_id];
   const Eigen::Isometry3d delta = truth.inverse() * loop.relative_pose;
-  return {delta.translation().norm(),
-          Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI};
+  return {delta.translation().norm(), Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI};
 }
 
 bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distance) {
@@ -108,8 +107,8 @@ TEST(LoopDetector, FindsEveryRevisitAccuratelyWithoutFalseLoops) {
     if (!loop) {
       missed += revisit ? 1 : 0;
       if (revisit) {
-        std::cout << "   revisit keyframe " << i << " not closed: "
-                  << detector.lastStats().reason << "\n";
+        std::cout << "   revisit keyframe " << i << " not closed: " << detector.lastStats().reason
+                  << "\n";
       }
       continue;
     }
@@ -121,9 +120,9 @@ TEST(LoopDetector, FindsEveryRevisitAccuratelyWithoutFalseLoops) {
     if (e.translation > 1.0 || e.rotation_deg > 2.0) ++false_loops;
     if (e.translation > 0.10 || e.rotation_deg > 0.5) {
       ++inaccurate;
-      ADD_FAILURE() << "loop " << loop->from_id << "->" << loop->to_id << " error "
-                    << e.translation << " m " << e.rotation_deg << " deg (fitness "
-                    << loop->fitness << ", descriptor " << loop->descriptor_distance << ")";
+      ADD_FAILURE() << "loop " << loop->from_id << "->" << loop->to_id << " error " << e.translation
+                    << " m " << e.rotation_deg << " deg (fitness " << loop->fitness
+                    << ", descriptor " << loop->descriptor_distance << ")";
     }
     EXPECT_GT(loop->information(0, 0), 0.0);
     EXPECT_GE(loop->information(0, 0), loop->information(2, 2) * 0.999);

@@ -52,7 +52,8 @@ TEST(LoopRealScans, Frame5ClosesOnFrame0AndUnrelatedScanIsRejected) {
   }
   OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("kitti00/000094.bin"));
   std::vector<PointCloudPtr> scans;
-  for (int i = 0; i <= 5; ++i) scans.push_back(load("patchwork/00000" + std::to_string(i) + ".bin"));
+  for (int i = 0; i <= 5; ++i)
+    scans.push_back(load("patchwork/00000" + std::to_string(i) + ".bin"));
   const PointCloudPtr unrelated = load("kitti00/000094.bin");
 
   LoopDetectorParams params;
@@ -69,9 +70,9 @@ TEST(LoopRealScans, Frame5ClosesOnFrame0AndUnrelatedScanIsRejected) {
   const double dt = delta.translation().norm();
   const double dr = Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI;
   std::cout << "[ loop_real ] 5->0: t = " << loop->relative_pose.translation().transpose()
-            << " (reference " << reference.translation().transpose() << "), diff " << dt
-            << " m " << dr << " deg, fitness " << loop->fitness << ", overlap "
-            << loop->overlap << ", descriptor " << loop->descriptor_distance << "\n";
+            << " (reference " << reference.translation().transpose() << "), diff " << dt << " m "
+            << dr << " deg, fitness " << loop->fitness << ", overlap " << loop->overlap
+            << ", descriptor " << loop->descriptor_distance << "\n";
   // Five frames of ~0.74 m forward motion.
   EXPECT_NEAR(loop->relative_pose.translation().norm(), 5 * 0.74, 0.3);
   EXPECT_LT(dt, 0.10);

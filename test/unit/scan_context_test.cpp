@@ -25,7 +25,9 @@ PointCloud rotatedAboutZ(const PointCloud& in, double yaw) {
   return out;
 }
 
-double angleDiff(double a, double b) { return std::abs(std::atan2(std::sin(a - b), std::cos(a - b))); }
+double angleDiff(double a, double b) {
+  return std::abs(std::atan2(std::sin(a - b), std::cos(a - b)));
+}
 
 PointCloudPtr townScan(double x, double y, double yaw) {
   static const SyntheticWorld world = makeLoopTown(200.0, 120.0, 14.0, 7);
@@ -105,8 +107,8 @@ TEST(ScanContext, RevisitRanksTheSamePlaceFirst) {
   for (size_t i = 0; i < places.size(); ++i) {
     const auto& p = places[i];
     const Eigen::Vector2d side(-std::sin(p.z()), std::cos(p.z()));
-    const ScanContext query = computeScanContext(
-        *townScan(p.x() + side.x(), p.y() + side.y(), heading(rng)), params);
+    const ScanContext query =
+        computeScanContext(*townScan(p.x() + side.x(), p.y() + side.y(), heading(rng)), params);
     size_t best = 0;
     double best_d = 2.0;
     for (size_t j = 0; j < database.size(); ++j) {

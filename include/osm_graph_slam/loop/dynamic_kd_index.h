@@ -23,8 +23,7 @@ class DynamicKdIndex {
 
   /// (index, squared distance) of the k nearest vectors whose index is < index_limit, closest
   /// first.
-  std::vector<std::pair<size_t, float>> knn(const float* query, size_t k,
-                                            size_t index_limit) const;
+  std::vector<std::pair<size_t, float>> knn(const float* query, size_t k, size_t index_limit) const;
   /// (index, squared distance) of every vector within radius whose index is < index_limit.
   std::vector<std::pair<size_t, float>> radius(const float* query, float radius,
                                                size_t index_limit) const;

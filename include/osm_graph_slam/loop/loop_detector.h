@@ -24,17 +24,16 @@
 namespace osm_graph_slam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
-using RegistrationFactory =
-    std::function<std::unique_ptr<Registration>(const RegistrationParams&)>;
+using RegistrationFactory = std::function<std::unique_ptr<Registration>(const RegistrationParams&)>;
 
 struct LoopDetectorParams {
   ScanContextParams scan_context;
 
   // Phase 1: odometry candidates.
-  double min_accum_distance_gap = 25.0;  ///< [m] along the trajectory
-  double search_radius_base = 10.0;      ///< [m] around the odometry position
-  double search_radius_per_meter = 0.05; ///< [m/m] growth with the travelled distance gap
-  double search_radius_max = 35.0;       ///< [m]
+  double min_accum_distance_gap = 25.0;   ///< [m] along the trajectory
+  double search_radius_base = 10.0;       ///< [m] around the odometry position
+  double search_radius_per_meter = 0.05;  ///< [m/m] growth with the travelled distance gap
+  double search_radius_max = 35.0;        ///< [m]
 
   // Phase 2: ranking.
   int ring_key_candidates = 20;          ///< kept after the ring-key distance
@@ -45,14 +44,14 @@ struct LoopDetectorParams {
   bool verify_odometry_nearest = true;
 
   // Phase 3: verification.
-  double voxel_size = 0.4;           ///< [m] downsampling of the stored clouds (0 = none)
-  int min_points = 200;              ///< keyframes with fewer points are stored without cloud
-  double coarse_voxel_size = 1.0;    ///< [m] coarse stage cloud resolution
+  double voxel_size = 0.4;         ///< [m] downsampling of the stored clouds (0 = none)
+  int min_points = 200;            ///< keyframes with fewer points are stored without cloud
+  double coarse_voxel_size = 1.0;  ///< [m] coarse stage cloud resolution
   double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
-  RegistrationParams registration;   ///< fine stage back-end and settings
-  double max_fitness = 0.2;          ///< [m^2] mean squared inlier distance
-  double overlap_distance = 0.5;     ///< [m] a source point is an inlier within this distance
-  double min_overlap = 0.5;          ///< inlier fraction of the query cloud
+  RegistrationParams registration;                  ///< fine stage back-end and settings
+  double max_fitness = 0.2;                         ///< [m^2] mean squared inlier distance
+  double overlap_distance = 0.5;  ///< [m] a source point is an inlier within this distance
+  double min_overlap = 0.5;       ///< inlier fraction of the query cloud
   bool seed_translation_from_odometry = true;  ///< else the seed translation is zero
   bool retry_zero_translation_seed = true;     ///< second try with zero translation
   bool check_odometry_consistency = true;
@@ -62,12 +61,12 @@ struct LoopDetectorParams {
   double odometry_yaw_tolerance_per_meter = 0.0002;        ///< [rad/m] of distance gap
 
   // Information matrix: stddev = scale * RMS residual (sqrt(fitness)), clamped.
-  double translation_stddev_per_rms = 1.0;   ///< [m/m]
-  double rotation_stddev_per_rms = 0.05;     ///< [rad/m]
-  double min_translation_stddev = 0.02;      ///< [m]
-  double max_translation_stddev = 1.0;       ///< [m]
-  double min_rotation_stddev = 0.002;        ///< [rad]
-  double max_rotation_stddev = 0.1;          ///< [rad]
+  double translation_stddev_per_rms = 1.0;  ///< [m/m]
+  double rotation_stddev_per_rms = 0.05;    ///< [rad/m]
+  double min_translation_stddev = 0.02;     ///< [m]
+  double max_translation_stddev = 1.0;      ///< [m]
+  double min_rotation_stddev = 0.002;       ///< [rad]
+  double max_rotation_stddev = 0.1;         ///< [rad]
 };
 
 struct LoopKeyframe {
@@ -77,11 +76,11 @@ struct LoopKeyframe {
   PointCloudConstPtr cloud;     ///< in base_link (the sensor frame of the descriptor)
 };
 
-struct LoopClosure {
-  uint64_t from_id = 0;  ///< query (current) keyframe
-  uint64_t to_id = 0;    ///< earlier keyframe
+struct DetectedLoop {
+  uint64_t from_id = 0;                                             ///< query (current) keyframe
+  uint64_t to_id = 0;                                               ///< earlier keyframe
   Eigen::Isometry3d relative_pose = Eigen::Isometry3d::Identity();  ///< from in to's frame
-  Matrix6d information = Matrix6d::Identity();  ///< x y z roll pitch yaw
+  Matrix6d information = Matrix6d::Identity();                      ///< x y z roll pitch yaw
   double descriptor_distance = 1.0;
   double descriptor_yaw = 0.0;  ///< [rad] Scan Context estimate used as seed
   double fitness = 0.0;         ///< [m^2]
@@ -107,7 +106,7 @@ struct LoopQueryStats {
   double verification_ms = 0.0;
   int phase1_candidates = 0;
   int phase2_candidates = 0;
-  int verified = 0;       ///< registrations run
+  int verified = 0;  ///< registrations run
   int rejected_fitness = 0;
   int rejected_overlap = 0;
   int rejected_odometry = 0;
@@ -138,13 +137,13 @@ class LoopDetector {
   ~LoopDetector();
 
   /// Searches a loop for keyframe among the stored ones (odometry mode), then stores it.
-  std::optional<LoopClosure> process(const LoopKeyframe& keyframe);
+  std::optional<DetectedLoop> process(const LoopKeyframe& keyframe);
   /// Odometry-mode search only (the keyframe is not stored).
-  std::optional<LoopClosure> detect(const LoopKeyframe& keyframe);
+  std::optional<DetectedLoop> detect(const LoopKeyframe& keyframe);
   /// Place recognition without odometry (re-localisation): ring-key tree over every stored
   /// keyframe at least min_accum_distance_gap before keyframe.accum_distance (a negative
   /// accum_distance searches all); odom_pose is ignored and no odometry check is made.
-  std::optional<LoopClosure> relocalize(const LoopKeyframe& keyframe);
+  std::optional<DetectedLoop> relocalize(const LoopKeyframe& keyframe);
   /// Stores a keyframe (descriptor computed once here). Returns false on an unusable cloud.
   bool addKeyframe(const LoopKeyframe& keyframe);
 
@@ -164,12 +163,10 @@ class LoopDetector {
 
  private:
   struct Query;
-  std::optional<LoopClosure> verify(const Query& query,
-                                    const std::vector<RankedCandidate>& ranked,
+  std::optional<DetectedLoop> verify(const Query& query, const std::vector<RankedCandidate>& ranked,
                                     const std::optional<Eigen::Isometry3d>& odom_pose,
                                     double accum_distance);
-  std::optional<LoopClosure> verifyCandidate(const Query& query,
-                                             const RankedCandidate& candidate,
+  std::optional<DetectedLoop> verifyCandidate(const Query& query, const RankedCandidate& candidate,
                                              Eigen::Isometry3d guess,
                                              const std::optional<Eigen::Isometry3d>& odom_pose,
                                              double accum_distance);

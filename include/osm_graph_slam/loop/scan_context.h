@@ -10,22 +10,22 @@
 namespace osm_graph_slam {
 
 struct ScanContextParams {
-  int num_rings = 20;         ///< radial bins
-  int num_sectors = 60;       ///< azimuth bins (6 deg each by default)
-  double max_radius = 80.0;   ///< [m] points farther away are ignored
-  double min_radius = 1.0;    ///< [m] drops returns on the vehicle itself
+  int num_rings = 20;           ///< radial bins
+  int num_sectors = 60;         ///< azimuth bins (6 deg each by default)
+  double max_radius = 80.0;     ///< [m] points farther away are ignored
+  double min_radius = 1.0;      ///< [m] drops returns on the vehicle itself
   double sensor_height = 1.73;  ///< [m] above the ground: cell value = z + sensor_height (>= 0)
-  double max_height = 30.0;   ///< [m] heights above this are clamped (trees, noise)
-  double min_height = 0.3;    ///< [m] returns lower than this above the ground are ignored
+  double max_height = 30.0;     ///< [m] heights above this are clamped (trees, noise)
+  double min_height = 0.3;      ///< [m] returns lower than this above the ground are ignored
   /// Columns searched either side of the sector-key pre-alignment; < 0 = try every shift.
   int sector_search_window = 3;
 };
 
 struct ScanContext {
-  Eigen::MatrixXf cells;        ///< num_rings x num_sectors, max height (0 = empty)
-  Eigen::VectorXf ring_key;     ///< per ring: fraction of occupied sectors (rotation invariant)
-  Eigen::VectorXf sector_key;   ///< per sector: mean cell height (shifts with yaw)
-  Eigen::VectorXf column_norms; ///< cached L2 norm of each column
+  Eigen::MatrixXf cells;         ///< num_rings x num_sectors, max height (0 = empty)
+  Eigen::VectorXf ring_key;      ///< per ring: fraction of occupied sectors (rotation invariant)
+  Eigen::VectorXf sector_key;    ///< per sector: mean cell height (shifts with yaw)
+  Eigen::VectorXf column_norms;  ///< cached L2 norm of each column
   int occupied_cells = 0;
 };
 

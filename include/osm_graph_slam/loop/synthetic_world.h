@@ -41,20 +41,17 @@ struct SyntheticLidarParams {
 /// Scan in the sensor frame of a sensor at (pose_xy, yaw) and sensor_height; points beyond
 /// max_range are dropped. seed makes the noise reproducible.
 PointCloudPtr simulateSyntheticScan(const SyntheticWorld& world, const Eigen::Vector2d& position,
-                                    double yaw, const SyntheticLidarParams& params,
-                                    uint32_t seed);
+                                    double yaw, const SyntheticLidarParams& params, uint32_t seed);
 
 /// A town for loop tests: a rectangular loop of streets of width ~16 m. The street along y = 0
 /// (x in [0, length_x]) is lined with identical, evenly spaced buildings and poles (a
 /// repetitive facade street); the others have random buildings, poles and parked cars.
-SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_period,
-                            uint32_t seed);
+SyntheticWorld makeLoopTown(double length_x, double length_y, double facade_period, uint32_t seed);
 
 /// Points along the closed rectangle (0,0) -> (length_x,0) -> (length_x,length_y) -> (0,length_y)
 /// -> (0,0), then again along the first street for extra_distance; one pose every spacing metres
 /// starting at offset. Returns (x, y, yaw) of the vehicle; lateral_offset shifts it to the left.
-std::vector<Eigen::Vector3d> loopTownRoute(double length_x, double length_y,
-                                           double extra_distance, double spacing, double offset,
-                                           double lateral_offset);
+std::vector<Eigen::Vector3d> loopTownRoute(double length_x, double length_y, double extra_distance,
+                                           double spacing, double offset, double lateral_offset);
 
 }  // namespace osm_graph_slam
