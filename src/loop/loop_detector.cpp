@@ -64,6 +64,18 @@ double overlapRatio(const PointCloud& source, const PointCloud& target,
   return static_cast<double>(inliers) / static_cast<double>(source.size());
 }
 
+/// The cloud kept for verification: downsampled, or (voxel_size <= 0) the caller's cloud itself
+/// when it is all finite, so already filtered keyframe clouds are not copied.
+static PointCloudConstPtr storedCloud(const PointCloudConstPtr& cloud, double voxel_size) {
+  if (voxel_size <= 0.0) {
+    const bool finite = std::all_of(cloud->begin(), cloud->end(), [](const PointT& p) {
+      return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+    });
+    if (finite) return cloud;
+  }
+  return downsampleForLoop(*cloud, voxel_size);
+}
+
 /// Everything computed once per keyframe: descriptor and the two registration clouds.
 struct LoopDetector::Query {
   uint64_t id = 0;
@@ -237,9 +249,9 @@ std::optional<DetectedLoop> LoopDetector::verifyCandidate(
 }
 
 std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
-                                                const std::vector<RankedCandidate>& ranked,
-                                                const std::optional<Eigen::Isometry3d>& odom_pose,
-                                                double accum_distance) {
+                                                 const std::vector<RankedCandidate>& ranked,
+                                                 const std::optional<Eigen::Isometry3d>& odom_pose,
+                                                 double accum_distance) {
   std::optional<DetectedLoop> best;
   for (const auto& candidate : ranked) {
     const LoopDatabaseEntry& target = entries_[candidate.index];
@@ -298,8 +310,10 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
     return std::nullopt;
   }
   start = Clock::now();
-  query.cloud = downsampleForLoop(*keyframe.cloud, params_.voxel_size);
-  query.coarse_cloud = downsampleForLoop(*query.cloud, params_.coarse_voxel_size);
+  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  query.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
+                           : query.cloud;
   auto loop = verify(query, ranked, keyframe.odom_pose, keyframe.accum_distance);
   stats_.verification_ms = msSince(start);
   stats_.accepted = loop.has_value();
@@ -334,8 +348,10 @@ std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyfram
     return std::nullopt;
   }
   start = Clock::now();
-  query.cloud = downsampleForLoop(*keyframe.cloud, params_.voxel_size);
-  query.coarse_cloud = downsampleForLoop(*query.cloud, params_.coarse_voxel_size);
+  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  query.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
+                           : query.cloud;
   auto loop = verify(query, ranked, std::nullopt, 0.0);
   stats_.verification_ms = msSince(start);
   stats_.accepted = loop.has_value();
@@ -355,7 +371,7 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
     return false;
   }
   LoopDatabaseEntry entry;
-  entry.cloud = downsampleForLoop(*keyframe.cloud, params_.voxel_size);
+  entry.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
   if (static_cast<int>(entry.cloud->size()) < params_.min_points) {
     logger_.warnOnce("loop_few_points",
                      "loop detection: keyframe " + std::to_string(keyframe.id) + " has only " +
@@ -367,7 +383,10 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   entry.odom_pose = keyframe.odom_pose;
   entry.accum_distance = keyframe.accum_distance;
   entry.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
-  entry.coarse_cloud = downsampleForLoop(*entry.cloud, params_.coarse_voxel_size);
+  // Without a coarse stage no coarse cloud is needed: share the pointer.
+  entry.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size)
+                           : entry.cloud;
   const Eigen::Vector3f position = keyframe.odom_pose.translation().cast<float>();
   ring_key_index_->add(entry.descriptor.ring_key.data());
   position_index_->add(position.data());
