@@ -1,0 +1,31 @@
+#pragma once
+// How far corrected buildings are from the true ones, and whether outlines overlap.
+#include <vector>
+
+#include "osm_graph_slam/osm/building.h"
+
+namespace osm_graph_slam {
+
+struct BuildingErrors {
+  size_t matched = 0;              ///< buildings present (by id) in both sets
+  size_t vertex_mismatch = 0;      ///< matched by id but with different vertex counts (skipped)
+  double mean_corner_error = 0.0;  ///< [m] reference corner (true lowest-x vertex) distance
+  double max_corner_error = 0.0;   ///< [m]
+  double mean_heading_error_deg = 0.0;  ///< |rotation| of the best 2D fit estimate -> truth
+  double mean_vertex_error = 0.0;       ///< [m] over all corresponding vertices
+};
+
+/// Compares buildings by OSM id. Vertices correspond by order (a prior is a perturbed copy of
+/// the truth), so the reference corner is compared as the same physical corner.
+BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
+                                 const std::vector<Building>& truth);
+
+/// Area [m^2] of the intersection of two simple polygons (either orientation).
+double polygonIntersectionArea(const Polygon2& a, const Polygon2& b);
+
+/// Pairs of buildings whose outlines intersect with more than min_area [m^2] (shared walls of
+/// touching buildings have zero area and are not counted).
+std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
+    const std::vector<Building>& buildings, double min_area = 0.05);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,117 @@
+#include "osm_graph_slam/eval/building_metrics.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <boost/geometry.hpp>
+#include <boost/geometry/geometries/point_xy.hpp>
+#include <boost/geometry/geometries/polygon.hpp>
+#include <cmath>
+#include <unordered_map>
+
+namespace osm_graph_slam {
+namespace {
+
+namespace bg = boost::geometry;
+using BgPoint = bg::model::d2::point_xy<double>;
+using BgPolygon = bg::model::polygon<BgPoint>;
+
+BgPolygon toBoost(const Polygon2& ring) {
+  BgPolygon poly;
+  for (const auto& v : ring) bg::append(poly.outer(), BgPoint(v.x(), v.y()));
+  if (!ring.empty()) bg::append(poly.outer(), BgPoint(ring.front().x(), ring.front().y()));
+  bg::correct(poly);  // orientation and closure as boost expects
+  return poly;
+}
+
+size_t lowestXVertex(const Polygon2& ring) {
+  size_t best = 0;
+  for (size_t i = 1; i < ring.size(); ++i)
+    if (ring[i].x() < ring[best].x()) best = i;
+  return best;
+}
+
+/// Rotation angle of the least-squares 2D rigid fit mapping a onto b (corresponding points).
+double fitRotation(const Polygon2& a, const Polygon2& b) {
+  Eigen::Vector2d ma = Eigen::Vector2d::Zero(), mb = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= static_cast<double>(a.size());
+  mb /= static_cast<double>(b.size());
+  double s_cos = 0.0, s_sin = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const Eigen::Vector2d p = a[i] - ma, q = b[i] - mb;
+    s_cos += p.dot(q);
+    s_sin += p.x() * q.y() - p.y() * q.x();
+  }
+  return std::atan2(s_sin, s_cos);
+}
+
+}  // namespace
+
+BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
+                                 const std::vector<Building>& truth) {
+  BuildingErrors out;
+  std::unordered_map<int64_t, const Building*> truth_by_id;
+  for (const auto& b : truth) truth_by_id[b.id] = &b;
+  double corner_sum = 0.0, heading_sum = 0.0, vertex_sum = 0.0;
+  size_t vertex_count = 0;
+  for (const auto& est : estimate) {
+    const auto it = truth_by_id.find(est.id);
+    if (it == truth_by_id.end()) continue;
+    const Polygon2& t = it->second->outline_enu;
+    const Polygon2& e = est.outline_enu;
+    if (t.size() != e.size() || t.size() < 3) {
+      ++out.vertex_mismatch;
+      continue;
+    }
+    ++out.matched;
+    const size_t ref = lowestXVertex(t);
+    const double corner = (e[ref] - t[ref]).norm();
+    corner_sum += corner;
+    out.max_corner_error = std::max(out.max_corner_error, corner);
+    heading_sum += std::abs(fitRotation(e, t)) * 180.0 / M_PI;
+    for (size_t i = 0; i < t.size(); ++i) vertex_sum += (e[i] - t[i]).norm();
+    vertex_count += t.size();
+  }
+  if (out.matched > 0) {
+    out.mean_corner_error = corner_sum / static_cast<double>(out.matched);
+    out.mean_heading_error_deg = heading_sum / static_cast<double>(out.matched);
+    out.mean_vertex_error = vertex_sum / static_cast<double>(vertex_count);
+  }
+  return out;
+}
+
+double polygonIntersectionArea(const Polygon2& a, const Polygon2& b) {
+  if (a.size() < 3 || b.size() < 3) return 0.0;
+  const BgPolygon pa = toBoost(a), pb = toBoost(b);
+  std::vector<BgPolygon> parts;
+  try {
+    bg::intersection(pa, pb, parts);
+  } catch (const std::exception&) {
+    return 0.0;  // self-intersecting input: not an overlap we can measure
+  }
+  double area = 0.0;
+  for (const auto& p : parts) area += std::abs(bg::area(p));
+  return area;
+}
+
+std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
+    const std::vector<Building>& buildings, double min_area) {
+  // Bounding boxes first: real maps have hundreds of buildings, few of them near each other.
+  std::vector<Eigen::AlignedBox2d> boxes(buildings.size());
+  for (size_t i = 0; i < buildings.size(); ++i)
+    for (const auto& v : buildings[i].outline_enu) boxes[i].extend(v);
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (size_t i = 0; i < buildings.size(); ++i) {
+    for (size_t j = i + 1; j < buildings.size(); ++j) {
+      if (boxes[i].isEmpty() || boxes[j].isEmpty() || !boxes[i].intersects(boxes[j])) continue;
+      if (polygonIntersectionArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
+        pairs.emplace_back(i, j);
+    }
+  }
+  return pairs;
+}
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,119 @@
+#include "osm_graph_slam/eval/slam_evaluation.h"
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace osm_graph_slam {
+namespace {
+
+using nlohmann::json;
+
+json statsJson(const ErrorStats& s) {
+  return {{"count", s.count}, {"mean", s.mean},     {"std", s.std},
+          {"rmse", s.rmse},   {"median", s.median}, {"max", s.max}};
+}
+
+json trajectoryJson(const TrajectoryErrors& e) {
+  return {{"associated", e.associated},
+          {"ate_m", statsJson(e.ate)},
+          {"rpe_trans_m", statsJson(e.rpe_trans)},
+          {"rpe_rot_rad", statsJson(e.rpe_rot)},
+          {"kitti_segments", e.kitti_segments},
+          {"kitti_trans_percent", e.kitti_trans_percent},
+          {"kitti_rot_deg_per_100m", e.kitti_rot_deg_per_100m}};
+}
+
+json buildingsJson(const BuildingSetEvaluation& b) {
+  return {{"matched", b.errors.matched},
+          {"vertex_mismatch", b.errors.vertex_mismatch},
+          {"mean_corner_error_m", b.errors.mean_corner_error},
+          {"max_corner_error_m", b.errors.max_corner_error},
+          {"mean_heading_error_deg", b.errors.mean_heading_error_deg},
+          {"mean_vertex_error_m", b.errors.mean_vertex_error},
+          {"overlapping_pairs", b.overlapping_pairs}};
+}
+
+BuildingSetEvaluation evaluateSet(const std::vector<Building>& set,
+                                  const std::vector<Building>& truth) {
+  BuildingSetEvaluation out;
+  out.errors = evaluateBuildings(set, truth);
+  out.overlapping_pairs = findOverlappingBuildings(set).size();
+  return out;
+}
+
+std::string fmt(const char* format, double a, double b) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, a, b);
+  return buf;
+}
+
+void trajectoryRow(std::ostringstream& os, const std::string& label, const TrajectoryErrors& e) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "%-12s %6zu  %-17s %7.3f %7.3f  %-17s %-19s %7.2f\n",
+                label.c_str(), e.associated, fmt("%.3f ± %.3f", e.ate.mean, e.ate.std).c_str(),
+                e.ate.rmse, e.ate.max,
+                fmt("%.3f ± %.3f", e.rpe_trans.mean, e.rpe_trans.std).c_str(),
+                fmt("%.4f ± %.4f", e.rpe_rot.mean, e.rpe_rot.std).c_str(), e.kitti_trans_percent);
+  os << buf;
+}
+
+void buildingRow(std::ostringstream& os, const std::string& label, const BuildingSetEvaluation& b) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "%-12s %7zu  %9.3f %9.3f %11.2f %9zu\n", label.c_str(),
+                b.errors.matched, b.errors.mean_corner_error, b.errors.max_corner_error,
+                b.errors.mean_heading_error_deg, b.overlapping_pairs);
+  os << buf;
+}
+
+}  // namespace
+
+SlamEvaluation evaluateSlam(const SlamEvaluationInput& input) {
+  SlamEvaluation out;
+  out.slam = evaluateTrajectory(input.estimate, input.ground_truth, input.options);
+  out.baseline_label = input.baseline_label;
+  if (input.baseline) {
+    out.baseline = evaluateTrajectory(*input.baseline, input.ground_truth, input.options);
+    if (out.baseline->ate.mean > 0.0)
+      out.ate_change_vs_baseline = out.slam.ate.mean / out.baseline->ate.mean - 1.0;
+  }
+  if (!input.buildings_true.empty()) {
+    if (!input.buildings_prior.empty())
+      out.prior = evaluateSet(input.buildings_prior, input.buildings_true);
+    if (!input.buildings_corrected.empty())
+      out.corrected = evaluateSet(input.buildings_corrected, input.buildings_true);
+  }
+  return out;
+}
+
+std::string evaluationToJson(const SlamEvaluation& e) {
+  json doc = {{"slam", trajectoryJson(e.slam)}};
+  if (e.baseline) doc[e.baseline_label] = trajectoryJson(*e.baseline);
+  if (e.ate_change_vs_baseline)
+    doc["ate_change_vs_" + e.baseline_label] = *e.ate_change_vs_baseline;
+  if (e.prior) doc["buildings_prior"] = buildingsJson(*e.prior);
+  if (e.corrected) doc["buildings_corrected"] = buildingsJson(*e.corrected);
+  return doc.dump(2);
+}
+
+std::string evaluationToTable(const SlamEvaluation& e) {
+  std::ostringstream os;
+  os << "trajectory   poses   ATE mean ± std [m] RMSE    max   t_RPE [m]         r_RPE [rad]"
+        "         KITTI [%]\n";
+  trajectoryRow(os, "slam", e.slam);
+  if (e.baseline) trajectoryRow(os, e.baseline_label, *e.baseline);
+  if (e.ate_change_vs_baseline) {
+    char buf[128];
+    std::snprintf(buf, sizeof(buf), "ATE change vs %s: %+.1f %%\n", e.baseline_label.c_str(),
+                  100.0 * *e.ate_change_vs_baseline);
+    os << buf;
+  }
+  if (e.prior || e.corrected) {
+    os << "\nbuildings   matched  corner[m]  max[m]  heading[deg]  overlaps\n";
+    if (e.prior) buildingRow(os, "prior (OSM)", *e.prior);
+    if (e.corrected) buildingRow(os, "corrected", *e.corrected);
+  }
+  return os.str();
+}
+
+}  // namespace osm_graph_slam
