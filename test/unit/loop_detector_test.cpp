@@ -85,7 +85,7 @@ bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distanc
   return false;
 }
 
-TEST(LoopDetector, FindsEveryRevisitAccuratelyWithoutFalseLoops) {
+TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
   const Drive& d = drive();
   LoopDetectorParams params;
   LoopDetector detector(params, test::testRegistrationFactory());
