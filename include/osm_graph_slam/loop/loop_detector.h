@@ -1,0 +1,196 @@
+#pragma once
+// Three-phase loop detection (ART-SLAM thesis section 3.1.7):
+//  1. odometry candidates: earlier keyframes far enough along the trajectory and near enough in
+//     space (radius growing with the travelled distance between them to absorb drift);
+//  2. ranking: ring-key distance, then Scan Context distance with column-shift alignment; the
+//     best k survive;
+//  3. verification: 3D registration seeded with the Scan Context yaw; the best candidate is
+//     accepted when fitness, overlap and (when available) odometry consistency all pass.
+// Without odometry (re-localisation) phase 1 is replaced by the ring-key KD-tree over all
+// keyframes.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/common/logger.h"
+#include "osm_graph_slam/loop/scan_context.h"
+#include "osm_graph_slam/registration/registration.h"
+
+namespace osm_graph_slam {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using RegistrationFactory = std::function<std::unique_ptr<Registration>(const RegistrationParams&)>;
+
+struct LoopDetectorParams {
+  ScanContextParams scan_context;
+
+  // Phase 1: odometry candidates.
+  double min_accum_distance_gap = 25.0;   ///< [m] along the trajectory
+  double search_radius_base = 10.0;       ///< [m] around the odometry position
+  double search_radius_per_meter = 0.05;  ///< [m/m] growth with the travelled distance gap
+  double search_radius_max = 35.0;        ///< [m]
+
+  // Phase 2: ranking.
+  int ring_key_candidates = 20;          ///< kept after the ring-key distance
+  int num_candidates = 3;                ///< k: verified by registration
+  double max_descriptor_distance = 0.6;  ///< Scan Context distance [0, 1]
+  /// Also verify the candidate nearest to the odometry position (repetitive facades make the
+  /// descriptor ranking ambiguous between aliases one facade period apart).
+  bool verify_odometry_nearest = true;
+
+  // Phase 3: verification.
+  double voxel_size = 0.4;         ///< [m] downsampling of the stored clouds (0 = none)
+  int min_points = 200;            ///< keyframes with fewer points are stored without cloud
+  double coarse_voxel_size = 1.0;  ///< [m] coarse stage cloud resolution
+  double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
+  RegistrationParams registration;                  ///< fine stage back-end and settings
+  double max_fitness = 0.2;                         ///< [m^2] mean squared inlier distance
+  double overlap_distance = 0.5;  ///< [m] a source point is an inlier within this distance
+  double min_overlap = 0.5;       ///< inlier fraction of the query cloud
+  bool seed_translation_from_odometry = true;  ///< else the seed translation is zero
+  bool retry_zero_translation_seed = true;     ///< second try with zero translation
+  bool check_odometry_consistency = true;
+  double odometry_translation_tolerance_base = 2.0;        ///< [m]
+  double odometry_translation_tolerance_per_meter = 0.01;  ///< [m/m] of distance gap
+  double odometry_yaw_tolerance_base = 0.05;               ///< [rad]
+  double odometry_yaw_tolerance_per_meter = 0.0002;        ///< [rad/m] of distance gap
+
+  // Information matrix: stddev = scale * RMS residual (sqrt(fitness)), clamped.
+  double translation_stddev_per_rms = 1.0;  ///< [m/m]
+  double rotation_stddev_per_rms = 0.05;    ///< [rad/m]
+  double min_translation_stddev = 0.02;     ///< [m]
+  double max_translation_stddev = 1.0;      ///< [m]
+  double min_rotation_stddev = 0.002;       ///< [rad]
+  double max_rotation_stddev = 0.1;         ///< [rad]
+};
+
+struct LoopKeyframe {
+  uint64_t id = 0;
+  Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
+  double accum_distance = 0.0;  ///< [m] travelled since the first keyframe
+  PointCloudConstPtr cloud;     ///< in base_link (the sensor frame of the descriptor)
+};
+
+struct DetectedLoop {
+  uint64_t from_id = 0;                                             ///< query (current) keyframe
+  uint64_t to_id = 0;                                               ///< earlier keyframe
+  Eigen::Isometry3d relative_pose = Eigen::Isometry3d::Identity();  ///< from in to's frame
+  Matrix6d information = Matrix6d::Identity();                      ///< x y z roll pitch yaw
+  double descriptor_distance = 1.0;
+  double descriptor_yaw = 0.0;  ///< [rad] Scan Context estimate used as seed
+  double fitness = 0.0;         ///< [m^2]
+  double overlap = 0.0;         ///< inlier fraction
+};
+
+/// Verification of one candidate.
+struct CandidateOutcome {
+  uint64_t id = 0;
+  double descriptor_distance = 1.0;
+  double fitness = 0.0;
+  double overlap = 0.0;
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
+  std::string verdict;  ///< accepted | fitness | overlap | odometry
+};
+
+/// What happened to one query, for diagnostics and benchmarks.
+struct LoopQueryStats {
+  std::vector<CandidateOutcome> outcomes;
+  double descriptor_ms = 0.0;
+  double candidates_ms = 0.0;
+  double ranking_ms = 0.0;
+  double verification_ms = 0.0;
+  int phase1_candidates = 0;
+  int phase2_candidates = 0;
+  int verified = 0;  ///< registrations run
+  int rejected_fitness = 0;
+  int rejected_overlap = 0;
+  int rejected_odometry = 0;
+  bool accepted = false;
+  std::string reason;  ///< why nothing was accepted
+};
+
+/// A database entry (public for tests and tools).
+struct LoopDatabaseEntry {
+  uint64_t id = 0;
+  Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
+  double accum_distance = 0.0;
+  ScanContext descriptor;
+  PointCloudConstPtr cloud;         ///< voxel-downsampled, for the fine stage
+  PointCloudConstPtr coarse_cloud;  ///< coarse stage
+};
+
+struct RankedCandidate {
+  size_t index = 0;  ///< database index
+  ScanContextMatch match;
+};
+
+class LoopDetector {
+ public:
+  /// factory creates the registration back-ends (production: createRegistration).
+  LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
+               LogSink log_sink = {});
+  ~LoopDetector();
+
+  /// Searches a loop for keyframe among the stored ones (odometry mode), then stores it.
+  std::optional<DetectedLoop> process(const LoopKeyframe& keyframe);
+  /// Odometry-mode search only (the keyframe is not stored).
+  std::optional<DetectedLoop> detect(const LoopKeyframe& keyframe);
+  /// Place recognition without odometry (re-localisation): ring-key tree over every stored
+  /// keyframe at least min_accum_distance_gap before keyframe.accum_distance (a negative
+  /// accum_distance searches all); odom_pose is ignored and no odometry check is made.
+  std::optional<DetectedLoop> relocalize(const LoopKeyframe& keyframe);
+  /// Stores a keyframe (descriptor computed once here). Returns false on an unusable cloud.
+  bool addKeyframe(const LoopKeyframe& keyframe);
+
+  size_t size() const { return entries_.size(); }
+  const LoopDatabaseEntry& entry(size_t index) const { return entries_[index]; }
+  const LoopQueryStats& lastStats() const { return stats_; }
+  const LoopDetectorParams& params() const { return params_; }
+
+  /// Phase 1 alone: database indices of the odometry candidates of a query.
+  std::vector<size_t> odometryCandidates(const Eigen::Isometry3d& odom_pose,
+                                         double accum_distance) const;
+  /// Phase 2 alone: best k of the given indices by ring key, then Scan Context distance.
+  std::vector<RankedCandidate> rankCandidates(const ScanContext& query,
+                                              std::vector<size_t> indices) const;
+  /// Place-recognition retrieval: ring-key KD-tree over entries with index < index_limit.
+  std::vector<size_t> ringKeyCandidates(const ScanContext& query, size_t index_limit) const;
+
+ private:
+  struct Query;
+  std::optional<DetectedLoop> verify(const Query& query, const std::vector<RankedCandidate>& ranked,
+                                    const std::optional<Eigen::Isometry3d>& odom_pose,
+                                    double accum_distance);
+  std::optional<DetectedLoop> verifyCandidate(const Query& query, const RankedCandidate& candidate,
+                                             Eigen::Isometry3d guess,
+                                             const std::optional<Eigen::Isometry3d>& odom_pose,
+                                             double accum_distance);
+  Matrix6d informationFromFitness(double fitness) const;
+  void addOdometryNearest(const ScanContext& query, size_t nearest,
+                          std::vector<RankedCandidate>& ranked) const;
+  size_t indexLimitForDistance(double accum_distance) const;
+
+  LoopDetectorParams params_;
+  RegistrationFactory factory_;
+  Logger logger_;
+  std::vector<LoopDatabaseEntry> entries_;
+  std::unique_ptr<class DynamicKdIndex> ring_key_index_;
+  std::unique_ptr<class DynamicKdIndex> position_index_;
+  std::unique_ptr<Registration> coarse_registration_;
+  std::unique_ptr<Registration> fine_registration_;
+  LoopQueryStats stats_;
+};
+
+/// Fraction of source points (after transform) with a target point within max_distance.
+double overlapRatio(const PointCloud& source, const PointCloud& target,
+                    const Eigen::Isometry3d& transform, double max_distance);
+
+/// Voxel-grid downsampling that drops non-finite points (leaf <= 0: only the NaN filter).
+PointCloudPtr downsampleForLoop(const PointCloud& cloud, double leaf);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,405 @@
+#include "osm_graph_slam/loop/loop_detector.h"
+
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/kdtree/kdtree_flann.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "osm_graph_slam/loop/dynamic_kd_index.h"
+
+namespace osm_graph_slam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+double yawOf(const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d x = pose.linear().col(0);
+  return std::atan2(x.y(), x.x());
+}
+
+double wrapPi(double a) {
+  return std::atan2(std::sin(a), std::cos(a));
+}
+
+}  // namespace
+
+PointCloudPtr downsampleForLoop(const PointCloud& cloud, double leaf) {
+  auto finite = std::make_shared<PointCloud>();
+  finite->reserve(cloud.size());
+  for (const auto& p : cloud.points) {
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) finite->push_back(p);
+  }
+  if (leaf <= 0.0 || finite->empty()) return finite;
+  pcl::VoxelGrid<PointT> grid;
+  grid.setLeafSize(leaf, leaf, leaf);
+  grid.setInputCloud(finite);
+  auto out = std::make_shared<PointCloud>();
+  grid.filter(*out);
+  return out;
+}
+
+double overlapRatio(const PointCloud& source, const PointCloud& target,
+                    const Eigen::Isometry3d& transform, double max_distance) {
+  if (source.empty() || target.empty()) return 0.0;
+  pcl::KdTreeFLANN<PointT> tree;
+  tree.setInputCloud(target.makeShared());
+  const Eigen::Matrix4f t = transform.matrix().cast<float>();
+  const float max_sq = static_cast<float>(max_distance * max_distance);
+  std::vector<int> index(1);
+  std::vector<float> dist_sq(1);
+  size_t inliers = 0;
+  for (const auto& p : source.points) {
+    PointT q = p;
+    q.getVector4fMap() = t * p.getVector4fMap();
+    q.data[3] = 1.f;
+    if (tree.nearestKSearch(q, 1, index, dist_sq) == 1 && dist_sq[0] <= max_sq) ++inliers;
+  }
+  return static_cast<double>(inliers) / static_cast<double>(source.size());
+}
+
+/// The cloud kept for verification: downsampled, or (voxel_size <= 0) the caller's cloud itself
+/// when it is all finite, so already filtered keyframe clouds are not copied.
+static PointCloudConstPtr storedCloud(const PointCloudConstPtr& cloud, double voxel_size) {
+  if (voxel_size <= 0.0) {
+    const bool finite = std::all_of(cloud->begin(), cloud->end(), [](const PointT& p) {
+      return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+    });
+    if (finite) return cloud;
+  }
+  return downsampleForLoop(*cloud, voxel_size);
+}
+
+/// Everything computed once per keyframe: descriptor and the two registration clouds.
+struct LoopDetector::Query {
+  uint64_t id = 0;
+  ScanContext descriptor;
+  PointCloudConstPtr cloud;
+  PointCloudConstPtr coarse_cloud;
+  bool usable = false;
+  std::string problem;
+};
+
+LoopDetector::LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
+                           LogSink log_sink)
+    : params_(params),
+      factory_(std::move(factory)),
+      logger_(std::move(log_sink)),
+      ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
+      position_index_(std::make_unique<DynamicKdIndex>(3)) {
+  if (!factory_) throw std::invalid_argument("LoopDetector needs a registration factory");
+  fine_registration_ = factory_(params_.registration);
+  if (params_.coarse_max_correspondence_distance > 0.0) {
+    RegistrationParams coarse = params_.registration;
+    coarse.max_correspondence_distance = params_.coarse_max_correspondence_distance;
+    coarse_registration_ = factory_(coarse);
+  }
+}
+
+LoopDetector::~LoopDetector() = default;
+
+size_t LoopDetector::indexLimitForDistance(double accum_distance) const {
+  // Keyframes arrive in trajectory order, so accumulated distances are non-decreasing.
+  const double limit = accum_distance - params_.min_accum_distance_gap;
+  auto it = std::upper_bound(
+      entries_.begin(), entries_.end(), limit,
+      [](double value, const LoopDatabaseEntry& e) { return value < e.accum_distance; });
+  return static_cast<size_t>(it - entries_.begin());
+}
+
+std::vector<size_t> LoopDetector::odometryCandidates(const Eigen::Isometry3d& odom_pose,
+                                                     double accum_distance) const {
+  const size_t limit = indexLimitForDistance(accum_distance);
+  if (limit == 0) return {};
+  const Eigen::Vector3f position = odom_pose.translation().cast<float>();
+  const auto near = position_index_->radius(position.data(),
+                                            static_cast<float>(params_.search_radius_max), limit);
+  std::vector<size_t> out;
+  out.reserve(near.size());
+  for (const auto& [index, dist_sq] : near) {
+    const double gap = accum_distance - entries_[index].accum_distance;
+    const double radius =
+        std::min(params_.search_radius_max,
+                 params_.search_radius_base + params_.search_radius_per_meter * std::max(0.0, gap));
+    if (dist_sq <= radius * radius) out.push_back(index);
+  }
+  return out;
+}
+
+std::vector<size_t> LoopDetector::ringKeyCandidates(const ScanContext& query,
+                                                    size_t index_limit) const {
+  const auto nearest = ring_key_index_->knn(
+      query.ring_key.data(), static_cast<size_t>(std::max(1, params_.ring_key_candidates)),
+      index_limit);
+  std::vector<size_t> out;
+  out.reserve(nearest.size());
+  for (const auto& item : nearest) out.push_back(item.first);
+  return out;
+}
+
+std::vector<RankedCandidate> LoopDetector::rankCandidates(const ScanContext& query,
+                                                          std::vector<size_t> indices) const {
+  const size_t keep_ring = static_cast<size_t>(std::max(1, params_.ring_key_candidates));
+  if (indices.size() > keep_ring) {
+    std::vector<std::pair<float, size_t>> by_ring;
+    by_ring.reserve(indices.size());
+    for (size_t index : indices) {
+      by_ring.push_back(
+          {(entries_[index].descriptor.ring_key - query.ring_key).squaredNorm(), index});
+    }
+    std::nth_element(by_ring.begin(), by_ring.begin() + keep_ring, by_ring.end());
+    indices.clear();
+    for (size_t i = 0; i < keep_ring; ++i) indices.push_back(by_ring[i].second);
+  }
+  std::vector<RankedCandidate> ranked;
+  for (size_t index : indices) {
+    RankedCandidate c;
+    c.index = index;
+    c.match = matchScanContexts(query, entries_[index].descriptor, params_.scan_context);
+    if (c.match.distance <= params_.max_descriptor_distance) ranked.push_back(c);
+  }
+  std::sort(ranked.begin(), ranked.end(),
+            [](const auto& a, const auto& b) { return a.match.distance < b.match.distance; });
+  const size_t k = static_cast<size_t>(std::max(1, params_.num_candidates));
+  if (ranked.size() > k) ranked.resize(k);
+  return ranked;
+}
+
+void LoopDetector::addOdometryNearest(const ScanContext& query, size_t nearest,
+                                      std::vector<RankedCandidate>& ranked) const {
+  for (const auto& c : ranked) {
+    if (c.index == nearest) return;
+  }
+  RankedCandidate c;
+  c.index = nearest;
+  c.match = matchScanContexts(query, entries_[nearest].descriptor, params_.scan_context);
+  if (c.match.distance <= params_.max_descriptor_distance) ranked.push_back(c);
+}
+
+Matrix6d LoopDetector::informationFromFitness(double fitness) const {
+  const double rms = std::sqrt(std::max(0.0, fitness));
+  const double st = std::clamp(params_.translation_stddev_per_rms * rms,
+                               params_.min_translation_stddev, params_.max_translation_stddev);
+  const double sr = std::clamp(params_.rotation_stddev_per_rms * rms, params_.min_rotation_stddev,
+                               params_.max_rotation_stddev);
+  Matrix6d info = Matrix6d::Zero();
+  info.diagonal() << 1.0 / (st * st), 1.0 / (st * st), 1.0 / (st * st), 1.0 / (sr * sr),
+      1.0 / (sr * sr), 1.0 / (sr * sr);
+  return info;
+}
+
+std::optional<DetectedLoop> LoopDetector::verifyCandidate(
+    const Query& query, const RankedCandidate& candidate, Eigen::Isometry3d guess,
+    const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
+  const LoopDatabaseEntry& target = entries_[candidate.index];
+  ++stats_.verified;
+  if (coarse_registration_) {
+    coarse_registration_->setTarget(target.coarse_cloud);
+    const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
+    if (coarse.converged) guess = coarse.transform;
+  }
+  fine_registration_->setTarget(target.cloud);
+  const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
+  CandidateOutcome outcome;
+  outcome.id = target.id;
+  outcome.descriptor_distance = candidate.match.distance;
+  outcome.fitness = fine.fitness;
+  outcome.transform = fine.transform;
+  auto reject = [&](const char* verdict, int& counter) -> std::optional<DetectedLoop> {
+    ++counter;
+    outcome.verdict = verdict;
+    stats_.outcomes.push_back(outcome);
+    return std::nullopt;
+  };
+  if (!fine.converged || !(fine.fitness <= params_.max_fitness)) {
+    return reject("fitness", stats_.rejected_fitness);
+  }
+  outcome.overlap =
+      overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
+  if (outcome.overlap < params_.min_overlap) return reject("overlap", stats_.rejected_overlap);
+  if (odom_pose && params_.check_odometry_consistency) {
+    const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * (*odom_pose);
+    const double gap = std::max(0.0, accum_distance - target.accum_distance);
+    const double dt = (odom_relative.translation() - fine.transform.translation()).norm();
+    const double dyaw = std::abs(wrapPi(yawOf(odom_relative) - yawOf(fine.transform)));
+    const double t_tol = params_.odometry_translation_tolerance_base +
+                         params_.odometry_translation_tolerance_per_meter * gap;
+    const double yaw_tol =
+        params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
+    if (dt > t_tol || dyaw > yaw_tol) return reject("odometry", stats_.rejected_odometry);
+  }
+  outcome.verdict = "accepted";
+  stats_.outcomes.push_back(outcome);
+  DetectedLoop loop;
+  loop.from_id = query.id;
+  loop.to_id = target.id;
+  loop.relative_pose = fine.transform;
+  loop.information = informationFromFitness(fine.fitness);
+  loop.descriptor_distance = candidate.match.distance;
+  loop.descriptor_yaw = candidate.match.yaw;
+  loop.fitness = fine.fitness;
+  loop.overlap = outcome.overlap;
+  return loop;
+}
+
+std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
+                                                 const std::vector<RankedCandidate>& ranked,
+                                                 const std::optional<Eigen::Isometry3d>& odom_pose,
+                                                 double accum_distance) {
+  std::optional<DetectedLoop> best;
+  for (const auto& candidate : ranked) {
+    const LoopDatabaseEntry& target = entries_[candidate.index];
+    // Rotation from the descriptor. Translation: first from odometry when there is one (so that
+    // on repetitive facades registration settles in the alias nearest to the odometry), then,
+    // if that fails, zero (revisits in the other lane are closer to zero than drifted odometry).
+    std::vector<Eigen::Isometry3d> seeds;
+    Eigen::Isometry3d seed = Eigen::Isometry3d::Identity();
+    seed.linear() = Eigen::AngleAxisd(candidate.match.yaw, Eigen::Vector3d::UnitZ()).matrix();
+    if (odom_pose && params_.seed_translation_from_odometry) {
+      Eigen::Isometry3d from_odometry = seed;
+      from_odometry.translation() = (target.odom_pose.inverse() * (*odom_pose)).translation();
+      seeds.push_back(from_odometry);
+      if (params_.retry_zero_translation_seed) seeds.push_back(seed);
+    } else {
+      seeds.push_back(seed);
+    }
+    for (const auto& guess : seeds) {
+      auto loop = verifyCandidate(query, candidate, guess, odom_pose, accum_distance);
+      if (!loop) continue;
+      if (!best || loop->fitness < best->fitness) best = loop;
+      break;
+    }
+  }
+  return best;
+}
+
+std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
+  stats_ = LoopQueryStats();
+  auto start = Clock::now();
+  Query query;
+  query.id = keyframe.id;
+  if (!keyframe.cloud || keyframe.cloud->empty()) {
+    stats_.reason = "keyframe " + std::to_string(keyframe.id) + " has no points";
+    return std::nullopt;
+  }
+  query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  stats_.descriptor_ms = msSince(start);
+
+  start = Clock::now();
+  std::vector<size_t> candidates = odometryCandidates(keyframe.odom_pose, keyframe.accum_distance);
+  stats_.phase1_candidates = static_cast<int>(candidates.size());
+  stats_.candidates_ms = msSince(start);
+  if (candidates.empty()) {
+    stats_.reason = "no odometry candidates";
+    return std::nullopt;
+  }
+  start = Clock::now();
+  const size_t nearest = candidates.front();  // phase 1 returns the closest first
+  auto ranked = rankCandidates(query.descriptor, std::move(candidates));
+  if (params_.verify_odometry_nearest) addOdometryNearest(query.descriptor, nearest, ranked);
+  stats_.phase2_candidates = static_cast<int>(ranked.size());
+  stats_.ranking_ms = msSince(start);
+  if (ranked.empty()) {
+    stats_.reason = "no candidate within the descriptor distance";
+    return std::nullopt;
+  }
+  start = Clock::now();
+  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  query.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
+                           : query.cloud;
+  auto loop = verify(query, ranked, keyframe.odom_pose, keyframe.accum_distance);
+  stats_.verification_ms = msSince(start);
+  stats_.accepted = loop.has_value();
+  if (!loop) stats_.reason = "no candidate passed verification";
+  return loop;
+}
+
+std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyframe) {
+  stats_ = LoopQueryStats();
+  if (!keyframe.cloud || keyframe.cloud->empty()) {
+    stats_.reason = "relocalisation cloud has no points";
+    return std::nullopt;
+  }
+  auto start = Clock::now();
+  Query query;
+  query.id = keyframe.id;
+  query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  stats_.descriptor_ms = msSince(start);
+  start = Clock::now();
+  const size_t limit = keyframe.accum_distance < 0.0
+                           ? entries_.size()
+                           : indexLimitForDistance(keyframe.accum_distance);
+  auto candidates = ringKeyCandidates(query.descriptor, limit);
+  stats_.phase1_candidates = static_cast<int>(candidates.size());
+  stats_.candidates_ms = msSince(start);
+  start = Clock::now();
+  const auto ranked = rankCandidates(query.descriptor, std::move(candidates));
+  stats_.phase2_candidates = static_cast<int>(ranked.size());
+  stats_.ranking_ms = msSince(start);
+  if (ranked.empty()) {
+    stats_.reason = "no keyframe within the descriptor distance";
+    return std::nullopt;
+  }
+  start = Clock::now();
+  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  query.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
+                           : query.cloud;
+  auto loop = verify(query, ranked, std::nullopt, 0.0);
+  stats_.verification_ms = msSince(start);
+  stats_.accepted = loop.has_value();
+  if (!loop) stats_.reason = "no candidate passed verification";
+  return loop;
+}
+
+bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
+  if (!keyframe.cloud) {
+    logger_.warnOnce("loop_null_cloud", "loop detection: keyframe without cloud ignored");
+    return false;
+  }
+  if (!entries_.empty() && keyframe.accum_distance < entries_.back().accum_distance) {
+    logger_.warnOnce("loop_accum_order",
+                     "loop detection: keyframe " + std::to_string(keyframe.id) +
+                         " has a smaller accumulated distance than its predecessor; ignored");
+    return false;
+  }
+  LoopDatabaseEntry entry;
+  entry.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  if (static_cast<int>(entry.cloud->size()) < params_.min_points) {
+    logger_.warnOnce("loop_few_points",
+                     "loop detection: keyframe " + std::to_string(keyframe.id) + " has only " +
+                         std::to_string(entry.cloud->size()) +
+                         " valid points after downsampling; not stored (reported once)");
+    return false;
+  }
+  entry.id = keyframe.id;
+  entry.odom_pose = keyframe.odom_pose;
+  entry.accum_distance = keyframe.accum_distance;
+  entry.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  // Without a coarse stage no coarse cloud is needed: share the pointer.
+  entry.coarse_cloud = coarse_registration_
+                           ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size)
+                           : entry.cloud;
+  const Eigen::Vector3f position = keyframe.odom_pose.translation().cast<float>();
+  ring_key_index_->add(entry.descriptor.ring_key.data());
+  position_index_->add(position.data());
+  entries_.push_back(std::move(entry));
+  return true;
+}
+
+std::optional<DetectedLoop> LoopDetector::process(const LoopKeyframe& keyframe) {
+  auto loop = detect(keyframe);
+  const LoopQueryStats stats = stats_;
+  addKeyframe(keyframe);
+  stats_ = stats;
+  return loop;
+}
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,197 @@
+// Loop detection nodelet: KeyFrame -> LoopClosure. Thin adapter around LoopDetector.
+#include <geometry_msgs/Pose.h>
+#include <nodelet/nodelet.h>
+#include <osm_graph_slam/KeyFrame.h>
+#include <osm_graph_slam/LoopClosure.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <ros/ros.h>
+
+#include <memory>
+#include <pluginlib/class_list_macros.hpp>
+
+#include "osm_graph_slam/loop/loop_detector.h"
+
+namespace osm_graph_slam {
+namespace {
+
+template <typename T>
+void readParam(const ros::NodeHandle& nh, const std::string& name, T& value) {
+  nh.param<T>(name, value, value);  // the struct default is the fallback
+}
+
+void readInt(const ros::NodeHandle& nh, const std::string& name, int& value) {
+  nh.param<int>(name, value, value);
+}
+
+LoopDetectorParams readParams(const ros::NodeHandle& nh) {
+  LoopDetectorParams p;
+  auto& sc = p.scan_context;
+  readInt(nh, "scan_context/num_rings", sc.num_rings);
+  readInt(nh, "scan_context/num_sectors", sc.num_sectors);
+  readParam(nh, "scan_context/max_radius", sc.max_radius);
+  readParam(nh, "scan_context/min_radius", sc.min_radius);
+  readParam(nh, "scan_context/sensor_height", sc.sensor_height);
+  readParam(nh, "scan_context/max_height", sc.max_height);
+  readParam(nh, "scan_context/min_height", sc.min_height);
+  readInt(nh, "scan_context/sector_search_window", sc.sector_search_window);
+  readParam(nh, "min_accum_distance_gap", p.min_accum_distance_gap);
+  readParam(nh, "search_radius_base", p.search_radius_base);
+  readParam(nh, "search_radius_per_meter", p.search_radius_per_meter);
+  readParam(nh, "search_radius_max", p.search_radius_max);
+  readInt(nh, "ring_key_candidates", p.ring_key_candidates);
+  readInt(nh, "num_candidates", p.num_candidates);
+  readParam(nh, "max_descriptor_distance", p.max_descriptor_distance);
+  readParam(nh, "verify_odometry_nearest", p.verify_odometry_nearest);
+  readParam(nh, "voxel_size", p.voxel_size);
+  readInt(nh, "min_points", p.min_points);
+  readParam(nh, "coarse_voxel_size", p.coarse_voxel_size);
+  readParam(nh, "coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
+  auto& r = p.registration;
+  readParam(nh, "registration/method", r.method);
+  readInt(nh, "registration/num_threads", r.num_threads);
+  readInt(nh, "registration/max_iterations", r.max_iterations);
+  readParam(nh, "registration/max_correspondence_distance", r.max_correspondence_distance);
+  readParam(nh, "registration/transformation_epsilon", r.transformation_epsilon);
+  readInt(nh, "registration/k_correspondences", r.k_correspondences);
+  readParam(nh, "registration/ndt_resolution", r.ndt_resolution);
+  readParam(nh, "max_fitness", p.max_fitness);
+  readParam(nh, "overlap_distance", p.overlap_distance);
+  readParam(nh, "min_overlap", p.min_overlap);
+  readParam(nh, "seed_translation_from_odometry", p.seed_translation_from_odometry);
+  readParam(nh, "retry_zero_translation_seed", p.retry_zero_translation_seed);
+  readParam(nh, "check_odometry_consistency", p.check_odometry_consistency);
+  readParam(nh, "odometry_translation_tolerance_base", p.odometry_translation_tolerance_base);
+  readParam(nh, "odometry_translation_tolerance_per_meter",
+            p.odometry_translation_tolerance_per_meter);
+  readParam(nh, "odometry_yaw_tolerance_base", p.odometry_yaw_tolerance_base);
+  readParam(nh, "odometry_yaw_tolerance_per_meter", p.odometry_yaw_tolerance_per_meter);
+  readParam(nh, "translation_stddev_per_rms", p.translation_stddev_per_rms);
+  readParam(nh, "rotation_stddev_per_rms", p.rotation_stddev_per_rms);
+  readParam(nh, "min_translation_stddev", p.min_translation_stddev);
+  readParam(nh, "max_translation_stddev", p.max_translation_stddev);
+  readParam(nh, "min_rotation_stddev", p.min_rotation_stddev);
+  readParam(nh, "max_rotation_stddev", p.max_rotation_stddev);
+  return p;
+}
+
+Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() << pose.position.x, pose.position.y, pose.position.z;
+  Eigen::Quaterniond q(pose.orientation.w, pose.orientation.x, pose.orientation.y,
+                       pose.orientation.z);
+  if (q.norm() < 1e-9) q = Eigen::Quaterniond::Identity();
+  t.linear() = q.normalized().toRotationMatrix();
+  return t;
+}
+
+geometry_msgs::Pose toMsg(const Eigen::Isometry3d& t) {
+  geometry_msgs::Pose pose;
+  pose.position.x = t.translation().x();
+  pose.position.y = t.translation().y();
+  pose.position.z = t.translation().z();
+  const Eigen::Quaterniond q(t.linear());
+  pose.orientation.w = q.w();
+  pose.orientation.x = q.x();
+  pose.orientation.y = q.y();
+  pose.orientation.z = q.z();
+  return pose;
+}
+
+}  // namespace
+
+class LoopDetectionNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    const LoopDetectorParams params = readParams(pnh);
+    pnh.param<std::string>("mode", mode_, "odometry");
+    if (mode_ != "odometry" && mode_ != "place_recognition") {
+      NODELET_ERROR(
+          "loop_detection: unknown mode '%s' (odometry | place_recognition); using "
+          "odometry",
+          mode_.c_str());
+      mode_ = "odometry";
+    }
+    LogSink sink = [this](LogLevel level, const std::string& msg) {
+      switch (level) {
+        case LogLevel::kDebug:
+          NODELET_DEBUG("%s", msg.c_str());
+          break;
+        case LogLevel::kInfo:
+          NODELET_INFO("%s", msg.c_str());
+          break;
+        case LogLevel::kWarn:
+          NODELET_WARN("%s", msg.c_str());
+          break;
+        case LogLevel::kError:
+          NODELET_ERROR("%s", msg.c_str());
+          break;
+      }
+    };
+    try {
+      detector_ = std::make_unique<LoopDetector>(
+          params, [](const RegistrationParams& p) { return createRegistration(p); }, sink);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("loop_detection: cannot create the detector: %s", e.what());
+      return;
+    }
+    publisher_ = nh.advertise<osm_graph_slam::LoopClosure>("loop_closures", 16);
+    subscriber_ = nh.subscribe("keyframe", 64, &LoopDetectionNodelet::onKeyframe, this);
+    NODELET_INFO("loop_detection: mode %s, registration %s, k = %d", mode_.c_str(),
+                 params.registration.method.c_str(), params.num_candidates);
+  }
+
+  void onKeyframe(const osm_graph_slam::KeyFrameConstPtr& msg) {
+    LoopKeyframe kf;
+    kf.id = msg->id;
+    kf.odom_pose = toEigen(msg->odom_pose);
+    kf.accum_distance = msg->accum_distance;
+    auto cloud = std::make_shared<PointCloud>();
+    try {
+      pcl::fromROSMsg(msg->cloud, *cloud);
+    } catch (const std::exception& e) {
+      NODELET_WARN_THROTTLE(10.0, "loop_detection: keyframe %lu cloud not convertible: %s",
+                            static_cast<unsigned long>(msg->id), e.what());
+      return;
+    }
+    kf.cloud = cloud;
+    std::optional<DetectedLoop> loop;
+    if (mode_ == "odometry") {
+      loop = detector_->process(kf);
+    } else {
+      loop = detector_->relocalize(kf);
+      detector_->addKeyframe(kf);
+    }
+    const LoopQueryStats& stats = detector_->lastStats();
+    NODELET_DEBUG(
+        "loop_detection: keyframe %lu: %d/%d candidates, %.1f ms%s%s",
+        static_cast<unsigned long>(msg->id), stats.phase1_candidates, stats.phase2_candidates,
+        stats.descriptor_ms + stats.candidates_ms + stats.ranking_ms + stats.verification_ms,
+        loop ? "" : ", no loop: ", loop ? "" : stats.reason.c_str());
+    if (!loop) return;
+    osm_graph_slam::LoopClosurePtr out(new osm_graph_slam::LoopClosure);
+    out->header = msg->header;
+    out->from_id = loop->from_id;
+    out->to_id = loop->to_id;
+    out->relative_pose = toMsg(loop->relative_pose);
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) out->information[r * 6 + c] = loop->information(r, c);
+    }
+    out->descriptor_distance = loop->descriptor_distance;
+    out->fitness = loop->fitness;
+    NODELET_INFO("loop_detection: loop %lu -> %lu, fitness %.3f, descriptor %.3f",
+                 static_cast<unsigned long>(out->from_id), static_cast<unsigned long>(out->to_id),
+                 out->fitness, out->descriptor_distance);
+    publisher_.publish(osm_graph_slam::LoopClosureConstPtr(out));
+  }
+
+  std::string mode_;
+  std::unique_ptr<LoopDetector> detector_;
+  ros::Publisher publisher_;
+  ros::Subscriber subscriber_;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::LoopDetectionNodelet, nodelet::Nodelet)

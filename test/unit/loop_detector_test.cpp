@@ -1,0 +1,146 @@
+// Loop detection on a simulated drive through a ray-cast town: a full loop around four streets
+// (one of them a street of identical, evenly spaced facades and poles), then a second pass down
+// the facade street in another lane. Odometry drifts (scale and heading bias).
+#include <gtest/gtest.h>
+
+#include <iostream>
+#include <random>
+
+#include "loop_test_registration.h"
+#include "osm_graph_slam/loop/loop_detector.h"
+#include "osm_graph_slam/loop/synthetic_world.h"
+
+namespace osm_graph_slam {
+namespace {
+
+constexpr double kFacadePeriod = 14.0;
+
+Eigen::Isometry3d pose2d(double x, double y, double yaw) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() << x, y, 0.0;
+  t.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).matrix();
+  return t;
+}
+
+struct Drive {
+  std::vector<Eigen::Isometry3d> truth;
+  std::vector<LoopKeyframe> keyframes;
+};
+
+/// The drive: loop around the town every 4 m, then the facade street again 1.5 m to the left,
+/// 2 m out of step and with a few degrees of heading jitter.
+const Drive& drive() {
+  static const Drive d = [] {
+    Drive out;
+    const SyntheticWorld world = makeLoopTown(200.0, 120.0, kFacadePeriod, 7);
+    auto route = loopTownRoute(200.0, 120.0, 0.0, 4.0, 0.0, 0.0);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> jitter(-0.05, 0.05);
+    for (double x = 2.0; x <= 150.0; x += 4.0) route.emplace_back(x, 1.5, jitter(rng));
+    // Odometry: 0.5 % scale error and a heading bias of 0.003 deg per metre.
+    Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
+    double accum = 0.0;
+    for (size_t i = 0; i < route.size(); ++i) {
+      const Eigen::Isometry3d truth = pose2d(route[i].x(), route[i].y(), route[i].z());
+      if (i > 0) {
+        Eigen::Isometry3d step = out.truth.back().inverse() * truth;
+        const double length = step.translation().norm();
+        accum += length;
+        step.translation() *= 1.005;
+        step = step * pose2d(0, 0, 0.0000524 * length);
+        odom = odom * step;
+      } else {
+        odom = truth;
+      }
+      LoopKeyframe kf;
+      kf.id = i;
+      kf.odom_pose = odom;
+      kf.accum_distance = accum;
+      kf.cloud = simulateSyntheticScan(world, route[i].head<2>(), route[i].z(),
+                                       SyntheticLidarParams(), 100 + i);
+      out.truth.push_back(truth);
+      out.keyframes.push_back(kf);
+    }
+    return out;
+  }();
+  return d;
+}
+
+struct PoseError {
+  double translation = 0.0;
+  double rotation_deg = 0.0;
+};
+
+PoseError errorOf(const DetectedLoop& loop, const Drive& d) {
+  const Eigen::Isometry3d truth = d.truth[loop.to_id].inverse() * d.truth[loop.from_id];
+  const Eigen::Isometry3d delta = truth.inverse() * loop.relative_pose;
+  return {delta.translation().norm(), Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI};
+}
+
+bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distance) {
+  for (size_t j = 0; j < i; ++j) {
+    if (d.keyframes[i].accum_distance - d.keyframes[j].accum_distance < min_gap) break;
+    if ((d.truth[i].translation() - d.truth[j].translation()).norm() <= max_distance) return true;
+  }
+  return false;
+}
+
+TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
+  const Drive& d = drive();
+  LoopDetectorParams params;
+  LoopDetector detector(params, test::testRegistrationFactory());
+  int revisits = 0, found = 0, false_loops = 0, inaccurate = 0, accepted = 0, missed = 0;
+  int aliases_rejected = 0;
+  double max_t = 0.0, max_r = 0.0;
+  for (size_t i = 0; i < d.keyframes.size(); ++i) {
+    const auto loop = detector.process(d.keyframes[i]);
+    const bool revisit = hasTrueRevisit(d, i, params.min_accum_distance_gap, 5.0);
+    revisits += revisit ? 1 : 0;
+    for (const auto& o : detector.lastStats().outcomes) {
+      const Eigen::Isometry3d truth = d.truth[o.id].inverse() * d.truth[i];
+      const double err = (truth.inverse() * o.transform).translation().norm();
+      // A registration that fits well but lands a facade period (or more) away: the trap.
+      if (o.verdict == "odometry" && err > 5.0 && o.fitness <= params.max_fitness) {
+        ++aliases_rejected;
+      }
+    }
+    if (!loop) {
+      missed += revisit ? 1 : 0;
+      if (revisit) {
+        std::cout << "   revisit keyframe " << i << " not closed: " << detector.lastStats().reason
+                  << "\n";
+      }
+      continue;
+    }
+    ++accepted;
+    found += revisit ? 1 : 0;
+    const PoseError e = errorOf(*loop, d);
+    max_t = std::max(max_t, e.translation);
+    max_r = std::max(max_r, e.rotation_deg);
+    if (e.translation > 1.0 || e.rotation_deg > 2.0) ++false_loops;
+    if (e.translation > 0.10 || e.rotation_deg > 0.5) {
+      ++inaccurate;
+      ADD_FAILURE() << "loop " << loop->from_id << "->" << loop->to_id << " error " << e.translation
+                    << " m " << e.rotation_deg << " deg (fitness " << loop->fitness
+                    << ", descriptor " << loop->descriptor_distance << ")";
+    }
+    EXPECT_GT(loop->information(0, 0), 0.0);
+    EXPECT_GE(loop->information(0, 0), loop->information(2, 2) * 0.999);
+  }
+  std::cout << "[ loop_detector ] keyframes " << d.keyframes.size() << ", true revisits "
+            << revisits << ", found " << found << ", accepted " << accepted << ", false "
+            << false_loops << ", well-fitting aliases rejected by odometry " << aliases_rejected
+            << ", max error " << max_t << " m " << max_r << " deg\n";
+  EXPECT_GE(revisits, 30);
+  // Misses happen only in the facade street where 3-5 m of odometry drift along a periodic
+  // corridor leaves registration in a wrong alias, which the odometry check then rejects.
+  EXPECT_GE(found, static_cast<int>(0.85 * revisits));
+  EXPECT_EQ(found + missed, revisits);
+  // The facade trap is real (aliases fit as well as true matches) and the guard catches it.
+  EXPECT_GT(aliases_rejected, 5);
+  EXPECT_EQ(false_loops, 0);
+  EXPECT_EQ(inaccurate, 0);
+}
+
+}  // namespace
+}  // namespace osm_graph_slam
