@@ -1,0 +1,57 @@
+#pragma once
+// Line-segment geometry of the line matcher (OSM thesis §3.3.1, §3.3.4): segment distances with
+// and without coverage, angular and virtual edges, polygon outlines and their overlap.
+#include <vector>
+
+#include "osm_graph_slam/common/geometry2d.h"
+
+namespace osm_graph_slam {
+
+/// Distance of point p to the segment s (to its nearest point).
+double pointSegmentDistance(const Eigen::Vector2d& p, const LineSegment2& s);
+
+/// Line-to-line distance without coverage (§3.3.4, fig. 3.8a): mean distance of the two source
+/// endpoints to the target segment (projection when inside it, else its nearest endpoint).
+double segmentDistanceNoCoverage(const LineSegment2& source, const LineSegment2& target);
+
+/// Line-to-line distance with coverage (fig. 3.8b): the endpoints (of both segments) whose
+/// projection falls inside the other segment are averaged by their distance to the other line;
+/// coverage is the length of the source covered by the target [m]. Without overlap the distance
+/// falls back to the one without coverage and the coverage is 0.
+struct CoverageDistance {
+  double distance = 0.0;
+  double coverage = 0.0;
+};
+CoverageDistance segmentDistanceWithCoverage(const LineSegment2& source,
+                                             const LineSegment2& target);
+
+/// An edge (§3.3.1): the intersection of two segments' lines with the two rays from the corner
+/// along the segments. Ordered so that ray2 is counter-clockwise of ray1 by `opening` in (0, pi).
+struct LineEdge {
+  Eigen::Vector2d corner = Eigen::Vector2d::Zero();
+  double ray1 = 0.0, ray2 = 0.0;  ///< ray directions [rad]
+  double opening = 0.0;           ///< CCW angle from ray1 to ray2 [rad]
+  double arm1 = 0.0, arm2 = 0.0;  ///< corner to the far end of each segment along its ray [m]
+  int seg1 = -1, seg2 = -1;       ///< segment indices of ray1 and ray2
+  bool virtual_edge = false;      ///< true: the segments do not share an endpoint
+};
+
+struct EdgeParams {
+  double min_angle_deg = 30.0;         ///< lines closer to parallel than this form no edge
+  double endpoint_tolerance = 1.0;     ///< corner this close to both segments: angular edge [m]
+  double max_virtual_distance = 6.0;   ///< corner at most this far beyond each segment [m]
+};
+
+/// Angular and virtual edges of a segment set. A corner inside a segment (T or X junction) gives
+/// an edge for each side of that segment.
+std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, const EdgeParams& p);
+
+/// The closed outline of a polygon as segments.
+std::vector<LineSegment2> polygonSegments(const Polygon2& polygon);
+
+/// Area of the intersection of two simple polygons [m^2] (either orientation).
+double polygonOverlapArea(const Polygon2& a, const Polygon2& b);
+
+Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,166 @@
+#include "osm_graph_slam/lines/line_geometry.h"
+
+#include <algorithm>
+#include <boost/geometry.hpp>
+#include <boost/geometry/geometries/point_xy.hpp>
+#include <boost/geometry/geometries/polygon.hpp>
+#include <cmath>
+
+namespace osm_graph_slam {
+namespace {
+
+double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
+
+struct Ray {
+  double angle;
+  double arm;
+};
+
+/// Rays from a corner at parameter s along a segment of length len and direction d.
+std::vector<Ray> raysAt(double s, double len, const Eigen::Vector2d& d, double tol) {
+  const double fwd = std::atan2(d.y(), d.x());
+  const double back = wrapAngle(fwd + M_PI);
+  if (s > tol && s < len - tol) return {{fwd, len - s}, {back, s}};  // corner inside: both sides
+  if (s <= 0.5 * len) return {{fwd, len - s}};
+  return {{back, s}};
+}
+
+}  // namespace
+
+double pointSegmentDistance(const Eigen::Vector2d& p, const LineSegment2& s) {
+  const Eigen::Vector2d d = s.end - s.start;
+  const double l2 = d.squaredNorm();
+  if (l2 <= 0.0) return (p - s.start).norm();
+  const double t = std::clamp((p - s.start).dot(d) / l2, 0.0, 1.0);
+  return (p - (s.start + t * d)).norm();
+}
+
+double segmentDistanceNoCoverage(const LineSegment2& source, const LineSegment2& target) {
+  return 0.5 * (pointSegmentDistance(source.start, target) +
+                pointSegmentDistance(source.end, target));
+}
+
+CoverageDistance segmentDistanceWithCoverage(const LineSegment2& source,
+                                             const LineSegment2& target) {
+  const double ls = source.length(), lt = target.length();
+  const Eigen::Vector2d us = source.direction(), ut = target.direction();
+  const Eigen::Vector2d ns(-us.y(), us.x()), nt(-ut.y(), ut.x());
+  double sum = 0.0;
+  int n = 0;
+  for (const Eigen::Vector2d& p : {source.start, source.end}) {
+    const double tau = (p - target.start).dot(ut);
+    if (tau >= 0.0 && tau <= lt) {
+      sum += std::abs((p - target.start).dot(nt));
+      ++n;
+    }
+  }
+  const double sc = (target.start - source.start).dot(us);
+  const double sd = (target.end - source.start).dot(us);
+  for (const auto& [q, sigma] : {std::make_pair(target.start, sc), std::make_pair(target.end, sd)}) {
+    if (sigma >= 0.0 && sigma <= ls) {
+      sum += std::abs((q - source.start).dot(ns));
+      ++n;
+    }
+  }
+  CoverageDistance out;
+  if (n == 0) {
+    out.distance = segmentDistanceNoCoverage(source, target);
+    return out;
+  }
+  out.distance = sum / n;
+  out.coverage = std::max(0.0, std::min(ls, std::max(sc, sd)) - std::max(0.0, std::min(sc, sd)));
+  return out;
+}
+
+std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, const EdgeParams& p) {
+  std::vector<LineEdge> edges;
+  const double min_sin = std::sin(p.min_angle_deg * M_PI / 180.0);
+  const double tol = p.endpoint_tolerance;
+  for (size_t i = 0; i < segments.size(); ++i) {
+    const LineSegment2& a = segments[i];
+    const double la = a.length();
+    if (!(la > 0.0) || !a.start.allFinite() || !a.end.allFinite()) continue;
+    const Eigen::Vector2d da = a.direction();
+    for (size_t j = i + 1; j < segments.size(); ++j) {
+      const LineSegment2& b = segments[j];
+      const double lb = b.length();
+      if (!(lb > 0.0) || !b.start.allFinite() || !b.end.allFinite()) continue;
+      const Eigen::Vector2d db = b.direction();
+      const double sin_ab = cross(da, db);
+      if (std::abs(sin_ab) < min_sin) continue;
+      const Eigen::Vector2d ab = b.start - a.start;
+      const double s = cross(ab, db) / sin_ab;  // corner = a.start + s * da
+      const double r = cross(ab, da) / sin_ab;  // corner = b.start + r * db
+      const double gap_a = std::max({0.0, -s, s - la}), gap_b = std::max({0.0, -r, r - lb});
+      if (gap_a > p.max_virtual_distance || gap_b > p.max_virtual_distance) continue;
+      const bool inside_a = s > tol && s < la - tol, inside_b = r > tol && r < lb - tol;
+      const bool angular = gap_a <= tol && gap_b <= tol && !inside_a && !inside_b;
+      const Eigen::Vector2d corner = a.start + s * da;
+      for (const Ray& ra : raysAt(s, la, da, tol)) {
+        for (const Ray& rb : raysAt(r, lb, db, tol)) {
+          LineEdge e;
+          e.corner = corner;
+          e.virtual_edge = !angular;
+          const double ccw = wrapAngle(rb.angle - ra.angle);  // from ray a to ray b
+          if (ccw > 0.0) {
+            e.ray1 = ra.angle, e.ray2 = rb.angle, e.arm1 = ra.arm, e.arm2 = rb.arm;
+            e.seg1 = int(i), e.seg2 = int(j), e.opening = ccw;
+          } else {
+            e.ray1 = rb.angle, e.ray2 = ra.angle, e.arm1 = rb.arm, e.arm2 = ra.arm;
+            e.seg1 = int(j), e.seg2 = int(i), e.opening = -ccw;
+          }
+          edges.push_back(e);
+        }
+      }
+    }
+  }
+  return edges;
+}
+
+std::vector<LineSegment2> polygonSegments(const Polygon2& polygon) {
+  std::vector<LineSegment2> out;
+  const size_t n = polygon.size();
+  if (n < 2) return out;
+  for (size_t i = 0; i < n; ++i) {
+    if (n == 2 && i == 1) break;  // an open two-point "polygon" is one wall
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[(i + 1) % n];
+    if ((b - a).norm() > 1e-9) out.emplace_back(a, b);
+  }
+  return out;
+}
+
+double polygonOverlapArea(const Polygon2& a, const Polygon2& b) {
+  namespace bg = boost::geometry;
+  using Point = bg::model::d2::point_xy<double>;
+  using Poly = bg::model::polygon<Point>;
+  if (a.size() < 3 || b.size() < 3) return 0.0;
+  auto toBoost = [](const Polygon2& in) {
+    Poly out;
+    for (const auto& v : in) bg::append(out.outer(), Point(v.x(), v.y()));
+    bg::append(out.outer(), Point(in.front().x(), in.front().y()));
+    bg::correct(out);
+    return out;
+  };
+  try {
+    const Poly pa = toBoost(a), pb = toBoost(b);
+    std::vector<Poly> parts;
+    bg::intersection(pa, pb, parts);
+    double area = 0.0;
+    for (const Poly& part : parts) area += std::abs(bg::area(part));
+    return area;
+  } catch (const std::exception&) {
+    return 0.0;  // invalid (self-intersecting) input: no defined overlap
+  }
+}
+
+Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T) {
+  Polygon2 out;
+  out.reserve(polygon.size());
+  for (const auto& v : polygon) out.push_back(T.transform(v));
+  return out;
+}
+
+}  // namespace osm_graph_slam

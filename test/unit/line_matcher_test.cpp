@@ -1,0 +1,245 @@
+// Line matcher on simulated keyframes: buildings seen partially by a ring-of-beams sensor with
+// noise and clutter, through the real pipeline (wall points -> RANSAC segments -> matcher).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/lines/line_matcher.h"
+#include "osm_graph_slam/lines/line_segment_extractor.h"
+#include "osm_graph_slam/lines/wall_scan_simulator.h"
+
+using namespace osm_graph_slam;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+std::vector<LineSegment2> keyframeSegments(const std::vector<SimBuilding>& buildings,
+                                           const Pose2& sensor, uint32_t seed) {
+  WallScanParams sim;
+  sim.seed = seed;
+  const PointCloudPtr scan = simulateWallScan(buildings, sensor, sim);
+  const PointCloudPtr walls = WallPointExtractor().extract(*scan);
+  return LineSegmentExtractor().extract(*walls);
+}
+
+double angleErrorDeg(double a, double b) { return std::abs(wrapAngle(a - b)) / kDeg; }
+
+/// Map-frame building segments to the building's own frame (origin at its first vertex).
+std::vector<LineSegment2> toLocal(const std::vector<LineSegment2>& segs, const Pose2& pose) {
+  std::vector<LineSegment2> out;
+  for (const auto& s : segs) out.push_back(s.transformed(pose.inverse()));
+  return out;
+}
+
+struct GlobalCase {
+  const char* name;
+  Pose2 offset;  // error of the guess, in the sensor frame
+};
+
+}  // namespace
+
+TEST(LineMatcherSynthetic, GlobalMatchingRecoversKnownOffsets) {
+  const auto scene = makeStreetScene(15, 7);
+  const std::vector<LineSegment2> map = buildingWalls(scene);
+  const Pose2 truth(2.0, 0.5, 3.0 * kDeg);
+  const auto segments = keyframeSegments(scene, truth, 11);
+  ASSERT_GE(segments.size(), 8u);
+  const GlobalCase cases[] = {{"translation", {1.5, 0.0, 0.0}},
+                              {"rotation", {0.0, 0.0, 10.0 * kDeg}},
+                              {"both", {-1.0, 1.0, -8.0 * kDeg}},
+                              {"diagonal", {1.0, -1.1, 6.0 * kDeg}}};
+  LineMatcher matcher;
+  for (const auto& c : cases) {
+    const Pose2 guess = truth * c.offset;
+    const LineMatchResult r = matcher.matchGlobal(segments, map, guess);
+    SCOPED_TRACE(c.name);
+    std::printf("[global %s] err %.3f %.3f m %.3f deg fitness %.1f matched %d/%zu feature %s "
+                "edges %zu x %zu pairs %zu in bounds %zu evaluated %zu+%zu %.2f ms\n",
+                c.name, r.transform.x - truth.x, r.transform.y - truth.y,
+                (r.transform.theta - truth.theta) / kDeg, r.fitness, r.matched_segments,
+                segments.size(), toString(r.feature), r.stats.source_edges, r.stats.target_edges,
+                r.stats.edge_pairs_total, r.stats.edge_pairs_in_bounds,
+                r.stats.hypotheses_evaluated, r.stats.line_pairs_evaluated, r.stats.ms);
+    ASSERT_TRUE(r.success) << r.message;
+    EXPECT_NEAR(r.transform.x, truth.x, 0.05);
+    EXPECT_NEAR(r.transform.y, truth.y, 0.05);
+    EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
+    EXPECT_FALSE(r.two_dof);
+    EXPECT_GE(r.matched_segments, 5);
+    EXPECT_GT(r.stats.edge_pairs_in_bounds, 0u);
+    EXPECT_LT(r.stats.edge_pairs_in_bounds, r.stats.edge_pairs_total);  // pruning worked
+    EXPECT_GT(r.information(0, 0), 0.0);
+  }
+}
+
+TEST(LineMatcherSynthetic, GlobalMatchingWithUnboundedRotationFindsHeading) {
+  const auto scene = makeStreetScene(12, 3);
+  const Pose2 truth(-3.0, 0.0, 0.0);
+  const auto segments = keyframeSegments(scene, truth, 5);
+  // First keyframe: the heading is unknown (here 40 degrees off), the position roughly known.
+  const Pose2 guess = truth * Pose2(0.5, -0.3, 40.0 * kDeg);
+  const LineMatchResult r = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess, true);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.x, truth.x, 0.05);
+  EXPECT_NEAR(r.transform.y, truth.y, 0.05);
+  EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
+}
+
+TEST(LineMatcherSynthetic, CourtyardFromInsideIsMatched) {
+  const std::vector<SimBuilding> scene = {courtyardBuilding(-15.0, -12.0, 30.0, 24.0, 6.0, 0.1)};
+  const Pose2 truth = Pose2(-15.0, -12.0, 0.1) * Pose2(15.0, 12.0, 0.3);  // in the courtyard
+  const auto segments = keyframeSegments(scene, truth, 9);
+  ASSERT_GE(segments.size(), 3u);
+  const Pose2 guess = truth * Pose2(-0.8, 0.9, -5.0 * kDeg);
+  const LineMatchResult r = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.x, truth.x, 0.05);
+  EXPECT_NEAR(r.transform.y, truth.y, 0.05);
+  EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
+}
+
+TEST(LineMatcherSynthetic, LocalMatchingRecoversOneBuildingsDisplacement) {
+  const auto scene = makeStreetScene(15, 7);
+  const Pose2 sensor(2.0, 0.5, 3.0 * kDeg);
+  // Keyframe segments in the map frame (the robot pose is known here).
+  std::vector<LineSegment2> keyframe_map;
+  for (const auto& s : keyframeSegments(scene, sensor, 11)) keyframe_map.push_back(s.transformed(sensor));
+  int tested = 0;
+  for (size_t b : {size_t(3), size_t(4), size_t(11)}) {
+    const SimBuilding& building = scene[b];
+    const Pose2 true_pose(building.outline[0].x(), building.outline[0].y(), 0.0);
+    const auto local = toLocal(buildingWalls(building), true_pose);
+    // The OSM copy of this building is off by 0.8 m / -0.6 m / 4 degrees.
+    const Pose2 osm_pose = Pose2(0.8, -0.6, 4.0 * kDeg) * true_pose;
+    const LineMatchResult r = LineMatcher().matchLocal(local, keyframe_map, osm_pose);
+    SCOPED_TRACE("building " + std::to_string(b));
+    std::printf("[local %zu] err %.3f %.3f m %.3f deg fitness %.1f matched %d feature %s %.2f ms\n",
+                b, r.transform.x - true_pose.x, r.transform.y - true_pose.y,
+                (r.transform.theta - true_pose.theta) / kDeg, r.fitness, r.matched_segments,
+                toString(r.feature), r.stats.ms);
+    ASSERT_TRUE(r.success) << r.message << " fitness " << r.fitness << " matched "
+                           << r.matched_segments << " at " << r.transform.x << " "
+                           << r.transform.y << " " << r.transform.theta << " true " << true_pose.x
+                           << " " << true_pose.y << " coverage " << r.coverage;
+    EXPECT_NEAR(r.transform.x, true_pose.x, 0.05);
+    EXPECT_NEAR(r.transform.y, true_pose.y, 0.05);
+    EXPECT_LT(angleErrorDeg(r.transform.theta, true_pose.theta), 0.3);
+    EXPECT_GE(r.matched_segments, 2);
+    ++tested;
+  }
+  EXPECT_EQ(tested, 3);
+}
+
+TEST(LineMatcherSynthetic, SingleVisibleWallSetsTwoDofFlag) {
+  // One 120 m facade; its ends are beyond the sensor's range, so only one wall is seen.
+  const std::vector<SimBuilding> scene = {rectangleBuilding(-60.0, 10.0, 120.0, 15.0)};
+  const Pose2 truth(0.0, 0.0, 0.0);
+  WallScanParams sim;
+  sim.max_range = 30.0;
+  sim.trees = 0;
+  sim.poles = 0;
+  sim.scattered_points = 0;
+  const auto scan = simulateWallScan(scene, truth, sim);
+  const auto segments = LineSegmentExtractor().extract(*WallPointExtractor().extract(*scan));
+  ASSERT_GE(segments.size(), 1u);
+  const Pose2 guess(0.7, -0.4, 2.0 * kDeg);
+  const LineMatchResult r = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_TRUE(r.two_dof);
+  EXPECT_NEAR(std::abs(r.constrained_normal.y()), 1.0, 0.01);  // the wall's normal
+  EXPECT_NEAR(r.transform.y, truth.y, 0.05);                   // across the wall: recovered
+  EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
+  // Along the wall nothing is observed: information there is (almost) zero.
+  EXPECT_LT(r.information(0, 0), 1e-2 * r.information(1, 1));
+}
+
+TEST(LineMatcherOverlap, PushesOutAlongTheShallowestPenetration) {
+  const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
+  const Polygon2 a_local = {{0, 0}, {10, 0}, {10, 8}, {0, 8}};
+  // A sticks 0.8 m into B from the right: the minimal fix moves A +0.8 m in x.
+  const Pose2 guess(11.2, 1.0, 0.0);
+  ASSERT_GT(polygonOverlapArea(transformPolygon(a_local, guess), b), 5.0);
+  const LineMatchResult r = LineMatcher().removeOverlap(a_local, guess, b);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.x, 12.0, 0.01);
+  EXPECT_NEAR(r.transform.y, 1.0, 0.01);
+  EXPECT_NEAR(r.transform.theta, 0.0, 1e-6);
+  EXPECT_NEAR(r.translation, 0.8, 0.01);
+  EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
+}
+
+TEST(LineMatcherOverlap, ChoosesTheMinimalOfSeveralSeparatingMoves) {
+  const Polygon2 b = {{0, 0}, {20, 0}, {20, 10}, {0, 10}};
+  const Polygon2 a_local = {{0, 0}, {6, 0}, {6, 6}, {0, 6}};
+  // A overlaps B's top edge by 0.5 m over 4 m: up by 0.5 m beats right by 4 m.
+  const Pose2 overlap_guess(16.0, 10.0 - 0.5, 0.0);  // A spans y 9.5..15.5, x 16..22
+  const double before = polygonOverlapArea(transformPolygon(a_local, overlap_guess), b);
+  ASSERT_NEAR(before, 4.0 * 0.5, 1e-4);
+  const LineMatchResult r = LineMatcher().removeOverlap(a_local, overlap_guess, b);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.x, 16.0, 0.01);
+  EXPECT_NEAR(r.transform.y, 10.0, 0.01);
+  EXPECT_NEAR(r.translation, 0.5, 0.01);
+  EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
+}
+
+TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinSixtyDegrees) {
+  const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
+  const Polygon2 a_local = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
+  const Pose2 guess(11.0, 1.0, 8.0 * kDeg);
+  ASSERT_GT(polygonOverlapArea(transformPolygon(a_local, guess), b), 1.0);
+  const LineMatchResult r = LineMatcher().removeOverlap(a_local, guess, b);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
+  EXPECT_LE(std::abs(wrapAngle(r.transform.theta - guess.theta)), 60.0 * kDeg + 1e-9);
+  EXPECT_LT(r.translation, 2.0);  // a local fix, not a jump across the block
+}
+
+TEST(LineMatcherOverlap, SeparatedOutlinesAreLeftAlone) {
+  const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
+  const Polygon2 a = {{0, 0}, {5, 0}, {5, 5}, {0, 5}};
+  const LineMatchResult r = LineMatcher().removeOverlap(a, Pose2(13.0, 0.0, 0.0), b);
+  EXPECT_TRUE(r.success);
+  EXPECT_DOUBLE_EQ(r.transform.x, 13.0);
+  EXPECT_DOUBLE_EQ(r.translation, 0.0);
+}
+
+TEST(LineMatcherSearch, BruteForceReferenceAgreesWithPrunedSearch) {
+  const auto scene = makeStreetScene(15, 21);
+  const Pose2 truth(-4.0, 1.0, -2.0 * kDeg);
+  const auto segments = keyframeSegments(scene, truth, 4);
+  const Pose2 guess = truth * Pose2(0.9, 0.6, 5.0 * kDeg);
+  LineMatcherParams brute;
+  brute.brute_force = true;
+  const auto fast = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess);
+  const auto ref = LineMatcher(brute).matchGlobal(segments, buildingWalls(scene), guess);
+  ASSERT_TRUE(fast.success);
+  ASSERT_TRUE(ref.success);
+  EXPECT_NEAR(fast.transform.x, ref.transform.x, 0.02);
+  EXPECT_NEAR(fast.transform.y, ref.transform.y, 0.02);
+  EXPECT_NEAR(fast.fitness, ref.fitness, 0.5);
+  EXPECT_LT(fast.stats.hypotheses_evaluated, ref.stats.hypotheses_evaluated);
+}
+
+TEST(LineMatcherRobustness, BadInputNeverCrashes) {
+  LineMatcher m;
+  const std::vector<LineSegment2> none;
+  const std::vector<LineSegment2> square =
+      polygonSegments({{0, 0}, {10, 0}, {10, 10}, {0, 10}});
+  const double nan = std::nan("");
+  const std::vector<LineSegment2> bad = {
+      LineSegment2({nan, 0}, {1, 1}), LineSegment2({0, 0}, {0, 0}),
+      LineSegment2({1e300, 0}, {0, 1}), LineSegment2({0, 0}, {5, 0}), LineSegment2({0, 0}, {5, 0})};
+  EXPECT_FALSE(m.matchGlobal(none, square, Pose2()).success);
+  EXPECT_FALSE(m.matchGlobal(square, none, Pose2()).success);
+  EXPECT_FALSE(m.matchGlobal(square, square, Pose2(nan, 0, 0)).success);
+  const auto r = m.matchGlobal(bad, square, Pose2());  // duplicates + degenerate + NaN
+  EXPECT_TRUE(std::isfinite(r.transform.x) && std::isfinite(r.transform.theta));
+  const auto collinear = m.matchLocal({LineSegment2({0, 0}, {5, 0}), LineSegment2({6, 0}, {9, 0})},
+                                      square, Pose2());
+  EXPECT_TRUE(std::isfinite(collinear.transform.x));
+  EXPECT_FALSE(m.removeOverlap({{0, 0}, {1, 1}}, Pose2(), {{0, 0}, {1, 0}, {0, 1}}).success);
+}
