@@ -77,7 +77,8 @@ bool isVerticalSurface(const Eigen::Matrix3f& cov, float max_sin) {
 }
 
 /// Step 2 (ours): nanoflann kNN + closed-form 3x3 eigen decomposition, TBB over points.
-std::vector<char> verticalMaskNanoflann(const PointCloud& cloud, const WallPointExtractorParams& p) {
+std::vector<char> verticalMaskNanoflann(const PointCloud& cloud,
+                                        const WallPointExtractorParams& p) {
   std::vector<char> keep(cloud.size(), 0);
   CloudAdaptor adaptor{cloud};
   KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
@@ -135,25 +136,33 @@ WallPointExtractor::WallPointExtractor(const WallPointExtractorParams& params,
   }
 }
 
-PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStats* stats_out) const {
+PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud,
+                                          WallPointStats* stats_out) const {
   const auto t0 = Clock::now();
   WallPointStats stats;
   stats.input = cloud.size();
+  auto since = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
   PointCloudPtr above = cutBelowHorizon(cloud, params_, stats);
+  stats.cut_ms = since(t0);
   if (stats.finite < stats.input) {
     logger_->warnOnce("wall_nan", "WallPointExtractor: dropping non-finite points (first seen: " +
                                       std::to_string(stats.input - stats.finite) + " of " +
                                       std::to_string(stats.input) + ")");
   }
   stats.above_horizon = above->size();
+  const auto t1 = Clock::now();
   PointCloudPtr sparse = voxelize(above, params_.voxel_size);
   stats.voxelized = sparse->size();
+  stats.voxel_ms = since(t1);
+  const auto t2 = Clock::now();
 
   auto walls = std::make_shared<PointCloud>();
   if (sparse->size() >= 3) {
     std::vector<char> keep;
-    const int threads = params_.num_threads > 0 ? params_.num_threads
-                                                : int(std::thread::hardware_concurrency());
+    const int threads =
+        params_.num_threads > 0 ? params_.num_threads : int(std::thread::hardware_concurrency());
     if (params_.normal_backend == "pcl") {
       keep = verticalMaskPcl(sparse, params_);
     } else {
@@ -168,6 +177,7 @@ PointCloudPtr WallPointExtractor::extract(const PointCloud& cloud, WallPointStat
       walls->push_back(pt);
     }
   }
+  stats.normal_ms = since(t2);
   walls->width = walls->size();
   walls->height = 1;
   walls->is_dense = true;

@@ -38,8 +38,8 @@ double pointSegmentDistance(const Eigen::Vector2d& p, const LineSegment2& s) {
 }
 
 double segmentDistanceNoCoverage(const LineSegment2& source, const LineSegment2& target) {
-  return 0.5 * (pointSegmentDistance(source.start, target) +
-                pointSegmentDistance(source.end, target));
+  return 0.5 *
+         (pointSegmentDistance(source.start, target) + pointSegmentDistance(source.end, target));
 }
 
 CoverageDistance segmentDistanceWithCoverage(const LineSegment2& source,
@@ -58,7 +58,8 @@ CoverageDistance segmentDistanceWithCoverage(const LineSegment2& source,
   }
   const double sc = (target.start - source.start).dot(us);
   const double sd = (target.end - source.start).dot(us);
-  for (const auto& [q, sigma] : {std::make_pair(target.start, sc), std::make_pair(target.end, sd)}) {
+  for (const auto& [q, sigma] :
+       {std::make_pair(target.start, sc), std::make_pair(target.end, sd)}) {
     if (sigma >= 0.0 && sigma <= ls) {
       sum += std::abs((q - source.start).dot(ns));
       ++n;
@@ -95,7 +96,7 @@ std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, co
       const double r = cross(ab, da) / sin_ab;  // corner = b.start + r * db
       const double gap_a = std::max({0.0, -s, s - la}), gap_b = std::max({0.0, -r, r - lb});
       if (gap_a > p.max_virtual_distance || gap_b > p.max_virtual_distance) continue;
-      const bool inside_a = s > tol && s < la - tol, inside_b = r > tol && r < lb - tol;
+      const bool inside_a = s > tol && s<la - tol, inside_b = r> tol && r < lb - tol;
       const bool angular = gap_a <= tol && gap_b <= tol && !inside_a && !inside_b;
       const Eigen::Vector2d corner = a.start + s * da;
       for (const Ray& ra : raysAt(s, la, da, tol)) {

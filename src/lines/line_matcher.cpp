@@ -105,8 +105,12 @@ class TargetIndex {
   }
 
  private:
-  int cellX(double v) const { return std::clamp(int(std::floor((v - origin_.x()) / cell_)), 0, nx_ - 1); }
-  int cellY(double v) const { return std::clamp(int(std::floor((v - origin_.y()) / cell_)), 0, ny_ - 1); }
+  int cellX(double v) const {
+    return std::clamp(int(std::floor((v - origin_.x()) / cell_)), 0, nx_ - 1);
+  }
+  int cellY(double v) const {
+    return std::clamp(int(std::floor((v - origin_.y()) / cell_)), 0, ny_ - 1);
+  }
 
   bool brute_;
   std::vector<Seg> segs_;
@@ -160,9 +164,7 @@ class Search {
   const std::vector<LineSegment2>& source() const { return source_; }
   const TargetIndex& index() const { return index_; }
 
-  double translationOf(const Pose2& T) const {
-    return std::hypot(T.x - guess_.x, T.y - guess_.y);
-  }
+  double translationOf(const Pose2& T) const { return std::hypot(T.x - guess_.x, T.y - guess_.y); }
 
   /// Distance and coverage of a transformed source segment to target k (mode's metric).
   CoverageDistance distanceTo(const Eigen::Vector2d& a, const Eigen::Vector2d& b, int k) const {
@@ -178,12 +180,14 @@ class Search {
     const double ta = (a - t.a).dot(t.u), tb = (b - t.a).dot(t.u);
     CoverageDistance out;
     out.distance = 0.5 * (endpointDistance(a, ta) + endpointDistance(b, tb));
-    out.coverage = std::max(0.0, std::min(t.len, std::max(ta, tb)) - std::max(0.0, std::min(ta, tb)));
+    out.coverage =
+        std::max(0.0, std::min(t.len, std::max(ta, tb)) - std::max(0.0, std::min(ta, tb)));
     return out;
   }
 
   /// Best target of one transformed source segment within the correspondence radius and angle.
-  Correspondence nearest(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double* coverage) const {
+  Correspondence nearest(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                         double* coverage) const {
     const Eigen::Vector2d u = (b - a).normalized();
     Correspondence best;
     best.distance = HUGE_VAL;
@@ -206,9 +210,9 @@ class Search {
     Score s;
     s.translation = translationOf(T);
     const double n = double(source_.size());
-    const double trans_w =
-        p_.weight_translation * std::min(p_.max_translation_fitness, s.translation) /
-        p_.max_translation_fitness * 100.0;
+    const double trans_w = p_.weight_translation *
+                           std::min(p_.max_translation_fitness, s.translation) /
+                           p_.max_translation_fitness * 100.0;
     const double dmax = p_.max_correspondence_distance;
     double dist_sum = 0.0, cov_sum = 0.0;
     for (size_t i = 0; i < source_.size(); ++i) {
@@ -236,7 +240,8 @@ class Search {
   std::vector<Correspondence> correspondences(const Pose2& T, double max_distance) const {
     std::vector<Correspondence> out;
     for (size_t i = 0; i < source_.size(); ++i) {
-      Correspondence c = nearest(T.transform(source_[i].start), T.transform(source_[i].end), nullptr);
+      Correspondence c =
+          nearest(T.transform(source_[i].start), T.transform(source_[i].end), nullptr);
       if (c.target < 0 || c.distance > max_distance) continue;
       c.source = int(i);
       out.push_back(c);
@@ -287,8 +292,8 @@ class Search {
 
  private:
   double fitnessOf(double avg_distance, double coverage) const {
-    const double dist_w =
-        p_.weight_distance * std::min(p_.max_avg_distance, avg_distance) / p_.max_avg_distance * 100.0;
+    const double dist_w = p_.weight_distance * std::min(p_.max_avg_distance, avg_distance) /
+                          p_.max_avg_distance * 100.0;
     const double cov_w =
         total_length_ > 0.0 ? p_.weight_coverage * coverage / total_length_ * 100.0 : 0.0;
     return -dist_w + cov_w;
@@ -310,8 +315,8 @@ class HypothesisSet {
   bool insert(const Pose2& T) {
     const int64_t kx = std::llround(T.x / 0.02), ky = std::llround(T.y / 0.02),
                   kt = std::llround(T.theta / (0.1 * kDeg));
-    const uint64_t key = (uint64_t(kx) * 73856093ULL) ^ (uint64_t(ky) * 19349663ULL) ^
-                         (uint64_t(kt) * 83492791ULL);
+    const uint64_t key =
+        (uint64_t(kx) * 73856093ULL) ^ (uint64_t(ky) * 19349663ULL) ^ (uint64_t(kt) * 83492791ULL);
     return seen_.insert(key).second;
   }
 
@@ -445,8 +450,9 @@ void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchF
   const double th = edge ? p.edge_information_theta : p.line_information_theta;
   const double top = 100.0 * p.weight_coverage;  // fitness of a perfect, complete match
   const double scale =
-      top > p.min_fitness ? std::clamp((s.fitness - p.min_fitness) / (top - p.min_fitness), 0.0, 1.0)
-                          : 1.0;
+      top > p.min_fitness
+          ? std::clamp((s.fitness - p.min_fitness) / (top - p.min_fitness), 0.0, 1.0)
+          : 1.0;
   r.information.setZero();
   Eigen::Matrix2d txy = xy * Eigen::Matrix2d::Identity();
   if (r.two_dof) {
@@ -490,7 +496,7 @@ LineMatchResult LineMatcher::match(const std::vector<LineSegment2>& source_in,
   }
   const LineMatcherParams& p = params_;
   const Bounds bounds{mode == MatchMode::kOverlap ? p.overlap_max_translation : p.max_translation,
-                      rotation_unbounded ? M_PI
+                      rotation_unbounded            ? M_PI
                       : mode == MatchMode::kOverlap ? p.overlap_max_rotation_deg * kDeg
                                                     : p.max_rotation_deg * kDeg};
   Search search(source, target, guess, mode, p);
@@ -590,7 +596,8 @@ LineMatchResult LineMatcher::removeOverlap(const Polygon2& building_a, const Pos
     for (const auto& t : search.index().segs()) {
       const Pose2 T = linePairTransform(guess, s, t);
       ++result.stats.line_pairs_evaluated;
-      if (withinBounds(T, guess, bounds)) hyps.push_back({T, search.translationOf(T), MatchFeature::kLine});
+      if (withinBounds(T, guess, bounds))
+        hyps.push_back({T, search.translationOf(T), MatchFeature::kLine});
     }
   std::stable_sort(hyps.begin(), hyps.end(), [](const Hypothesis& a, const Hypothesis& b) {
     return a.translation < b.translation;

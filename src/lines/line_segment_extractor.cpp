@@ -121,49 +121,77 @@ class RansacLines {
   }
 
  private:
-  /// Active points in contiguous arrays, and their order by sampling cell.
+  /// Sampling cells of every point, computed once: rounds only filter this order (no re-sort).
+  void sortByCell() {
+    const double cell = std::max(1e-3, p_.sample_cell);
+    std::vector<std::pair<uint64_t, int>> keyed(pts_.size());
+    for (size_t i = 0; i < pts_.size(); ++i) {
+      const int64_t cx = int64_t(std::floor(pts_.x[i] / cell));
+      const int64_t cy = int64_t(std::floor(pts_.y[i] / cell));
+      keyed[i] = {(uint64_t(cx & 0xffffffff) << 32) | uint64_t(cy & 0xffffffff), int(i)};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    sorted_key_.resize(keyed.size());
+    sorted_id_.resize(keyed.size());
+    for (size_t i = 0; i < keyed.size(); ++i) {
+      sorted_key_[i] = keyed[i].first;
+      sorted_id_[i] = keyed[i].second;
+    }
+  }
+
+  /// Active points in contiguous arrays (cell order), each with its cell's range; and a strided
+  /// subset of at most kScoreSubset points on which hypotheses are ranked.
   void compact() {
+    if (sorted_id_.size() != pts_.size()) sortByCell();
     ax_.clear();
     ay_.clear();
     aw_.clear();
     aid_.clear();
-    for (size_t i = 0; i < pts_.size(); ++i) {
+    std::vector<uint64_t> keys;
+    for (size_t k = 0; k < sorted_id_.size(); ++k) {
+      const int i = sorted_id_[k];
       if (!active_[i]) continue;
       ax_.push_back(pts_.x[i]);
       ay_.push_back(pts_.y[i]);
       aw_.push_back(pts_.w[i]);
-      aid_.push_back(int(i));
+      aid_.push_back(i);
+      keys.push_back(sorted_key_[k]);
     }
-    const double cell = std::max(1e-3, p_.sample_cell);
-    std::vector<std::pair<uint64_t, int>> keyed(ax_.size());
-    for (size_t i = 0; i < ax_.size(); ++i) {
-      const int64_t cx = int64_t(std::floor(ax_[i] / cell)), cy = int64_t(std::floor(ay_[i] / cell));
-      keyed[i] = {(uint64_t(cx & 0xffffffff) << 32) | uint64_t(cy & 0xffffffff), int(i)};
-    }
-    std::sort(keyed.begin(), keyed.end());
-    order_.resize(keyed.size());
-    cell_begin_.resize(keyed.size());
-    cell_end_.resize(keyed.size());
-    size_t b = 0;
-    for (size_t i = 0; i <= keyed.size(); ++i) {
-      if (i == keyed.size() || keyed[i].first != keyed[b].first) {
+    const size_t n = ax_.size();
+    cell_begin_.resize(n);
+    cell_end_.resize(n);
+    for (size_t b = 0, i = 0; i <= n; ++i) {
+      if (i == n || keys[i] != keys[b]) {
         for (size_t j = b; j < i; ++j) {
           cell_begin_[j] = int(b);
           cell_end_[j] = int(i);
         }
         b = i;
       }
-      if (i < keyed.size()) order_[i] = keyed[i].second;
+    }
+    const size_t stride = std::max<size_t>(1, (n + kScoreSubset - 1) / kScoreSubset);
+    sx_.clear();
+    sy_.clear();
+    sw_.clear();
+    for (size_t i = 0; i < n; i += stride) {
+      sx_.push_back(ax_[i]);
+      sy_.push_back(ay_[i]);
+      sw_.push_back(int32_t(aw_[i]));
     }
   }
 
-  float score(float nx, float ny, float c) const {
+  /// Weighted inlier count on the scoring subset. Integer weights (point counts) keep the
+  /// reduction exact, so the compiler vectorises the loop without -ffast-math.
+  int32_t score(float nx, float ny, float c) const {
     const float thr = float(p_.distance_threshold);
-    float s = 0.0f;
-    const size_t n = ax_.size();
+    int32_t s = 0;
+    const size_t n = sx_.size();
+    const float* x = sx_.data();
+    const float* y = sy_.data();
+    const int32_t* w = sw_.data();
     for (size_t i = 0; i < n; ++i) {
-      const float d = std::abs(nx * ax_[i] + ny * ay_[i] - c);
-      s += d < thr ? aw_[i] : 0.0f;
+      const float d = std::abs(nx * x[i] + ny * y[i] - c);
+      s += d < thr ? w[i] : 0;
     }
     return s;
   }
@@ -171,7 +199,7 @@ class RansacLines {
   bool bestHypothesis(Line& best, LineSegmentStats& stats) {
     const int n = int(ax_.size());
     std::uniform_int_distribution<int> any(0, n - 1);
-    float best_score = -1.0f;
+    int32_t best_score = -1;
     for (int it = 0; it < p_.max_iterations; ++it) {
       const int pa = any(rng_);
       int pb;
@@ -182,12 +210,12 @@ class RansacLines {
       } else {
         pb = any(rng_);
       }
-      const int a = order_[pa], b = order_[pb];
+      const int a = pa, b = pb;
       const float dx = ax_[b] - ax_[a], dy = ay_[b] - ay_[a];
       const float len = std::sqrt(dx * dx + dy * dy);
       if (!(len > 1e-4f)) continue;
       const float nx = -dy / len, ny = dx / len;
-      const float s = score(nx, ny, nx * ax_[a] + ny * ay_[a]);
+      const int32_t s = score(nx, ny, nx * ax_[a] + ny * ay_[a]);
       ++stats.hypotheses;
       if (s > best_score) {
         best_score = s;
@@ -195,7 +223,7 @@ class RansacLines {
         best.dir = {dx / len, dy / len};
       }
     }
-    return best_score >= 0.0f;
+    return best_score >= 0;
   }
 
   /// Active-array indices within the inlier distance of the line.
@@ -288,8 +316,11 @@ class RansacLines {
   const LineSegmentExtractorParams& p_;
   std::mt19937 rng_;
   std::vector<char> active_;
-  std::vector<float> ax_, ay_, aw_;
-  std::vector<int> aid_, order_, cell_begin_, cell_end_;
+  static constexpr size_t kScoreSubset = 1024;
+  std::vector<float> ax_, ay_, aw_, sx_, sy_;
+  std::vector<int32_t> sw_;
+  std::vector<int> aid_, cell_begin_, cell_end_, sorted_id_;
+  std::vector<uint64_t> sorted_key_;
 };
 
 }  // namespace

@@ -82,8 +82,7 @@ PointCloudPtr simulateWallScan(const std::vector<SimBuilding>& buildings, const 
   for (int a = 0; a < p.beams_per_ring; ++a) {
     const double az = 2.0 * M_PI * a / p.beams_per_ring;  // sensor frame
     const double world_az = pose.theta + az;
-    const auto [r2d, who] =
-        castRay(origin, {std::cos(world_az), std::sin(world_az)}, walls, owner);
+    const auto [r2d, who] = castRay(origin, {std::cos(world_az), std::sin(world_az)}, walls, owner);
     for (int ring = 0; ring < p.rings; ++ring) {
       const double el = (p.min_elevation_deg + (p.max_elevation_deg - p.min_elevation_deg) * ring /
                                                    std::max(1, p.rings - 1)) *
@@ -137,8 +136,8 @@ SimBuilding rectangleBuilding(double x0, double y0, double w, double d, double y
 SimBuilding lShapeBuilding(double x0, double y0, double w, double d, double nw, double nd,
                            double yaw) {
   SimBuilding b;
-  b.outline = placed({{0, 0}, {w, 0}, {w, d - nd}, {w - nw, d - nd}, {w - nw, d}, {0, d}}, x0, y0,
-                     yaw);
+  b.outline =
+      placed({{0, 0}, {w, 0}, {w, d - nd}, {w - nw, d - nd}, {w - nw, d}, {0, d}}, x0, y0, yaw);
   return b;
 }
 

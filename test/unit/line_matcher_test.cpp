@@ -25,7 +25,9 @@ std::vector<LineSegment2> keyframeSegments(const std::vector<SimBuilding>& build
   return LineSegmentExtractor().extract(*walls);
 }
 
-double angleErrorDeg(double a, double b) { return std::abs(wrapAngle(a - b)) / kDeg; }
+double angleErrorDeg(double a, double b) {
+  return std::abs(wrapAngle(a - b)) / kDeg;
+}
 
 /// Map-frame building segments to the building's own frame (origin at its first vertex).
 std::vector<LineSegment2> toLocal(const std::vector<LineSegment2>& segs, const Pose2& pose) {
@@ -56,13 +58,14 @@ TEST(LineMatcherSynthetic, GlobalMatchingRecoversKnownOffsets) {
     const Pose2 guess = truth * c.offset;
     const LineMatchResult r = matcher.matchGlobal(segments, map, guess);
     SCOPED_TRACE(c.name);
-    std::printf("[global %s] err %.3f %.3f m %.3f deg fitness %.1f matched %d/%zu feature %s "
-                "edges %zu x %zu pairs %zu in bounds %zu evaluated %zu+%zu %.2f ms\n",
-                c.name, r.transform.x - truth.x, r.transform.y - truth.y,
-                (r.transform.theta - truth.theta) / kDeg, r.fitness, r.matched_segments,
-                segments.size(), toString(r.feature), r.stats.source_edges, r.stats.target_edges,
-                r.stats.edge_pairs_total, r.stats.edge_pairs_in_bounds,
-                r.stats.hypotheses_evaluated, r.stats.line_pairs_evaluated, r.stats.ms);
+    std::printf(
+        "[global %s] err %.3f %.3f m %.3f deg fitness %.1f matched %d/%zu feature %s "
+        "edges %zu x %zu pairs %zu in bounds %zu evaluated %zu+%zu %.2f ms\n",
+        c.name, r.transform.x - truth.x, r.transform.y - truth.y,
+        (r.transform.theta - truth.theta) / kDeg, r.fitness, r.matched_segments, segments.size(),
+        toString(r.feature), r.stats.source_edges, r.stats.target_edges, r.stats.edge_pairs_total,
+        r.stats.edge_pairs_in_bounds, r.stats.hypotheses_evaluated, r.stats.line_pairs_evaluated,
+        r.stats.ms);
     ASSERT_TRUE(r.success) << r.message;
     EXPECT_NEAR(r.transform.x, truth.x, 0.05);
     EXPECT_NEAR(r.transform.y, truth.y, 0.05);
@@ -106,7 +109,8 @@ TEST(LineMatcherSynthetic, LocalMatchingRecoversOneBuildingsDisplacement) {
   const Pose2 sensor(2.0, 0.5, 3.0 * kDeg);
   // Keyframe segments in the map frame (the robot pose is known here).
   std::vector<LineSegment2> keyframe_map;
-  for (const auto& s : keyframeSegments(scene, sensor, 11)) keyframe_map.push_back(s.transformed(sensor));
+  for (const auto& s : keyframeSegments(scene, sensor, 11))
+    keyframe_map.push_back(s.transformed(sensor));
   int tested = 0;
   for (size_t b : {size_t(3), size_t(4), size_t(11)}) {
     const SimBuilding& building = scene[b];
@@ -121,9 +125,9 @@ TEST(LineMatcherSynthetic, LocalMatchingRecoversOneBuildingsDisplacement) {
                 (r.transform.theta - true_pose.theta) / kDeg, r.fitness, r.matched_segments,
                 toString(r.feature), r.stats.ms);
     ASSERT_TRUE(r.success) << r.message << " fitness " << r.fitness << " matched "
-                           << r.matched_segments << " at " << r.transform.x << " "
-                           << r.transform.y << " " << r.transform.theta << " true " << true_pose.x
-                           << " " << true_pose.y << " coverage " << r.coverage;
+                           << r.matched_segments << " at " << r.transform.x << " " << r.transform.y
+                           << " " << r.transform.theta << " true " << true_pose.x << " "
+                           << true_pose.y << " coverage " << r.coverage;
     EXPECT_NEAR(r.transform.x, true_pose.x, 0.05);
     EXPECT_NEAR(r.transform.y, true_pose.y, 0.05);
     EXPECT_LT(angleErrorDeg(r.transform.theta, true_pose.theta), 0.3);
@@ -227,8 +231,7 @@ TEST(LineMatcherSearch, BruteForceReferenceAgreesWithPrunedSearch) {
 TEST(LineMatcherRobustness, BadInputNeverCrashes) {
   LineMatcher m;
   const std::vector<LineSegment2> none;
-  const std::vector<LineSegment2> square =
-      polygonSegments({{0, 0}, {10, 0}, {10, 10}, {0, 10}});
+  const std::vector<LineSegment2> square = polygonSegments({{0, 0}, {10, 0}, {10, 10}, {0, 10}});
   const double nan = std::nan("");
   const std::vector<LineSegment2> bad = {
       LineSegment2({nan, 0}, {1, 1}), LineSegment2({0, 0}, {0, 0}),
@@ -238,8 +241,8 @@ TEST(LineMatcherRobustness, BadInputNeverCrashes) {
   EXPECT_FALSE(m.matchGlobal(square, square, Pose2(nan, 0, 0)).success);
   const auto r = m.matchGlobal(bad, square, Pose2());  // duplicates + degenerate + NaN
   EXPECT_TRUE(std::isfinite(r.transform.x) && std::isfinite(r.transform.theta));
-  const auto collinear = m.matchLocal({LineSegment2({0, 0}, {5, 0}), LineSegment2({6, 0}, {9, 0})},
-                                      square, Pose2());
+  const auto collinear =
+      m.matchLocal({LineSegment2({0, 0}, {5, 0}), LineSegment2({6, 0}, {9, 0})}, square, Pose2());
   EXPECT_TRUE(std::isfinite(collinear.transform.x));
   EXPECT_FALSE(m.removeOverlap({{0, 0}, {1, 1}}, Pose2(), {{0, 0}, {1, 0}, {0, 1}}).success);
 }

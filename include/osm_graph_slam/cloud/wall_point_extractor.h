@@ -16,10 +16,10 @@ struct WallPointExtractorParams {
   double min_range = 2.0;  ///< horizontal range below which points are dropped (ego vehicle) [m]
   double max_range = 0.0;  ///< horizontal range above which points are dropped; 0 = no limit [m]
   /// Voxel leaf after the horizon cut; bounds the work independently of the sensor. 0 disables.
-  double voxel_size = 0.2;
-  int k_neighbors = 10;                   ///< neighbours of the local plane fit
-  double max_normal_angle_deg = 15.0;     ///< plane normal within this angle of horizontal
-  double max_neighbor_distance = 1.5;     ///< k-th neighbour farther than this: isolated, dropped
+  double voxel_size = 0.25;
+  int k_neighbors = 8;                 ///< neighbours of the local plane fit
+  double max_normal_angle_deg = 15.0;  ///< plane normal within this angle of horizontal
+  double max_neighbor_distance = 1.5;  ///< k-th neighbour farther than this: isolated, dropped
   std::string normal_backend = "nanoflann";  ///< nanoflann (ours, TBB) | pcl (NormalEstimationOMP)
   int num_threads = 0;                       ///< 0 = all hardware threads
 };
@@ -30,7 +30,10 @@ struct WallPointStats {
   size_t above_horizon = 0;  ///< after the horizon and range cut
   size_t voxelized = 0;      ///< after the voxel grid
   size_t walls = 0;          ///< output points
-  double ms = 0.0;
+  double ms = 0.0;           ///< total
+  double cut_ms = 0.0;       ///< horizon and range cut
+  double voxel_ms = 0.0;     ///< voxel grid
+  double normal_ms = 0.0;    ///< neighbourhoods and plane test
 };
 
 class WallPointExtractor {

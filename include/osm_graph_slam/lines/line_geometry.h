@@ -37,9 +37,9 @@ struct LineEdge {
 };
 
 struct EdgeParams {
-  double min_angle_deg = 30.0;         ///< lines closer to parallel than this form no edge
-  double endpoint_tolerance = 1.0;     ///< corner this close to both segments: angular edge [m]
-  double max_virtual_distance = 6.0;   ///< corner at most this far beyond each segment [m]
+  double min_angle_deg = 30.0;        ///< lines closer to parallel than this form no edge
+  double endpoint_tolerance = 1.0;    ///< corner this close to both segments: angular edge [m]
+  double max_virtual_distance = 6.0;  ///< corner at most this far beyond each segment [m]
 };
 
 /// Angular and virtual edges of a segment set. A corner inside a segment (T or X junction) gives

@@ -13,24 +13,24 @@ namespace osm_graph_slam {
 
 struct LineMatcherParams {
   // --- edges (§3.3.1) ---
-  double min_edge_angle_deg = 30.0;         ///< lines closer to parallel form no edge
-  double edge_endpoint_tolerance = 1.0;     ///< corner within this of both segments: angular edge
-  double max_virtual_edge_distance = 6.0;   ///< virtual corner at most this beyond each segment
-  double edge_angle_tolerance_deg = 6.0;    ///< opening angles of a matched edge pair agree within
+  double min_edge_angle_deg = 30.0;        ///< lines closer to parallel form no edge
+  double edge_endpoint_tolerance = 1.0;    ///< corner within this of both segments: angular edge
+  double max_virtual_edge_distance = 6.0;  ///< virtual corner at most this beyond each segment
+  double edge_angle_tolerance_deg = 6.0;   ///< opening angles of a matched edge pair agree within
   double edge_length_slack = 2.0;  ///< arm-length signature: shorter side's arm <= other + slack
   // --- search bounds (§3.3.2), deviation from the initial guess ---
-  double max_translation = 3.0;      ///< [m]
-  double max_rotation_deg = 15.0;    ///< ignored when the rotation is unbounded (first keyframe)
+  double max_translation = 3.0;    ///< [m]
+  double max_rotation_deg = 15.0;  ///< ignored when the rotation is unbounded (first keyframe)
   // --- line-pair refinement (§3.3.3) ---
-  int refine_k_nearest = 3;      ///< target segments tried per source segment
-  int refine_rounds = 2;         ///< rounds while the best transform keeps improving
+  int refine_k_nearest = 3;          ///< target segments tried per source segment
+  int refine_rounds = 2;             ///< rounds while the best transform keeps improving
   bool least_squares_polish = true;  ///< final Gauss-Newton on endpoint-to-line distances
   int polish_iterations = 6;
   // --- fitness (§3.3.4, eq. 3.1-3.4) ---
-  double weight_distance = 1.0;        ///< A
-  double weight_coverage = 1.0;        ///< B
-  double weight_translation = 0.1;     ///< C
-  double max_avg_distance = 1.0;       ///< MaxAvgDistance [m]
+  double weight_distance = 1.0;          ///< A
+  double weight_coverage = 1.0;          ///< B
+  double weight_translation = 0.1;       ///< C
+  double max_avg_distance = 1.0;         ///< MaxAvgDistance [m]
   double max_translation_fitness = 3.0;  ///< MaxTranslation [m]
   /// Per-segment distance truncation and nearest-neighbour search radius: a clutter segment with
   /// no counterpart costs this much instead of its distance to an arbitrary far wall [m].
@@ -98,8 +98,8 @@ class LineMatcher {
   /// Global matching: keyframe segments (base_link) -> segments of all nearby buildings (map).
   /// guess = keyframe pose in the map; rotation_unbounded for the first keyframe.
   LineMatchResult matchGlobal(const std::vector<LineSegment2>& keyframe_segments,
-                              const std::vector<LineSegment2>& building_segments, const Pose2& guess,
-                              bool rotation_unbounded = false) const;
+                              const std::vector<LineSegment2>& building_segments,
+                              const Pose2& guess, bool rotation_unbounded = false) const;
 
   /// Local matching: one building's segments (building frame) -> keyframe segments (map).
   /// guess = the building's pose in the map; the result is the corrected building pose.

@@ -15,14 +15,14 @@ namespace osm_graph_slam {
 struct LineSegmentExtractorParams {
   /// Coincident points (a wall column flattened to z = 0) are merged on this 2D grid and weighted
   /// by their count; cluster sizes count merged points. 0 disables merging.
-  double merge_resolution = 0.1;
+  double merge_resolution = 0.15;
   double distance_threshold = 0.1;  ///< RANSAC inlier distance to the line [m]
   int max_iterations = 80;          ///< RANSAC hypotheses per extracted line
   /// The second sample is drawn from the first one's cell of this size: walls are local, so a
   /// pair of points on the same wall is found in far fewer draws than with uniform sampling.
   double sample_cell = 3.0;
-  double cluster_tolerance = 0.6;  ///< largest gap along the line inside one cluster [m]
-  int min_cluster_size = 10;       ///< merged points a segment needs
+  double cluster_tolerance = 0.6;   ///< largest gap along the line inside one cluster [m]
+  int min_cluster_size = 10;        ///< merged points a segment needs
   double min_segment_length = 1.0;  ///< [m]
   int max_segments = 64;
   int max_consecutive_rejects = 8;  ///< stop after this many rejected clusters in a row
@@ -46,7 +46,8 @@ class LineSegmentExtractor {
   std::vector<LineSegment2> extract(const std::vector<Eigen::Vector2d>& points,
                                     LineSegmentStats* stats = nullptr) const;
   /// Same on the x, y of a (flattened) cloud.
-  std::vector<LineSegment2> extract(const PointCloud& cloud, LineSegmentStats* stats = nullptr) const;
+  std::vector<LineSegment2> extract(const PointCloud& cloud,
+                                    LineSegmentStats* stats = nullptr) const;
 
   const LineSegmentExtractorParams& params() const { return params_; }
 

@@ -11,9 +11,9 @@
 namespace osm_graph_slam {
 
 struct SimBuilding {
-  Polygon2 outline;                 ///< map frame
+  Polygon2 outline;                  ///< map frame
   std::vector<Polygon2> courtyards;  ///< inner rings (map frame)
-  double height = 12.0;             ///< above ground [m]
+  double height = 12.0;              ///< above ground [m]
 };
 
 struct WallScanParams {
@@ -26,7 +26,7 @@ struct WallScanParams {
   double range_noise = 0.02;    ///< sigma [m]
   int trees = 8;                ///< blobs of canopy points near the sensor
   int poles = 6;
-  int scattered_points = 300;   ///< uniform clutter above the ground
+  int scattered_points = 300;  ///< uniform clutter above the ground
   uint32_t seed = 1;
 };
 

@@ -1,0 +1,148 @@
+// line_extraction: keyframe cloud (base_link) -> wall line segments (base_link) + rviz markers.
+// Thin adapter: parameters -> core structs, messages <-> core types; the algorithms live in
+// cloud/WallPointExtractor and lines/LineSegmentExtractor.
+#include <nodelet/nodelet.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <pluginlib/class_list_macros.hpp>
+
+#include "osm_graph_slam/KeyFrame.h"
+#include "osm_graph_slam/LineSegmentArray.h"
+#include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/lines/line_segment_extractor.h"
+
+namespace osm_graph_slam {
+
+class LineExtractionNodelet : public nodelet::Nodelet {
+ public:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    logger_ = std::make_shared<Logger>([this](LogLevel level, const std::string& msg) {
+      if (level == LogLevel::kError)
+        NODELET_ERROR_STREAM(msg);
+      else if (level == LogLevel::kWarn)
+        NODELET_WARN_STREAM(msg);
+      else if (level == LogLevel::kInfo)
+        NODELET_INFO_STREAM(msg);
+      else
+        NODELET_DEBUG_STREAM(msg);
+    });
+    WallPointExtractorParams wp;
+    pnh.param("wall/horizon_height", wp.horizon_height, wp.horizon_height);
+    pnh.param("wall/min_range", wp.min_range, wp.min_range);
+    pnh.param("wall/max_range", wp.max_range, wp.max_range);
+    pnh.param("wall/voxel_size", wp.voxel_size, wp.voxel_size);
+    pnh.param("wall/k_neighbors", wp.k_neighbors, wp.k_neighbors);
+    pnh.param("wall/max_normal_angle_deg", wp.max_normal_angle_deg, wp.max_normal_angle_deg);
+    pnh.param("wall/max_neighbor_distance", wp.max_neighbor_distance, wp.max_neighbor_distance);
+    pnh.param("wall/normal_backend", wp.normal_backend, wp.normal_backend);
+    pnh.param("wall/num_threads", wp.num_threads, wp.num_threads);
+    LineSegmentExtractorParams lp;
+    int seed = int(lp.seed);
+    pnh.param("segments/merge_resolution", lp.merge_resolution, lp.merge_resolution);
+    pnh.param("segments/distance_threshold", lp.distance_threshold, lp.distance_threshold);
+    pnh.param("segments/max_iterations", lp.max_iterations, lp.max_iterations);
+    pnh.param("segments/sample_cell", lp.sample_cell, lp.sample_cell);
+    pnh.param("segments/cluster_tolerance", lp.cluster_tolerance, lp.cluster_tolerance);
+    pnh.param("segments/min_cluster_size", lp.min_cluster_size, lp.min_cluster_size);
+    pnh.param("segments/min_segment_length", lp.min_segment_length, lp.min_segment_length);
+    pnh.param("segments/max_segments", lp.max_segments, lp.max_segments);
+    pnh.param("segments/max_consecutive_rejects", lp.max_consecutive_rejects,
+              lp.max_consecutive_rejects);
+    pnh.param("segments/refine", lp.refine, lp.refine);
+    pnh.param("segments/seed", seed, seed);
+    lp.seed = uint32_t(seed);
+    pnh.param<std::string>("base_frame", base_frame_, "base_link");
+    pnh.param("marker_z", marker_z_, 0.0);
+
+    walls_ = std::make_unique<WallPointExtractor>(wp, logger_);
+    segments_ = std::make_unique<LineSegmentExtractor>(lp);
+    segments_pub_ = nh.advertise<LineSegmentArray>("line_segments", 10);
+    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("line_markers", 2);
+    keyframe_sub_ = nh.subscribe("keyframe", 10, &LineExtractionNodelet::onKeyFrame, this);
+    NODELET_INFO(
+        "line_extraction: horizon %.2f m, voxel %.2f m, k %d, normal angle %.1f deg; "
+        "RANSAC threshold %.2f m, min cluster %d, min length %.1f m",
+        wp.horizon_height, wp.voxel_size, wp.k_neighbors, wp.max_normal_angle_deg,
+        lp.distance_threshold, lp.min_cluster_size, lp.min_segment_length);
+  }
+
+ private:
+  void onKeyFrame(const KeyFrame::ConstPtr& kf) {
+    PointCloud cloud;
+    try {
+      pcl::fromROSMsg(kf->cloud, cloud);
+    } catch (const std::exception& e) {
+      logger_->warnOnce("bad_cloud", std::string("line_extraction: cannot convert the keyframe "
+                                                 "cloud (publishing no segments): ") +
+                                         e.what());
+      cloud.clear();
+    }
+    WallPointStats wstats;
+    const PointCloudPtr walls = walls_->extract(cloud, &wstats);
+    LineSegmentStats lstats;
+    const std::vector<LineSegment2> segments = segments_->extract(*walls, &lstats);
+
+    auto out = boost::make_shared<LineSegmentArray>();
+    out->header.stamp = kf->header.stamp;
+    out->header.frame_id =
+        kf->cloud.header.frame_id.empty() ? base_frame_ : kf->cloud.header.frame_id;
+    out->keyframe_id = kf->id;
+    out->segments.reserve(segments.size());
+    for (const auto& s : segments) {
+      osm_graph_slam::LineSegment m;
+      m.start.x = s.start.x();
+      m.start.y = s.start.y();
+      m.end.x = s.end.x();
+      m.end.y = s.end.y();
+      m.support = s.support;
+      out->segments.push_back(m);
+    }
+    NODELET_DEBUG("keyframe %lu: %zu points -> %zu wall points -> %zu segments (%.1f + %.1f ms)",
+                  static_cast<unsigned long>(kf->id), wstats.input, wstats.walls, segments.size(),
+                  wstats.ms, lstats.ms);
+    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(markersOf(*out));
+    segments_pub_.publish(boost::static_pointer_cast<const LineSegmentArray>(out));
+  }
+
+  visualization_msgs::MarkerArray markersOf(const LineSegmentArray& segs) const {
+    visualization_msgs::MarkerArray arr;
+    visualization_msgs::Marker clear;
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    arr.markers.push_back(clear);
+    visualization_msgs::Marker m;
+    m.header = segs.header;
+    m.ns = "line_segments";
+    m.id = 0;
+    m.type = visualization_msgs::Marker::LINE_LIST;
+    m.action = visualization_msgs::Marker::ADD;
+    m.pose.orientation.w = 1.0;
+    m.scale.x = 0.15;
+    m.color.r = 1.0f;
+    m.color.g = 0.5f;
+    m.color.a = 1.0f;
+    for (const auto& s : segs.segments) {
+      geometry_msgs::Point a = s.start, b = s.end;
+      a.z = b.z = marker_z_;
+      m.points.push_back(a);
+      m.points.push_back(b);
+    }
+    if (!m.points.empty()) arr.markers.push_back(m);
+    return arr;
+  }
+
+  std::shared_ptr<const Logger> logger_;
+  std::unique_ptr<WallPointExtractor> walls_;
+  std::unique_ptr<LineSegmentExtractor> segments_;
+  ros::Subscriber keyframe_sub_;
+  ros::Publisher segments_pub_, markers_pub_;
+  std::string base_frame_;
+  double marker_z_ = 0.0;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::LineExtractionNodelet, nodelet::Nodelet)
