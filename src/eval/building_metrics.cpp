@@ -1,27 +1,14 @@
 #include "osm_graph_slam/eval/building_metrics.h"
 
+#include "osm_graph_slam/lines/line_geometry.h"
+
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <boost/geometry.hpp>
-#include <boost/geometry/geometries/point_xy.hpp>
-#include <boost/geometry/geometries/polygon.hpp>
 #include <cmath>
 #include <unordered_map>
 
 namespace osm_graph_slam {
 namespace {
-
-namespace bg = boost::geometry;
-using BgPoint = bg::model::d2::point_xy<double>;
-using BgPolygon = bg::model::polygon<BgPoint>;
-
-BgPolygon toBoost(const Polygon2& ring) {
-  BgPolygon poly;
-  for (const auto& v : ring) bg::append(poly.outer(), BgPoint(v.x(), v.y()));
-  if (!ring.empty()) bg::append(poly.outer(), BgPoint(ring.front().x(), ring.front().y()));
-  bg::correct(poly);  // orientation and closure as boost expects
-  return poly;
-}
 
 size_t lowestXVertex(const Polygon2& ring) {
   size_t best = 0;
@@ -83,20 +70,6 @@ BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
   return out;
 }
 
-double polygonIntersectionArea(const Polygon2& a, const Polygon2& b) {
-  if (a.size() < 3 || b.size() < 3) return 0.0;
-  const BgPolygon pa = toBoost(a), pb = toBoost(b);
-  std::vector<BgPolygon> parts;
-  try {
-    bg::intersection(pa, pb, parts);
-  } catch (const std::exception&) {
-    return 0.0;  // self-intersecting input: not an overlap we can measure
-  }
-  double area = 0.0;
-  for (const auto& p : parts) area += std::abs(bg::area(p));
-  return area;
-}
-
 std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
     const std::vector<Building>& buildings, double min_area) {
   // Bounding boxes first: real maps have hundreds of buildings, few of them near each other.
@@ -107,7 +80,7 @@ std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
   for (size_t i = 0; i < buildings.size(); ++i) {
     for (size_t j = i + 1; j < buildings.size(); ++j) {
       if (boxes[i].isEmpty() || boxes[j].isEmpty() || !boxes[i].intersects(boxes[j])) continue;
-      if (polygonIntersectionArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
+      if (polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
         pairs.emplace_back(i, j);
     }
   }

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 
 using namespace osm_graph_slam;
 
@@ -46,14 +47,14 @@ TEST(BuildingEval, VertexCountMismatchIsReportedNotCompared) {
 
 TEST(BuildingEval, OverlapAreaAndPairs) {
   const Building a = square(1, 0, 0, 10), b = square(2, 9, 9, 10), c = square(3, 10, 0, 5);
-  EXPECT_NEAR(polygonIntersectionArea(a.outline_enu, b.outline_enu), 1.0, 1e-9);
+  EXPECT_NEAR(polygonOverlapArea(a.outline_enu, b.outline_enu), 1.0, 1e-9);
   // Clockwise input gives the same area.
   Polygon2 cw(b.outline_enu.rbegin(), b.outline_enu.rend());
-  EXPECT_NEAR(polygonIntersectionArea(a.outline_enu, cw), 1.0, 1e-9);
+  EXPECT_NEAR(polygonOverlapArea(a.outline_enu, cw), 1.0, 1e-9);
   // a and c share a wall: zero area, not an overlap.
-  EXPECT_NEAR(polygonIntersectionArea(a.outline_enu, c.outline_enu), 0.0, 1e-9);
+  EXPECT_NEAR(polygonOverlapArea(a.outline_enu, c.outline_enu), 0.0, 1e-9);
   const auto pairs = findOverlappingBuildings({a, b, c});
   ASSERT_EQ(pairs.size(), 1u);
   EXPECT_EQ(pairs[0], std::make_pair(size_t{0}, size_t{1}));
-  EXPECT_DOUBLE_EQ(polygonIntersectionArea({}, a.outline_enu), 0.0);
+  EXPECT_DOUBLE_EQ(polygonOverlapArea({}, a.outline_enu), 0.0);
 }

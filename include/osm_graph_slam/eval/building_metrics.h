@@ -20,9 +20,6 @@ struct BuildingErrors {
 BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
                                  const std::vector<Building>& truth);
 
-/// Area [m^2] of the intersection of two simple polygons (either orientation).
-double polygonIntersectionArea(const Polygon2& a, const Polygon2& b);
-
 /// Pairs of buildings whose outlines intersect with more than min_area [m^2] (shared walls of
 /// touching buildings have zero area and are not counted).
 std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
