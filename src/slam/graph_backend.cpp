@@ -115,6 +115,7 @@ struct GraphBackend::State {
   bool heading_initialized = false;
   int next_building_vertex = kBuildingVertexBase;
   std::vector<int> overlap_edges;
+  std::vector<LoopClosureInput> loops;
   bool dirty = false;
   double latest_stamp = 0.0;
 
@@ -309,6 +310,7 @@ void GraphBackend::flushLoops(BackendUpdateReport& report) {
     }
     s.graph.addEdgeSE3(static_cast<int>(loop.to_id), static_cast<int>(loop.from_id),
                        loop.relative_pose, loop.information, EdgeOptions{0, loopKernel(params_)});
+    s.loops.push_back(loop);
     ++report.loops_added;
     s.dirty = true;
   }
@@ -613,6 +615,11 @@ std::vector<Building> GraphBackend::correctedBuildings() const {
 PoseGraph GraphBackend::graphSnapshot() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return state_->graph;
+}
+
+std::vector<LoopClosureInput> GraphBackend::loopClosures() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->loops;
 }
 
 std::optional<EnuConverter> GraphBackend::origin() const {

@@ -38,9 +38,9 @@ struct GraphBackendParams {
   bool initial_yaw_known = false;
   double initial_yaw = 0.0;  ///< [rad] ENU yaw of the first keyframe when known
   // --- OSM priors ---
-  double osm_query_radius = 35.0;    ///< buildings within this of a keyframe are matched [m]
-  double osm_max_wait = 10.0;        ///< [s] a keyframe waits this long for its buildings
-  int min_keyframe_segments = 3;     ///< fewer segments: no OSM matching for that keyframe
+  double osm_query_radius = 35.0;     ///< buildings within this of a keyframe are matched [m]
+  double osm_max_wait = 10.0;         ///< [s] a keyframe waits this long for its buildings
+  int min_keyframe_segments = 3;      ///< fewer segments: no OSM matching for that keyframe
   double global_min_fitness = -20.0;  ///< global matches below this add no prior
   int global_min_matched = 3;
   /// Standard deviations of a global-matching prior on a robot pose for the best possible match

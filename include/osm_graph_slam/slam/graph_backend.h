@@ -107,6 +107,7 @@ class GraphBackend {
   std::vector<BuildingState> buildings() const;
   std::vector<Building> correctedBuildings() const;  ///< outline_geo filled when the origin is set
   PoseGraph graphSnapshot() const;
+  std::vector<LoopClosureInput> loopClosures() const;  ///< the ones added to the graph
   std::optional<EnuConverter> origin() const;
   const GraphBackendParams& params() const { return params_; }
   size_t pendingInputs() const;
