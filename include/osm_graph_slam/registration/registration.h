@@ -23,13 +23,19 @@ struct RegistrationResult {
 
 /// Parameters shared by every back-end; each back-end reads the fields it understands.
 struct RegistrationParams {
-  std::string method = "fast_gicp";  ///< fast_gicp (ours) | pcl_gicp | pcl_ndt
+  std::string method = "fast_gicp";  ///< fast_gicp | fast_vgicp (ours) | pcl_gicp | pcl_ndt
   int num_threads = 0;               ///< 0 = all hardware threads
   int max_iterations = 64;
   double max_correspondence_distance = 1.0;  ///< [m]
-  double transformation_epsilon = 1e-4;      ///< convergence on the update norm
-  int k_correspondences = 20;                ///< neighbours for point covariances (GICP)
+  double transformation_epsilon = 5e-4;      ///< convergence on the update norm [m, rad]
+  int k_correspondences = 10;                ///< neighbours for point covariances (GICP)
   double ndt_resolution = 1.0;               ///< [m] (NDT)
+  double ndt_step_size = 0.1;                ///< [m] More-Thuente line search step (NDT)
+  /// GICP covariance regularisation: eigenvalues become (epsilon, 1, 1) (plane model).
+  double gicp_covariance_epsilon = 1e-3;
+  double vgicp_resolution = 1.0;  ///< [m] voxel size of the target distributions (fast_vgicp)
+  /// Fewer inlier correspondences than this fails the match (fast_gicp).
+  int min_correspondences = 20;
 };
 
 class Registration {

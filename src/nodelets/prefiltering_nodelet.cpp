@@ -1,0 +1,141 @@
+// PrefilteringNodelet: velodyne_points (any frame) -> CloudPrefilter -> filtered_points
+// (base_link). The sensor -> base_link transform comes from TF (static) or from parameters.
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/ros/conversions.h"
+
+namespace osm_graph_slam {
+
+class PrefilteringNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    params_ = readParams(pnh);
+    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
+    pnh.param("sensor_to_base_from_tf", sensor_to_base_from_tf_, true);
+    pnh.param("tf_timeout", tf_timeout_, 0.2);
+    pnh.param("warn_throttle_period", warn_period_, 5.0);
+    std::vector<double> xyzrpy;
+    pnh.param("sensor_to_base", xyzrpy, std::vector<double>(6, 0.0));
+    if (xyzrpy.size() != 6) {
+      NODELET_ERROR("sensor_to_base must be [x, y, z, roll, pitch, yaw]; using identity");
+      xyzrpy.assign(6, 0.0);
+    }
+    param_sensor_to_base_ =
+        fromXyzRpy(xyzrpy[0], xyzrpy[1], xyzrpy[2], xyzrpy[3], xyzrpy[4], xyzrpy[5]);
+    if (sensor_to_base_from_tf_) {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
+    }
+    pub_ = nh.advertise<sensor_msgs::PointCloud2>("filtered_points", 5);
+    sub_ = nh.subscribe("velodyne_points", 5, &PrefilteringNodelet::onCloud, this);
+    NODELET_INFO(
+        "prefiltering: voxel %.2f m (%s), range [%.1f, %.1f] m, outliers %s%s -> %s",
+        params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off", params_.min_range,
+        params_.max_range, params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
+        params_.parallel_octants ? " (8 octants in parallel)" : "", base_link_frame_.c_str());
+  }
+
+  static CloudPrefilterParams readParams(ros::NodeHandle& pnh) {
+    CloudPrefilterParams p;
+    pnh.param("remove_invalid", p.remove_invalid, p.remove_invalid);
+    pnh.param("use_range_crop", p.use_range_crop, p.use_range_crop);
+    pnh.param("min_range", p.min_range, p.min_range);
+    pnh.param("max_range", p.max_range, p.max_range);
+    pnh.param("use_voxel_grid", p.use_voxel_grid, p.use_voxel_grid);
+    pnh.param("voxel_method", p.voxel_method, p.voxel_method);
+    pnh.param("voxel_leaf_size", p.voxel_leaf_size, p.voxel_leaf_size);
+    pnh.param("use_outlier_removal", p.use_outlier_removal, p.use_outlier_removal);
+    pnh.param("outlier_method", p.outlier_method, p.outlier_method);
+    pnh.param("radius_search", p.radius_search, p.radius_search);
+    pnh.param("radius_min_neighbors", p.radius_min_neighbors, p.radius_min_neighbors);
+    pnh.param("statistical_mean_k", p.statistical_mean_k, p.statistical_mean_k);
+    pnh.param("statistical_stddev", p.statistical_stddev, p.statistical_stddev);
+    pnh.param("parallel_octants", p.parallel_octants, p.parallel_octants);
+    pnh.param("octant_margin", p.octant_margin, p.octant_margin);
+    pnh.param("num_threads", p.num_threads, p.num_threads);
+    return p;
+  }
+
+  /// sensor -> base_link for a frame: identity for base_link itself, else TF (cached: static)
+  /// or the sensor_to_base parameter.
+  bool sensorToBase(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d* out) {
+    if (frame == base_link_frame_ || frame.empty()) {
+      *out = Eigen::Isometry3d::Identity();
+      return true;
+    }
+    if (!sensor_to_base_from_tf_) {
+      *out = param_sensor_to_base_;
+      return true;
+    }
+    const auto cached = tf_cache_.find(frame);
+    if (cached != tf_cache_.end()) {
+      *out = cached->second;
+      return true;
+    }
+    try {
+      const auto t = tf_buffer_->lookupTransform(base_link_frame_, frame, ros::Time(0),
+                                                 ros::Duration(tf_timeout_));
+      *out = fromTransformMsg(t.transform);
+      tf_cache_[frame] = *out;
+      return true;
+    } catch (const std::exception& e) {
+      NODELET_WARN_THROTTLE(warn_period_, "no transform %s -> %s yet (%s); dropping scans",
+                            frame.c_str(), base_link_frame_.c_str(), e.what());
+      return false;
+    }
+  }
+
+  void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    PointCloud cloud;
+    std::string error;
+    if (!fromPointCloud2(*msg, cloud, &error)) {
+      NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      return;
+    }
+    Eigen::Isometry3d sensor_to_base;
+    if (!sensorToBase(msg->header.frame_id, msg->header.stamp, &sensor_to_base)) return;
+    CloudPrefilter prefilter(params_);
+    prefilter.setSensorToBase(sensor_to_base);
+    const CloudPrefilterResult result = prefilter.filter(cloud);
+    if (!result.ok) {
+      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f publishes nothing: %s",
+                            msg->header.stamp.toSec(), result.reason.c_str());
+      return;
+    }
+    NODELET_DEBUG("prefiltered %zu -> %zu points in %.1f ms", result.stats.input_points,
+                  result.stats.output_points, result.stats.time_total_ms);
+    boost::shared_ptr<sensor_msgs::PointCloud2> out(new sensor_msgs::PointCloud2);
+    toPointCloud2(*result.cloud, *out);
+    out->header.stamp = msg->header.stamp;
+    out->header.frame_id = base_link_frame_;
+    pub_.publish(boost::shared_ptr<const sensor_msgs::PointCloud2>(out));
+  }
+
+  CloudPrefilterParams params_;
+  std::string base_link_frame_;
+  bool sensor_to_base_from_tf_ = true;
+  double tf_timeout_ = 0.2;
+  double warn_period_ = 5.0;
+  Eigen::Isometry3d param_sensor_to_base_ = Eigen::Isometry3d::Identity();
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::map<std::string, Eigen::Isometry3d> tf_cache_;
+  ros::Publisher pub_;
+  ros::Subscriber sub_;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::PrefilteringNodelet, nodelet::Nodelet)

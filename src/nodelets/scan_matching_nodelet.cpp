@@ -1,0 +1,157 @@
+// ScanMatchingNodelet: filtered_points (base_link) -> KeyframeTracker -> odom, TF odom->base_link,
+// keyframe (new keyframes only) and scan_matching_status (every scan).
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Odometry.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <memory>
+
+#include "osm_graph_slam/KeyFrame.h"
+#include "osm_graph_slam/ScanMatchingStatus.h"
+#include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/ros/conversions.h"
+
+namespace osm_graph_slam {
+
+class ScanMatchingNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    pnh.param<std::string>("odom_frame", odom_frame_, "odom");
+    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
+    pnh.param("publish_tf", publish_tf_, true);
+    pnh.param("warn_throttle_period", warn_period_, 5.0);
+    const KeyframeTrackerParams params = readParams(pnh);
+    try {
+      tracker_ = std::make_unique<KeyframeTracker>(params);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("%s; falling back to fast_gicp", e.what());
+      KeyframeTrackerParams fallback = params;
+      fallback.registration.method = "fast_gicp";
+      tracker_ = std::make_unique<KeyframeTracker>(fallback);
+    }
+    odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
+    keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
+    status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);
+    sub_ = nh.subscribe("filtered_points", 5, &ScanMatchingNodelet::onCloud, this);
+    NODELET_INFO("scan matching: %s, keyframe every %.2f m / %.3f rad / %.1f s, %s -> %s",
+                 params.registration.method.c_str(), params.keyframe_delta_trans,
+                 params.keyframe_delta_angle, params.keyframe_delta_time, odom_frame_.c_str(),
+                 base_link_frame_.c_str());
+  }
+
+  static KeyframeTrackerParams readParams(ros::NodeHandle& pnh) {
+    KeyframeTrackerParams p;
+    RegistrationParams& r = p.registration;
+    pnh.param("registration_method", r.method, r.method);
+    pnh.param("num_threads", r.num_threads, r.num_threads);
+    pnh.param("max_iterations", r.max_iterations, r.max_iterations);
+    pnh.param("max_correspondence_distance", r.max_correspondence_distance,
+              r.max_correspondence_distance);
+    pnh.param("transformation_epsilon", r.transformation_epsilon, r.transformation_epsilon);
+    pnh.param("k_correspondences", r.k_correspondences, r.k_correspondences);
+    pnh.param("ndt_resolution", r.ndt_resolution, r.ndt_resolution);
+    pnh.param("ndt_step_size", r.ndt_step_size, r.ndt_step_size);
+    pnh.param("vgicp_resolution", r.vgicp_resolution, r.vgicp_resolution);
+    pnh.param("gicp_covariance_epsilon", r.gicp_covariance_epsilon, r.gicp_covariance_epsilon);
+    pnh.param("min_correspondences", r.min_correspondences, r.min_correspondences);
+    pnh.param("keyframe_delta_trans", p.keyframe_delta_trans, p.keyframe_delta_trans);
+    pnh.param("keyframe_delta_angle", p.keyframe_delta_angle, p.keyframe_delta_angle);
+    pnh.param("keyframe_delta_time", p.keyframe_delta_time, p.keyframe_delta_time);
+    pnh.param("constant_velocity_guess", p.constant_velocity_guess, p.constant_velocity_guess);
+    pnh.param("max_fitness", p.max_fitness, p.max_fitness);
+    pnh.param("max_correction_trans", p.max_correction_trans, p.max_correction_trans);
+    pnh.param("max_correction_angle", p.max_correction_angle, p.max_correction_angle);
+    pnh.param("min_points", p.min_points, p.min_points);
+    return p;
+  }
+
+  void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    PointCloudPtr cloud(new PointCloud);
+    std::string error;
+    if (!fromPointCloud2(*msg, *cloud, &error)) {
+      NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      return;
+    }
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != base_link_frame_) {
+      NODELET_WARN_THROTTLE(warn_period_, "filtered_points in frame '%s', expected '%s'",
+                            msg->header.frame_id.c_str(), base_link_frame_.c_str());
+    }
+    const TrackResult result = tracker_->track(msg->header.stamp.toSec(), cloud);
+    publishStatus(msg->header.stamp, result);
+    if (!result.has_pose()) {
+      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f ignored: %s", msg->header.stamp.toSec(),
+                            result.message.c_str());
+      return;
+    }
+    if (result.failed()) {
+      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f: %s (constant-velocity prediction kept)",
+                            msg->header.stamp.toSec(), result.message.c_str());
+    }
+    publishOdometry(msg->header.stamp, result.pose);
+    if (result.new_keyframe) publishKeyframe(*msg);
+  }
+
+  void publishOdometry(const ros::Time& stamp, const Eigen::Isometry3d& pose) {
+    boost::shared_ptr<nav_msgs::Odometry> odom(new nav_msgs::Odometry);
+    odom->header.stamp = stamp;
+    odom->header.frame_id = odom_frame_;
+    odom->child_frame_id = base_link_frame_;
+    odom->pose.pose = toPoseMsg(pose);
+    odom_pub_.publish(boost::shared_ptr<const nav_msgs::Odometry>(odom));
+    if (publish_tf_) {
+      geometry_msgs::TransformStamped tf;
+      tf.header = odom->header;
+      tf.child_frame_id = base_link_frame_;
+      tf.transform = toTransformMsg(pose);
+      tf_broadcaster_.sendTransform(tf);
+    }
+  }
+
+  void publishKeyframe(const sensor_msgs::PointCloud2& cloud) {
+    const Keyframe& kf = tracker_->keyframe();
+    boost::shared_ptr<KeyFrame> msg(new KeyFrame);
+    msg->header.stamp = cloud.header.stamp;
+    msg->header.frame_id = odom_frame_;
+    msg->id = kf.id;
+    msg->odom_pose = toPoseMsg(kf.pose);
+    msg->accum_distance = kf.accum_distance;
+    msg->cloud = cloud;
+    keyframe_pub_.publish(boost::shared_ptr<const KeyFrame>(msg));
+  }
+
+  void publishStatus(const ros::Time& stamp, const TrackResult& result) {
+    boost::shared_ptr<ScanMatchingStatus> msg(new ScanMatchingStatus);
+    msg->header.stamp = stamp;
+    msg->header.frame_id = odom_frame_;
+    msg->has_converged = result.registration.converged;
+    msg->failed = result.failed();
+    msg->method = tracker_->params().registration.method;
+    msg->fitness = result.registration.fitness;
+    msg->iterations = result.registration.iterations;
+    msg->time_ms = result.registration.time_ms;
+    msg->keyframe_id = result.keyframe_id;
+    msg->new_keyframe = result.new_keyframe;
+    msg->relative_pose = toTransformMsg(result.relative_to_keyframe);
+    msg->message = result.failed() ? std::string(toString(result.status)) + ": " + result.message
+                                   : std::string(toString(result.status));
+    status_pub_.publish(boost::shared_ptr<const ScanMatchingStatus>(msg));
+  }
+
+  std::string odom_frame_, base_link_frame_;
+  bool publish_tf_ = true;
+  double warn_period_ = 5.0;
+  std::unique_ptr<KeyframeTracker> tracker_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+  ros::Publisher odom_pub_, keyframe_pub_, status_pub_;
+  ros::Subscriber sub_;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::ScanMatchingNodelet, nodelet::Nodelet)

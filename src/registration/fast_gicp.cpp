@@ -1,0 +1,423 @@
+// Our multi-threaded Generalized-ICP (Segal et al. 2009, plane-to-plane): per-point covariances
+// from k nearest neighbours (nanoflann KD-tree), distribution-to-distribution Mahalanobis cost
+// minimised by Levenberg-Marquardt on SE(3); correspondences, covariances and the normal
+// equations are computed in parallel with TBB.
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <nanoflann.hpp>
+#include <unordered_map>
+#include <vector>
+
+#include "registration_backends.h"
+
+namespace osm_graph_slam::detail {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+struct PointAdaptor {
+  const std::vector<Eigen::Vector3f>* points = nullptr;
+  size_t kdtree_get_point_count() const { return points->size(); }
+  float kdtree_get_pt(size_t i, size_t dim) const { return (*points)[i][dim]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointAdaptor>,
+                                        PointAdaptor, 3, uint32_t>;
+
+struct VoxelHash {
+  size_t operator()(const Eigen::Vector3i& k) const {
+    return (size_t(k.x()) * 73856093u) ^ (size_t(k.y()) * 19349669u) ^ (size_t(k.z()) * 83492791u);
+  }
+};
+
+/// A cloud prepared for GICP: finite points, KD-tree and regularised covariances.
+struct PreparedCloud {
+  PointCloudConstPtr source;  ///< the cloud this was built from (to recognise it again)
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Mat3> covariances;
+  PointAdaptor adaptor;
+  std::unique_ptr<KdTree> tree;
+  // Voxel distributions (VGICP target): mean of the points and mean of their covariances.
+  double voxel_resolution = 0.0;
+  std::vector<Vec3> voxel_means;
+  std::vector<Mat3> voxel_covariances;
+  std::vector<double> voxel_weights;  ///< number of points in the voxel
+  std::unordered_map<Eigen::Vector3i, int, VoxelHash> voxel_index;
+};
+
+Eigen::Vector3i voxelKey(const Vec3& p, double resolution) {
+  return (p / resolution).array().floor().cast<int>();
+}
+
+void buildVoxels(PreparedCloud& cloud, double resolution) {
+  if (cloud.voxel_resolution == resolution) return;
+  cloud.voxel_resolution = resolution;
+  cloud.voxel_means.clear();
+  cloud.voxel_covariances.clear();
+  cloud.voxel_weights.clear();
+  cloud.voxel_index.clear();
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    const Vec3 p = cloud.points[i].cast<double>();
+    const auto inserted =
+        cloud.voxel_index.emplace(voxelKey(p, resolution), int(cloud.voxel_means.size()));
+    if (inserted.second) {
+      cloud.voxel_means.push_back(Vec3::Zero());
+      cloud.voxel_covariances.push_back(Mat3::Zero());
+      cloud.voxel_weights.push_back(0.0);
+    }
+    const int v = inserted.first->second;
+    cloud.voxel_means[v] += p;
+    cloud.voxel_covariances[v] += cloud.covariances[i];
+    cloud.voxel_weights[v] += 1.0;
+  }
+  for (size_t v = 0; v < cloud.voxel_means.size(); ++v) {
+    cloud.voxel_means[v] /= cloud.voxel_weights[v];
+    cloud.voxel_covariances[v] /= cloud.voxel_weights[v];
+  }
+}
+
+std::shared_ptr<PreparedCloud> prepare(const PointCloudConstPtr& cloud, int k, double epsilon) {
+  auto prepared = std::make_shared<PreparedCloud>();
+  prepared->source = cloud;
+  if (!cloud) return prepared;
+  prepared->points.reserve(cloud->size());
+  for (const auto& p : cloud->points) {
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) {
+      prepared->points.emplace_back(p.x, p.y, p.z);
+    }
+  }
+  const size_t n = prepared->points.size();
+  if (n == 0) return prepared;
+  prepared->adaptor.points = &prepared->points;
+  prepared->tree =
+      std::make_unique<KdTree>(3, prepared->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(20));
+  prepared->covariances.resize(n);
+  const size_t kk = std::min<size_t>(std::max(k, 3), n);
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<uint32_t> idx(kk);
+        std::vector<float> dist(kk);
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const size_t found =
+              prepared->tree->knnSearch(prepared->points[i].data(), kk, idx.data(), dist.data());
+          Vec3 mean = Vec3::Zero();
+          Mat3 second = Mat3::Zero();
+          for (size_t j = 0; j < found; ++j) {
+            const Vec3 q = prepared->points[idx[j]].cast<double>();
+            mean += q;
+            second += q * q.transpose();
+          }
+          Mat3 cov = Mat3::Identity() * epsilon;
+          if (found >= 3) {
+            mean /= double(found);
+            cov = (second - double(found) * mean * mean.transpose()) / double(found);
+            // Plane model: the smallest spread becomes epsilon, the two others 1 (GICP paper §3.2).
+            Eigen::SelfAdjointEigenSolver<Mat3> eig;
+            eig.computeDirect(cov);
+            const Vec3 values(epsilon, 1.0, 1.0);
+            cov = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+          }
+          prepared->covariances[i] = cov;
+        }
+      });
+  return prepared;
+}
+
+Mat3 skew(const Vec3& v) {
+  Mat3 m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+/// Applies the update delta = (translation, rotation vector) on the left of T.
+Eigen::Isometry3d applyUpdate(const Vec6& delta, const Eigen::Isometry3d& t) {
+  Eigen::Isometry3d update = Eigen::Isometry3d::Identity();
+  const Vec3 phi = delta.tail<3>();
+  const double angle = phi.norm();
+  if (angle > 1e-12) update.linear() = Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix();
+  update.translation() = delta.head<3>();
+  Eigen::Isometry3d out = update * t;
+  out.linear() = Eigen::Quaterniond(out.linear()).normalized().toRotationMatrix();
+  return out;
+}
+
+struct Correspondence {
+  int target = -1;
+  Mat3 information;  ///< (C_target + R C_source R^T)^-1
+};
+
+struct NormalEquations {
+  Mat6 h = Mat6::Zero();
+  Vec6 b = Vec6::Zero();
+  double cost = 0.0;
+  double squared_distance = 0.0;
+  int inliers = 0;
+};
+
+class FastGicp : public Registration {
+ public:
+  FastGicp(const RegistrationParams& params, bool voxelized)
+      : params_(params),
+        voxelized_(voxelized),
+        arena_(params.num_threads > 0 ? params.num_threads : tbb::task_arena::automatic) {}
+
+  std::string name() const override { return voxelized_ ? "fast_vgicp" : "fast_gicp"; }
+
+  void setTarget(const PointCloudConstPtr& target) override {
+    // A scan that becomes the new keyframe was just the source: reuse its tree and covariances.
+    if (last_source_ && target && last_source_->source == target) {
+      target_ = last_source_;
+    } else {
+      arena_.execute([&] { target_ = prepare(target, params_.k_correspondences, epsilon()); });
+    }
+    if (voxelized_ && target_->tree) buildVoxels(*target_, params_.vgicp_resolution);
+  }
+
+  RegistrationResult align(const PointCloudConstPtr& source,
+                           const Eigen::Isometry3d& guess) override {
+    const auto start = std::chrono::steady_clock::now();
+    RegistrationResult result;
+    result.transform = guess;
+    arena_.execute([&] { result = alignImpl(source, guess); });
+    if (!result.converged) result.transform = guess;
+    result.time_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  }
+
+ private:
+  double epsilon() const { return params_.gicp_covariance_epsilon; }
+  size_t minPoints() const { return static_cast<size_t>(std::max(params_.min_correspondences, 6)); }
+
+  RegistrationResult alignImpl(const PointCloudConstPtr& source, const Eigen::Isometry3d& guess) {
+    RegistrationResult result;
+    result.transform = guess;
+    if (!target_ || target_->points.size() < minPoints()) {
+      result.message =
+          name() + ": target has fewer than " + std::to_string(minPoints()) + " valid points";
+      return result;
+    }
+    last_source_ = prepare(source, params_.k_correspondences, epsilon());
+    const PreparedCloud& src = *last_source_;
+    if (src.points.size() < minPoints()) {
+      result.message =
+          name() + ": source has fewer than " + std::to_string(minPoints()) + " valid points";
+      return result;
+    }
+    if (!guess.matrix().allFinite()) {
+      result.message = name() + ": initial guess is not finite";
+      return result;
+    }
+
+    Eigen::Isometry3d t = guess;
+    std::vector<Correspondence> corr(src.points.size());
+    double lambda = 1e-6;
+    NormalEquations eq;
+    for (int iter = 0; iter < params_.max_iterations; ++iter) {
+      result.iterations = iter + 1;
+      updateCorrespondences(src, t, corr);
+      // kInnerSteps Levenberg-Marquardt steps per correspondence update (measured: 1 is as
+      // fast as 2-4 on the KITTI pair, the nearest-neighbour search dominates either way).
+      bool first_step_small = false;
+      for (int inner = 0; inner < kInnerSteps; ++inner) {
+        eq = linearise(src, t, corr, true);
+        if (eq.inliers < params_.min_correspondences) {
+          result.message = name() + ": only " + std::to_string(eq.inliers) +
+                           " correspondences within " +
+                           std::to_string(params_.max_correspondence_distance) + " m";
+          return result;
+        }
+        Vec6 delta = Vec6::Zero();
+        const StepOutcome step = levenbergMarquardtStep(src, corr, eq, lambda, t, &delta);
+        if (step == StepOutcome::kNumericalFailure) {
+          result.message = name() + ": singular normal equations";
+          return result;
+        }
+        const bool small_step = step == StepOutcome::kNoDescent ||
+                                (delta.head<3>().norm() < params_.transformation_epsilon &&
+                                 delta.tail<3>().norm() < params_.transformation_epsilon);
+        if (inner == 0) first_step_small = small_step;
+        if (small_step) break;
+      }
+      if (first_step_small) {
+        // New correspondences did not move the solution: converged.
+        result.converged = true;
+        break;
+      }
+    }
+    // Fitness on nearest points (not voxel means) so that every method reports the same measure.
+    updateCorrespondences(src, t, corr, false);
+    eq = linearise(src, t, corr, false, false);
+    result.transform = t;
+    result.fitness =
+        eq.inliers > 0 ? eq.squared_distance / eq.inliers : std::numeric_limits<double>::infinity();
+    if (!result.converged) {
+      result.message = name() + ": did not converge within " +
+                       std::to_string(params_.max_iterations) + " iterations";
+    } else if (eq.inliers < params_.min_correspondences) {
+      result.converged = false;
+      result.message = name() + ": too few correspondences at the solution";
+    }
+    return result;
+  }
+
+  static constexpr int kInnerSteps = 1;
+  enum class StepOutcome { kAccepted, kNoDescent, kNumericalFailure };
+
+  /// One damped Gauss-Newton step on fixed correspondences; accepted only if it lowers the cost.
+  StepOutcome levenbergMarquardtStep(const PreparedCloud& src,
+                                     const std::vector<Correspondence>& corr,
+                                     const NormalEquations& eq, double& lambda,
+                                     Eigen::Isometry3d& t, Vec6* delta) const {
+    for (int attempt = 0; attempt < 10; ++attempt) {
+      Mat6 damped = eq.h;
+      damped.diagonal().array() += lambda * eq.h.diagonal().array().max(1e-9);
+      *delta = damped.ldlt().solve(-eq.b);
+      if (!delta->allFinite()) return StepOutcome::kNumericalFailure;
+      const Eigen::Isometry3d candidate = applyUpdate(*delta, t);
+      if (linearise(src, candidate, corr, false).cost <= eq.cost) {
+        t = candidate;
+        lambda = std::max(lambda / 10.0, 1e-12);
+        return StepOutcome::kAccepted;
+      }
+      lambda *= 10.0;
+    }
+    return StepOutcome::kNoDescent;
+  }
+
+  void updateCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                             std::vector<Correspondence>& corr) const {
+    updateCorrespondences(src, t, corr, voxelized_);
+  }
+
+  void updateCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                             std::vector<Correspondence>& corr, bool voxels) const {
+    if (voxels) {
+      updateVoxelCorrespondences(src, t, corr);
+      return;
+    }
+    const double max_sq = params_.max_correspondence_distance * params_.max_correspondence_distance;
+    const Mat3 r = t.linear();
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, src.points.size(), 512),
+        [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t i = range.begin(); i != range.end(); ++i) {
+            const Eigen::Vector3f p = (t * src.points[i].cast<double>()).cast<float>();
+            uint32_t index = 0;
+            float dist_sq = 0.0f;
+            const size_t found = target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
+            if (found == 0 || dist_sq > max_sq) {
+              corr[i].target = -1;
+              continue;
+            }
+            corr[i].target = static_cast<int>(index);
+            const Mat3 combined =
+                target_->covariances[index] + r * src.covariances[i] * r.transpose();
+            corr[i].information = combined.inverse();
+          }
+        });
+  }
+
+  /// VGICP: the correspondence of a point is the distribution of the target voxel it falls in.
+  void updateVoxelCorrespondences(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                                  std::vector<Correspondence>& corr) const {
+    const Mat3 r = t.linear();
+    const double res = target_->voxel_resolution;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, src.points.size(), 512),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          const Vec3 p = t * src.points[i].cast<double>();
+                          const auto found = target_->voxel_index.find(voxelKey(p, res));
+                          if (found == target_->voxel_index.end()) {
+                            corr[i].target = -1;
+                            continue;
+                          }
+                          corr[i].target = found->second;
+                          const Mat3 combined = target_->voxel_covariances[found->second] +
+                                                r * src.covariances[i] * r.transpose();
+                          corr[i].information = combined.inverse();
+                        }
+                      });
+  }
+
+  NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                            const std::vector<Correspondence>& corr, bool with_derivatives) const {
+    return linearise(src, t, corr, with_derivatives, voxelized_);
+  }
+
+  /// Cost (and, when with_derivatives, Gauss-Newton normal equations) for fixed correspondences
+  /// to target points or (voxels) to target voxel distributions weighted by their point count.
+  NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
+                            const std::vector<Correspondence>& corr, bool with_derivatives,
+                            bool voxels) const {
+    tbb::combinable<NormalEquations> partial;
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, src.points.size(), 512),
+        [&](const tbb::blocked_range<size_t>& range) {
+          NormalEquations& acc = partial.local();
+          Eigen::Matrix<double, 3, 6> j;
+          for (size_t i = range.begin(); i != range.end(); ++i) {
+            if (corr[i].target < 0) continue;
+            const Vec3 p = t * src.points[i].cast<double>();
+            const int k = corr[i].target;
+            const Vec3 residual =
+                (voxels ? target_->voxel_means[k] : target_->points[k].cast<double>()) - p;
+            const double w = voxels ? target_->voxel_weights[k] : 1.0;
+            const Mat3 info = w * corr[i].information;
+            acc.cost += residual.dot(info * residual);
+            acc.squared_distance += residual.squaredNorm();
+            ++acc.inliers;
+            if (!with_derivatives) continue;
+            // d(residual)/d(delta) for p' = exp(phi) p + rho: [-I, [p]x].
+            j.leftCols<3>() = -Mat3::Identity();
+            j.rightCols<3>() = skew(p);
+            const Eigen::Matrix<double, 6, 3> jt_info = j.transpose() * info;
+            acc.h.noalias() += jt_info * j;
+            acc.b.noalias() += jt_info * residual;
+          }
+        });
+    NormalEquations total;
+    partial.combine_each([&](const NormalEquations& e) {
+      total.h += e.h;
+      total.b += e.b;
+      total.cost += e.cost;
+      total.squared_distance += e.squared_distance;
+      total.inliers += e.inliers;
+    });
+    return total;
+  }
+
+  RegistrationParams params_;
+  bool voxelized_ = false;
+  tbb::task_arena arena_;
+  std::shared_ptr<PreparedCloud> target_;
+  std::shared_ptr<PreparedCloud> last_source_;
+};
+
+}  // namespace
+
+std::unique_ptr<Registration> makeFastGicp(const RegistrationParams& params) {
+  return std::make_unique<FastGicp>(params, false);
+}
+
+std::unique_ptr<Registration> makeFastVgicp(const RegistrationParams& params) {
+  return std::make_unique<FastGicp>(params, true);
+}
+
+}  // namespace osm_graph_slam::detail

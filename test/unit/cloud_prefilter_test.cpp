@@ -1,0 +1,178 @@
+// CloudPrefilter: each step on controlled input, octant-parallel outlier removal equal to the
+// whole-cloud result on a real scan, bad input without exceptions.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <limits>
+#include <tuple>
+
+#include "frontend_test_utils.h"
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "test_data.h"
+
+namespace osm_graph_slam {
+namespace {
+
+PointT pointAt(float x, float y, float z) {
+  PointT p;
+  p.x = x;
+  p.y = y;
+  p.z = z;
+  p.intensity = 0.5f;
+  return p;
+}
+
+CloudPrefilterParams onlyBasicSteps() {
+  CloudPrefilterParams params;
+  params.use_voxel_grid = false;
+  params.use_outlier_removal = false;
+  return params;
+}
+
+std::vector<std::tuple<float, float, float>> sortedPoints(const PointCloud& cloud) {
+  std::vector<std::tuple<float, float, float>> out;
+  for (const auto& p : cloud.points) out.emplace_back(p.x, p.y, p.z);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(CloudPrefilterTest, EmptyNanOnlyAndSinglePointGiveEmptyResultWithReason) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  CloudPrefilter prefilter;
+  PointCloud empty;
+  PointCloud nan_only;
+  nan_only.push_back(pointAt(nan, nan, nan));
+  nan_only.push_back(pointAt(inf, 1, 2));
+  PointCloud single;
+  single.push_back(pointAt(10, 0, 0));
+  for (const PointCloud* input : {&empty, &nan_only, &single}) {
+    CloudPrefilterResult result;
+    ASSERT_NO_THROW(result = prefilter.filter(*input));
+    ASSERT_TRUE(result.cloud);
+    EXPECT_TRUE(result.cloud->empty());
+    EXPECT_FALSE(result.ok);
+    EXPECT_FALSE(result.reason.empty());
+  }
+  EXPECT_NE(prefilter.filter(nan_only).reason.find("NaN"), std::string::npos);
+}
+
+TEST(CloudPrefilterTest, RemovesInvalidPointsAndCropsRange) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  PointCloud input;
+  input.push_back(pointAt(1.0f, 0, 0));    // too close (min 2 m)
+  input.push_back(pointAt(5.0f, 0, 0));    // kept
+  input.push_back(pointAt(0, -50.0f, 3));  // kept
+  input.push_back(pointAt(120.0f, 0, 0));  // too far (max 100 m)
+  input.push_back(pointAt(nan, 2.0f, 0));  // invalid
+  const auto result = CloudPrefilter(onlyBasicSteps()).filter(input);
+  ASSERT_TRUE(result.ok) << result.reason;
+  ASSERT_EQ(result.cloud->size(), 2u);
+  EXPECT_EQ(result.stats.after_invalid, 4u);
+  EXPECT_EQ(result.stats.after_crop, 2u);
+  EXPECT_FLOAT_EQ(result.cloud->points[0].x, 5.0f);
+  EXPECT_FLOAT_EQ(result.cloud->points[1].y, -50.0f);
+  EXPECT_TRUE(result.cloud->is_dense);
+}
+
+TEST(CloudPrefilterTest, DisabledStepsPassPointsThrough) {
+  PointCloud input;
+  input.push_back(pointAt(1.0f, 0, 0));
+  input.push_back(pointAt(500.0f, 0, 0));
+  auto params = onlyBasicSteps();
+  params.use_range_crop = false;
+  const auto result = CloudPrefilter(params).filter(input);
+  EXPECT_EQ(result.cloud->size(), 2u);
+}
+
+TEST(CloudPrefilterTest, AppliesSensorToBaseTransform) {
+  PointCloud input;
+  input.push_back(pointAt(10, 0, 0));
+  auto params = onlyBasicSteps();
+  params.sensor_to_base.translation() << 1.0, 2.0, 3.0;
+  params.sensor_to_base.linear() =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const auto result = CloudPrefilter(params).filter(input);
+  ASSERT_EQ(result.cloud->size(), 1u);
+  EXPECT_NEAR(result.cloud->points[0].x, 1.0, 1e-5);
+  EXPECT_NEAR(result.cloud->points[0].y, 12.0, 1e-5);
+  EXPECT_NEAR(result.cloud->points[0].z, 3.0, 1e-5);
+}
+
+TEST(CloudPrefilterTest, VoxelGridKeepsOnePointPerCell) {
+  PointCloud input;
+  for (int i = 0; i < 10; ++i) input.push_back(pointAt(10.0f + 0.01f * i, 0.1f, 0.1f));
+  for (int i = 0; i < 10; ++i) input.push_back(pointAt(20.0f + 0.01f * i, 0.1f, 0.1f));
+  for (const std::string method : {"approximate", "exact"}) {
+    auto params = onlyBasicSteps();
+    params.use_voxel_grid = true;
+    params.voxel_method = method;
+    const auto result = CloudPrefilter(params).filter(input);
+    EXPECT_EQ(result.cloud->size(), 2u) << method;
+  }
+}
+
+TEST(CloudPrefilterTest, RadiusOutlierRemovalDropsIsolatedPoints) {
+  PointCloud input;
+  // A dense 3 x 3 x 3 block of points 0.2 m apart and one point 20 m away from everything.
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) input.push_back(pointAt(10 + 0.2f * i, 0.2f * j, 0.2f * k));
+  input.push_back(pointAt(-10, 15, 0));
+  for (const bool octants : {false, true}) {
+    auto params = onlyBasicSteps();
+    params.use_outlier_removal = true;
+    params.parallel_octants = octants;
+    const auto result = CloudPrefilter(params).filter(input);
+    EXPECT_EQ(result.cloud->size(), 27u) << "octants=" << octants;
+  }
+}
+
+TEST(CloudPrefilterTest, OctantOutlierRemovalEqualsWholeCloudOnRealScan) {
+  const auto path = test::sharedDataPath("kitti00/000094.bin");
+  OGS_REQUIRE_SHARED_FILE(path);
+  const auto raw = test::loadScan(path);
+  for (const std::string method : {"radius", "statistical"}) {
+    CloudPrefilterParams params;
+    params.outlier_method = method;
+    params.use_outlier_removal = false;
+    const auto voxelized = CloudPrefilter(params).filter(*raw).cloud;
+    params.use_outlier_removal = true;
+    CloudPrefilter prefilter(params);
+    const auto whole = prefilter.removeOutliers(voxelized, false);
+    const auto octants = prefilter.removeOutliers(voxelized, true);
+    std::cout << "[" << method << "] " << voxelized->size() << " -> whole " << whole->size()
+              << ", octants " << octants->size() << "\n";
+    EXPECT_LT(whole->size(), voxelized->size()) << method << ": nothing was removed";
+    if (method == "radius") {
+      // With a margin of one search radius every border point sees its full neighbourhood.
+      EXPECT_EQ(sortedPoints(*whole), sortedPoints(*octants));
+    } else {
+      // Statistics are per octant: nearly, not exactly, the same points.
+      const double diff = std::abs(double(whole->size()) - double(octants->size()));
+      EXPECT_LT(diff / whole->size(), 0.01);
+    }
+  }
+}
+
+TEST(CloudPrefilterTest, RealScanIsReducedAndStaysInRange) {
+  const auto path = test::sharedDataPath("kitti00/000094.bin");
+  OGS_REQUIRE_SHARED_FILE(path);
+  const auto raw = test::loadScan(path);
+  CloudPrefilterParams params;
+  const auto result = CloudPrefilter(params).filter(*raw);
+  ASSERT_TRUE(result.ok) << result.reason;
+  std::cout << "[prefilter] " << raw->size() << " -> " << result.cloud->size() << " points in "
+            << result.stats.time_total_ms << " ms\n";
+  EXPECT_GT(result.cloud->size(), 5000u);
+  EXPECT_LT(result.cloud->size(), raw->size() / 4);
+  for (const auto& p : result.cloud->points) {
+    // Approximate voxel centroids stay within one leaf of the crop limits.
+    const double r = p.getVector3fMap().norm();
+    ASSERT_GT(r, params.min_range - params.voxel_leaf_size);
+    ASSERT_LT(r, params.max_range + params.voxel_leaf_size);
+  }
+}
+
+}  // namespace
+}  // namespace osm_graph_slam
