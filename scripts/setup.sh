@@ -23,7 +23,7 @@ PACKAGES=(
   # algorithms
   libpcl-dev libeigen3-dev libceres-dev libsuitesparse-dev libgeographiclib-dev libopencv-dev
   libosmium2-dev libprotozero-dev libbz2-dev libexpat1-dev zlib1g-dev liblz4-dev
-  libcurl4-openssl-dev libnanoflann-dev libtbb-dev nlohmann-json3-dev
+  libcurl4-openssl-dev libnanoflann-dev libtbb-dev nlohmann-json3-dev libyaml-cpp-dev
   # tests, plots, screenshots
   libgtest-dev googletest python3-matplotlib python3-numpy xvfb xauth
 )

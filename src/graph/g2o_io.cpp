@@ -149,6 +149,9 @@ std::string parseLine(const std::vector<std::string>& tokens, int line, ParsedFi
   }
   const Eigen::VectorXd measurement =
       Eigen::Map<const Eigen::VectorXd>(values.data(), layout.num_values);
+  if (layout.num_values == 7 && measurement.tail<4>().norm() < 1e-9) {
+    return tag + ": quaternion has zero norm";
+  }
   if (layout.is_vertex) {
     file->vertices.push_back({line, ids[0], layout.vertex_type, measurement});
   } else {

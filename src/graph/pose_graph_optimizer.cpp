@@ -47,6 +47,7 @@ GraphProblem buildProblem(const std::map<int, PoseGraph::Edge>& edges,
   GraphProblem gp;
   ceres::Problem::Options options;
   options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;  // shared static manifolds
+  options.disable_all_safety_checks = true;  // blocks and sizes are validated by PoseGraph
   gp.problem = std::make_unique<ceres::Problem>(options);
   for (const auto& [id, edge] : edges) {
     if (edge.level > level) continue;
@@ -85,7 +86,8 @@ double chi2Of(const std::vector<ActiveResidual>& residuals) {
   return sum;
 }
 
-ceres::SparseLinearAlgebraLibraryType sparseLibrary() {
+ceres::SparseLinearAlgebraLibraryType sparseLibrary(SparseLibrary wanted = SparseLibrary::kAuto) {
+  if (wanted == SparseLibrary::kEigenSparse) return ceres::EIGEN_SPARSE;
   if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
     return ceres::SUITE_SPARSE;
   }
@@ -130,14 +132,14 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
   solver.minimizer_type = ceres::TRUST_REGION;
   solver.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver.sparse_linear_algebra_library_type = sparseLibrary();
+  solver.sparse_linear_algebra_library_type = sparseLibrary(options.sparse_library);
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;
   solver.parameter_tolerance = options.parameter_tolerance;
   solver.num_threads = std::max(1, options.num_threads);
-  solver.minimizer_progress_to_stdout = options.verbose;
-  solver.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  solver.initial_trust_region_radius = options.initial_trust_region_radius;
+  solver.logging_type = ceres::SILENT;
 
   ceres::Solver::Summary summary;
   const auto solve_start = std::chrono::steady_clock::now();
@@ -166,6 +168,7 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
       break;
   }
   result.final_chi2 = chi2Of(gp.residuals);
+  if (options.verbose) result.report = summary.FullReport();
   result.time_ms = msSince(start);
   return result;
 }

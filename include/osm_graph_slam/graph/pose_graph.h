@@ -85,16 +85,24 @@ enum class TerminationReason {
 };
 const char* toString(TerminationReason reason);
 
+/// Sparse Cholesky back-end of Ceres' SPARSE_NORMAL_CHOLESKY solver.
+enum class SparseLibrary { kAuto, kSuiteSparse, kEigenSparse };
+
 struct OptimizerOptions {
   int max_iterations = 100;
   double function_tolerance = 1e-6;  ///< Ceres relative cost-change tolerance
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
-  int num_threads = 1;  ///< residual/Jacobian evaluation threads
+  int num_threads = 1;                                  ///< residual/Jacobian evaluation threads
+  SparseLibrary sparse_library = SparseLibrary::kAuto;  ///< auto: SuiteSparse when Ceres has it
+  /// Levenberg–Marquardt starting radius. Large (nearly Gauss–Newton first steps) suits pose
+  /// graphs: 3–7 iterations on the public datasets instead of 7–29 with Ceres' default 1e4;
+  /// rejected steps shrink it quickly when the start is poor.
+  double initial_trust_region_radius = 1e12;
   /// Closed-form Jacobians for SE2 and SE3 edges (fast). false: automatic differentiation of the
   /// same error (kept as a cross-check).
   bool analytic_jacobians = true;
-  bool verbose = false;  ///< Ceres progress to stdout
+  bool verbose = false;  ///< fill OptimizationResult::report with Ceres' full report
 };
 
 struct OptimizationResult {
@@ -110,6 +118,7 @@ struct OptimizationResult {
   int num_fixed_vertices = 0;
   int num_edges = 0;  ///< active edges (level ≤ the requested level)
   std::string linear_solver;
+  std::string report;  ///< Ceres' full report (only with OptimizerOptions::verbose)
 };
 
 class PoseGraph {

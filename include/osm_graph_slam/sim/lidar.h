@@ -1,0 +1,55 @@
+#pragma once
+// Spinning multi-beam LiDAR model (Velodyne HDL-64E and Ouster OS1-64 presets) ray-cast into a
+// World. Deterministic: every ray's noise and dropout come from a hash of (seed, scan, ray), so
+// TBB's scheduling cannot change the output.
+#include <Eigen/Geometry>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/sim/world.h"
+
+namespace osm_graph_slam::sim {
+
+struct LidarModel {
+  std::string name = "hdl64e";
+  std::vector<double> elevations_deg;  ///< one per beam, top to bottom
+  int columns = 2083;                  ///< azimuth steps per revolution
+  double rate_hz = 10.0;
+  double min_range = 2.0;           ///< returns closer than this are dropped (the car body) [m]
+  double max_range = 120.0;         ///< [m]
+  double range_noise_sigma = 0.02;  ///< [m]
+  double dropout_probability = 0.02;
+  double intensity_noise_sigma = 0.02;
+  /// Weak returns are lost: a return needs reflectivity * cos(incidence) * (20 m / range)^2 above
+  /// this (grazing far ground, dark far surfaces), which brings an HDL-64E to ~120k points.
+  double detection_threshold = 0.005;
+  double mount_height = 1.73;  ///< above the ground [m] (sets calib / trajectory)
+
+  /// Velodyne HDL-64E: 64 beams, +2.0 deg ... -24.8 deg (upper block 1/3 deg, lower 1/2 deg
+  /// spacing), 0.1728 deg azimuth step (2083 columns at 10 Hz).
+  static LidarModel hdl64e();
+  /// Ouster OS1-64 (MulRan): 64 beams uniformly over +/-16.6 deg, 1024 columns, sigma 3 cm.
+  static LidarModel os1_64();
+  size_t numRays() const { return elevations_deg.size() * size_t(columns); }
+};
+
+struct SimulatedScan {
+  PointCloud cloud;              ///< sensor frame at the scan stamp; intensity in [0, 1]
+  std::vector<SimLabel> labels;  ///< per point
+  std::vector<int32_t> objects;  ///< per point: building index / primitive index / -1
+};
+
+/// Sensor pose (world <- sensor) at absolute time t.
+using SensorPoseFn = std::function<Eigen::Isometry3d(double t)>;
+
+/// Simulates one revolution stamped at `stamp`. Column c fires at stamp + (c / columns - 0.5) /
+/// rate_hz, starting behind the sensor and turning clockwise (like a Velodyne); with
+/// motion_distortion the sensor pose of each column's firing time is used, otherwise the pose at
+/// the stamp for all columns. Points are expressed in the sensor frame at the stamp.
+SimulatedScan simulateScan(const World& world, const LidarModel& model, const SensorPoseFn& pose,
+                           double stamp, uint64_t seed, uint64_t scan_index,
+                           bool motion_distortion = false);
+
+}  // namespace osm_graph_slam::sim

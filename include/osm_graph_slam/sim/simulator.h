@@ -1,0 +1,95 @@
+#pragma once
+// The urban drive simulator: world (OSM extract or procedural city) + route + LiDAR, written as a
+// KITTI raw drive with ground truth and a perturbed OSM prior (see doc/simulator.md).
+#include <Eigen/Geometry>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/sim/lidar.h"
+#include "osm_graph_slam/sim/prior_map.h"
+#include "osm_graph_slam/sim/route.h"
+#include "osm_graph_slam/sim/scene.h"
+
+namespace osm_graph_slam {
+class EnuConverter;
+}
+
+namespace osm_graph_slam::sim {
+
+struct SimulationParams {
+  uint64_t seed = 1;
+  std::string osm_path;  ///< empty: procedural city
+  /// ENU origin. NaN: for an OSM extract the centre of its buildings' bounding box (a point of
+  /// the extract), for the procedural city Karlsruhe (49.0110, 8.4170).
+  double origin_lat = std::numeric_limits<double>::quiet_NaN();
+  double origin_lon = std::numeric_limits<double>::quiet_NaN();
+  double origin_alt = 115.0;
+  CityParams city;
+  ClutterParams clutter;
+  bool clutter_enabled = true;
+  RouteParams route;
+  LidarModel lidar = LidarModel::hdl64e();
+  bool motion_distortion = false;
+  PriorPerturbationParams prior;
+  int max_scans = 0;                                    ///< 0: the whole route
+  StampNs start_time_ns = 1577880000LL * 1000000000LL;  ///< 2020-01-01 12:00:00 UTC
+  int drive_number = 1;
+};
+
+struct SimulationStats {
+  size_t buildings = 0, primitives = 0, moving_objects = 0, walls = 0;
+  size_t scans = 0;
+  double route_length_m = 0, duration_s = 0;
+  int revisits = 0;
+  double max_yaw_rate_deg_s = 0, max_lateral_accel = 0;
+  double mean_points_per_scan = 0, min_points_per_scan = 0, max_points_per_scan = 0;
+  double building_fraction = 0, ground_fraction = 0, clutter_fraction = 0, moving_fraction = 0;
+  double generation_s = 0, raycast_s = 0, scans_per_s = 0;
+  size_t prior_perturbed = 0, prior_removed = 0, prior_phantom = 0;
+  std::string drive_dir;
+};
+
+class UrbanSimulator {
+ public:
+  UrbanSimulator();
+  ~UrbanSimulator();
+  /// Builds world, route and trajectory. False with a reason (bad OSM file, no drivable loop).
+  bool build(const SimulationParams& params, std::string* error = nullptr);
+
+  const Scene& scene() const { return scene_; }
+  const Trajectory& trajectory() const { return trajectory_; }
+  const Route& route() const { return route_; }
+  const SimulationParams& params() const { return params_; }
+  const EnuConverter& enu() const { return *enu_; }
+  size_t numScans() const;
+  double scanTime(size_t k) const { return double(k) / params_.lidar.rate_hz; }
+
+  /// base_link (= IMU / OXTS frame, as in KITTI raw) pose in ENU at time t since start.
+  Eigen::Isometry3d basePose(double t) const;
+  /// LiDAR (velo_link) pose in ENU.
+  Eigen::Isometry3d sensorPose(double t) const { return basePose(t) * T_imu_velo_; }
+  /// p_velo = T_velo_imu * p_imu (calib_imu_to_velo.txt).
+  const Eigen::Isometry3d& T_velo_imu() const { return T_velo_imu_; }
+  OxtsRecord oxtsAt(double t) const;
+
+  SimulatedScan simulate(size_t k) const;
+
+  /// Writes the whole dataset below out_dir (see doc/simulator.md for the layout).
+  bool writeDataset(const std::string& out_dir, SimulationStats& stats,
+                    const std::function<void(size_t, size_t)>& progress = {},
+                    std::string* error = nullptr) const;
+
+ private:
+  SimulationParams params_;
+  Scene scene_;
+  Route route_;
+  Trajectory trajectory_;
+  std::unique_ptr<EnuConverter> enu_;
+  Eigen::Isometry3d T_velo_imu_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_imu_velo_ = Eigen::Isometry3d::Identity();
+};
+
+}  // namespace osm_graph_slam::sim

@@ -1,0 +1,325 @@
+#include "osm_graph_slam/ros/dataset_bag.h"
+
+#include <rosbag/bag.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/io/mulran.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/ros/dataset_messages.h"
+
+namespace osm_graph_slam {
+namespace {
+
+/// Opens "<bag>.tmp" and renames it to the final path on commit(); removes it otherwise.
+class AtomicBag {
+ public:
+  explicit AtomicBag(const std::string& path) : path_(path), tmp_(path + ".tmp") {}
+  ~AtomicBag() {
+    if (bag_.isOpen()) bag_.close();
+    if (!committed_) std::remove(tmp_.c_str());
+  }
+  bool open(std::string& error) {
+    try {
+      bag_.open(tmp_, rosbag::bagmode::Write);
+      bag_.setCompression(rosbag::compression::LZ4);
+    } catch (const std::exception& e) {
+      error = "cannot create bag '" + tmp_ + "': " + e.what();
+      return false;
+    }
+    return true;
+  }
+  template <typename Msg>
+  void write(const std::string& topic, const ros::Time& t, const Msg& msg) {
+    bag_.write(topic, t, msg);
+  }
+  bool commit(std::string& error) {
+    try {
+      bag_.close();
+    } catch (const std::exception& e) {
+      error = std::string("closing bag failed: ") + e.what();
+      return false;
+    }
+    if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+      error = "cannot rename '" + tmp_ + "' to '" + path_ + "'";
+      return false;
+    }
+    committed_ = true;
+    return true;
+  }
+
+ private:
+  std::string path_, tmp_;
+  rosbag::Bag bag_;
+  bool committed_ = false;
+};
+
+BagConversionResult failed(BagConversionResult r, const std::string& error) {
+  r.ok = false;
+  r.error = error;
+  return r;
+}
+
+void writeStaticTf(AtomicBag& bag, const std::vector<geometry_msgs::TransformStamped>& tfs,
+                   const ros::Time& stamp, BagConversionResult& r) {
+  tf2_msgs::TFMessage msg;
+  msg.transforms = tfs;
+  for (auto& t : msg.transforms) t.header.stamp = stamp;
+  bag.write("tf_static", stamp, msg);
+  r.tf_static += msg.transforms.size();
+}
+
+}  // namespace
+
+BagConversionResult convertKittiRawToBag(const KittiRawBagOptions& o, const ProgressFn& progress) {
+  BagConversionResult r;
+  KittiRawDrive drive;
+  std::string error;
+  if (!openKittiRawDrive(o.drive_dir, o.calib_dir, drive, &error)) return failed(r, error);
+  // Read every OXTS record first: a malformed one is reported before any bag is written.
+  std::vector<OxtsRecord> oxts(drive.oxts_files.size());
+  for (size_t i = 0; i < oxts.size(); ++i) {
+    if (!readOxtsFile(drive.oxts_files[i], oxts[i], &error)) return failed(r, error);
+  }
+  AtomicBag bag(o.bag_path);
+  if (!bag.open(error)) return failed(r, error);
+
+  const ros::Time first = toRosTime(
+      std::min(drive.scan_stamps.front(),
+               drive.oxts_stamps.empty() ? drive.scan_stamps.front() : drive.oxts_stamps.front()));
+  // base_link is the IMU (OXTS) frame, as in the KITTI raw devkit.
+  writeStaticTf(bag,
+                {makeTransform(drive.T_velo_imu.inverse(), o.base_frame, o.velo_frame, first),
+                 makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.imu_frame, first)},
+                first, r);
+
+  const size_t total = drive.scan_files.size() + oxts.size();
+  size_t done = 0;
+  if (!oxts.empty()) {
+    const EnuConverter enu(oxts.front().lat, oxts.front().lon, oxts.front().alt);
+    for (size_t i = 0; i < oxts.size(); ++i) {
+      const OxtsRecord& x = oxts[i];
+      const ros::Time t = toRosTime(drive.oxts_stamps[i]);
+      bag.write(o.gps_topic, t, makeNavSatFix(x, o.imu_frame, t));
+      bag.write(o.imu_topic, t, makeImuFromOxts(x, o.imu_frame, t));
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.translation() = enu.toEnu(x.lat, x.lon, x.alt);
+      pose.linear() = quaternionFromRpy(x.roll, x.pitch, x.yaw).toRotationMatrix();
+      bag.write(
+          o.ground_truth_topic, t,
+          makeOdometry(pose, o.enu_frame, o.base_frame, t, {x.vf, x.vl, x.vu}, {x.wf, x.wl, x.wu}));
+      ++r.gps;
+      ++r.imu;
+      ++r.ground_truth;
+      if (progress) progress(++done, total);
+    }
+  }
+  std::vector<float> xyzi;
+  for (size_t i = 0; i < drive.scan_files.size(); ++i) {
+    if (!readFloat32Records(drive.scan_files[i], xyzi, &error)) return failed(r, error);
+    const ros::Time t = toRosTime(drive.scan_stamps[i]);
+    bag.write(o.cloud_topic, t, makeXyziCloud(xyzi, o.velo_frame, t));
+    ++r.clouds;
+    if (progress) progress(++done, total);
+  }
+  if (!bag.commit(error)) return failed(r, error);
+  r.ok = true;
+  return r;
+}
+
+BagConversionResult convertKittiOdometryToBag(const KittiOdometryBagOptions& o,
+                                              const ProgressFn& progress) {
+  BagConversionResult r;
+  KittiOdometrySequence seq;
+  std::string error;
+  if (!openKittiOdometrySequence(o.sequence_dir, o.poses_path, seq, &error)) {
+    return failed(r, error);
+  }
+  if (o.start_time + (seq.times.empty() ? 0.0 : seq.times.front()) <= 0.0) {
+    return failed(r, "start_time + first time must be > 0 (rosbag rejects stamp 0)");
+  }
+  AtomicBag bag(o.bag_path);
+  if (!bag.open(error)) return failed(r, error);
+  const auto lidar_poses = seq.lidarPoses();
+  const int64_t start_ns = std::llround(o.start_time * 1e9);
+  std::vector<float> xyzi;
+  for (size_t i = 0; i < seq.scan_files.size(); ++i) {
+    if (!readFloat32Records(seq.scan_files[i], xyzi, &error)) return failed(r, error);
+    const ros::Time t = toRosTime(start_ns + std::llround(seq.times[i] * 1e9));
+    bag.write(o.cloud_topic, t, makeXyziCloud(xyzi, o.velo_frame, t));
+    ++r.clouds;
+    if (i < lidar_poses.size()) {
+      bag.write(o.ground_truth_topic, t,
+                makeOdometry(lidar_poses[i], o.world_frame, o.velo_frame, t));
+      ++r.ground_truth;
+    }
+    if (progress) progress(i + 1, seq.scan_files.size());
+  }
+  if (!bag.commit(error)) return failed(r, error);
+  r.ok = true;
+  return r;
+}
+
+namespace {
+
+/// MulRan extrinsics (base_link = vehicle rear axle frame of the MulRan calibration).
+Eigen::Isometry3d mulranExtrinsic(double x, double y, double z, double roll_deg, double pitch_deg,
+                                  double yaw_deg) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  T.linear() =
+      quaternionFromRpy(roll_deg * M_PI / 180.0, pitch_deg * M_PI / 180.0, yaw_deg * M_PI / 180.0)
+          .toRotationMatrix();
+  return T;
+}
+
+bool readMono8(const std::string& path, sensor_msgs::Image& msg, const std::string& frame,
+               const ros::Time& t, std::string& error) {
+  cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (img.empty()) {
+    error = "cannot read radar image '" + path + "'";
+    return false;
+  }
+  if (img.channels() == 3) cv::cvtColor(img, img, cv::COLOR_BGR2GRAY);
+  if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2GRAY);
+  if (img.depth() == CV_16U) img.convertTo(img, CV_8U, 1.0 / 256.0);
+  if (img.type() != CV_8UC1) {
+    error = "radar image '" + path + "' is not an 8-bit grey image";
+    return false;
+  }
+  msg = makeMono8Image(img.rows, img.cols, img.data, img.step, frame, t);
+  return true;
+}
+
+}  // namespace
+
+BagConversionResult convertMulranToBag(const MulranBagOptions& o, const ProgressFn& progress) {
+  BagConversionResult r;
+  MulranSequence seq;
+  std::string error;
+  if (!readMulranSequence(o.root, seq, &error)) return failed(r, error);
+  AtomicBag bag(o.bag_path);
+  if (!bag.open(error)) return failed(r, error);
+
+  int64_t first_ns = INT64_MAX;
+  for (const auto& s : seq.stamps) first_ns = std::min(first_ns, s.stamp_ns);
+  for (const auto& g : seq.gps) first_ns = std::min(first_ns, g.stamp_ns);
+  for (const auto& m : seq.imu) first_ns = std::min(first_ns, m.stamp_ns);
+  if (first_ns == INT64_MAX || first_ns <= 0) return failed(r, "MulRan sequence has no stamps");
+  const ros::Time first = toRosTime(first_ns);
+  writeStaticTf(bag,
+                {makeTransform(mulranExtrinsic(1.7042, -0.021, 1.8047, 0.0001, 0.0003, 179.6654),
+                               o.base_frame, o.ouster_frame, first),
+                 makeTransform(mulranExtrinsic(1.50, -0.04, 1.97, 0.0, 0.0, 0.9), o.base_frame,
+                               o.radar_frame, first),
+                 makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.imu_frame, first),
+                 makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.gps_frame, first)},
+                first, r);
+
+  const size_t total = seq.stamps.size() + seq.gps.size() + seq.imu.size() + seq.poses.size();
+  size_t done = 0;
+  auto tick = [&] {
+    if (progress) progress(++done, total);
+  };
+  for (const auto& g : seq.gps) {
+    sensor_msgs::NavSatFix fix;
+    fix.header.frame_id = o.gps_frame;
+    fix.header.stamp = toRosTime(g.stamp_ns);
+    fix.status.status = sensor_msgs::NavSatStatus::STATUS_FIX;
+    fix.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS;
+    fix.latitude = g.lat;
+    fix.longitude = g.lon;
+    fix.altitude = g.alt;
+    std::copy(g.covariance.begin(), g.covariance.end(), fix.position_covariance.begin());
+    fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_KNOWN;
+    bag.write(o.gps_topic, fix.header.stamp, fix);
+    ++r.gps;
+    tick();
+  }
+  for (const auto& m : seq.imu) {
+    sensor_msgs::Imu imu;
+    imu.header.frame_id = o.imu_frame;
+    imu.header.stamp = toRosTime(m.stamp_ns);
+    imu.orientation.x = m.orientation.x();
+    imu.orientation.y = m.orientation.y();
+    imu.orientation.z = m.orientation.z();
+    imu.orientation.w = m.orientation.w();
+    imu.orientation_covariance = {1e-4, 0, 0, 0, 1e-4, 0, 0, 0, 1e-3};
+    if (m.has_rates) {
+      imu.angular_velocity.x = m.gyro.x();
+      imu.angular_velocity.y = m.gyro.y();
+      imu.angular_velocity.z = m.gyro.z();
+      imu.linear_acceleration.x = m.acc.x();
+      imu.linear_acceleration.y = m.acc.y();
+      imu.linear_acceleration.z = m.acc.z();
+    } else {
+      imu.angular_velocity_covariance[0] = -1.0;  // REP-145: not available
+      imu.linear_acceleration_covariance[0] = -1.0;
+    }
+    bag.write(o.imu_topic, imu.header.stamp, imu);
+    ++r.imu;
+    tick();
+  }
+  if (!seq.poses.empty()) {
+    const Eigen::Isometry3d origin_inv =
+        o.absolute_ground_truth ? Eigen::Isometry3d::Identity() : seq.poses.front().pose.inverse();
+    for (const auto& p : seq.poses) {
+      const ros::Time t = toRosTime(p.stamp_ns);
+      bag.write(o.ground_truth_topic, t,
+                makeOdometry(origin_inv * p.pose, o.world_frame, o.base_frame, t));
+      ++r.ground_truth;
+      tick();
+    }
+  }
+  std::vector<float> xyzi;
+  for (const auto& s : seq.stamps) {
+    const ros::Time t = toRosTime(s.stamp_ns);
+    if (s.sensor == "ouster") {
+      const std::string path = seq.ousterPath(s.stamp_ns);
+      if (o.skip_missing && !std::filesystem::exists(path)) {
+        tick();
+        continue;
+      }
+      if (!readFloat32Records(path, xyzi, &error)) return failed(r, error);
+      bag.write(o.cloud_topic, t, makeXyziCloud(xyzi, o.ouster_frame, t));
+      ++r.clouds;
+    } else if (s.sensor == "radar") {
+      const std::string path = seq.radarPolarPath(s.stamp_ns);
+      if (o.skip_missing && !std::filesystem::exists(path)) {
+        tick();
+        continue;
+      }
+      sensor_msgs::Image img;
+      if (!readMono8(path, img, o.radar_frame, t, error)) return failed(r, error);
+      bag.write(o.radar_topic, t, img);
+      ++r.images;
+    }
+    tick();
+  }
+  if (!bag.commit(error)) return failed(r, error);
+  r.ok = true;
+  return r;
+}
+
+ProgressFn stderrProgressBar(const std::string& label) {
+  auto last_percent = std::make_shared<int>(-1);
+  return [label, last_percent](size_t done, size_t total) {
+    const int percent = total ? static_cast<int>(100 * done / total) : 100;
+    if (percent == *last_percent && done != total) return;
+    *last_percent = percent;
+    const int width = 40, filled = width * percent / 100;
+    std::fprintf(stderr, "\r%s [%s%s] %3d%% %zu/%zu", label.c_str(),
+                 std::string(filled, '=').c_str(), std::string(width - filled, ' ').c_str(),
+                 percent, done, total);
+    if (done >= total) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  };
+}
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,258 @@
+#include "osm_graph_slam/sim/prior_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/sim/sim_random.h"
+
+namespace osm_graph_slam::sim {
+namespace {
+
+Eigen::Vector2d vertexMean(const Polygon2& poly) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : poly) c += p;
+  return poly.empty() ? c : Eigen::Vector2d(c / double(poly.size()));
+}
+
+std::string xmlEscape(const std::string& s) {
+  std::string out;
+  for (char ch : s) {
+    switch (ch) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += ch;
+    }
+  }
+  return out;
+}
+
+std::string jsonEscape(const std::string& s) {
+  std::string out;
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') out += '\\';
+    out += ch;
+  }
+  return out;
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), f, v);
+  return buf;
+}
+
+double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& poly) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const Eigen::Vector2d a = poly[i], e = poly[(i + 1) % poly.size()] - a;
+    const double t = std::clamp((p - a).dot(e) / std::max(e.squaredNorm(), 1e-12), 0.0, 1.0);
+    best = std::min(best, (a + t * e - p).norm());
+  }
+  return best;
+}
+
+}  // namespace
+
+std::vector<PriorBuilding> perturbBuildings(const Scene& scene, const PriorPerturbationParams& p) {
+  const auto& buildings = scene.world.buildings;
+  const size_t n = buildings.size();
+  SimRng rng(hashCombine(p.seed, 0x7072696f72ULL));
+  // Exactly round(fraction * n) removals, chosen by a deterministic shuffle.
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  for (size_t i = n; i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
+  const size_t removed = size_t(std::llround(p.removal_fraction * double(n)));
+  std::vector<bool> is_removed(n, false);
+  for (size_t i = 0; i < removed && i < n; ++i) is_removed[order[i]] = true;
+
+  std::vector<PriorBuilding> prior;
+  for (size_t i = 0; i < n; ++i) {
+    PriorBuilding b;
+    b.osm_id = buildings[i].osm_id;
+    b.tags = i < scene.building_tags.size() ? scene.building_tags[i] : OsmTags{{"building", "yes"}};
+    b.centroid = vertexMean(buildings[i].outline);
+    // Draw the offset even for removed buildings so removal does not shift other offsets.
+    b.dx = p.translation_sigma * rng.gaussian();
+    b.dy = p.translation_sigma * rng.gaussian();
+    b.dtheta = p.rotation_sigma_deg * M_PI / 180.0 * rng.gaussian();
+    if (is_removed[i]) {
+      b.status = PriorBuilding::Status::kRemoved;
+    } else {
+      const Eigen::Matrix2d R = Pose2(0, 0, b.dtheta).rotation();
+      for (const auto& v : buildings[i].outline) {
+        b.outline.push_back(R * (v - b.centroid) + b.centroid + Eigen::Vector2d(b.dx, b.dy));
+      }
+    }
+    prior.push_back(b);
+  }
+
+  // Phantoms: rectangles in free space (clear of true buildings and roads).
+  const size_t phantoms = size_t(std::llround(p.phantom_fraction * double(n)));
+  Eigen::Vector2d lo(1e18, 1e18), hi(-1e18, -1e18);
+  for (const auto& b : buildings) {
+    for (const auto& v : b.outline) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  int64_t next_id = 9000000000LL;
+  for (size_t k = 0, attempts = 0; k < phantoms && attempts < 20000 && n > 0; ++attempts) {
+    const Eigen::Vector2d c(rng.uniform(lo.x(), hi.x()), rng.uniform(lo.y(), hi.y()));
+    const double hx = rng.uniform(5.0, 12.0), hy = rng.uniform(4.0, 8.0),
+                 th = rng.uniform(-M_PI, M_PI);
+    const Eigen::Matrix2d R = Pose2(0, 0, th).rotation();
+    Polygon2 poly;
+    for (const auto& corner : {Eigen::Vector2d(-hx, -hy), Eigen::Vector2d(hx, -hy),
+                               Eigen::Vector2d(hx, hy), Eigen::Vector2d(-hx, hy)}) {
+      poly.push_back(c + R * corner);
+    }
+    const double reach = std::hypot(hx, hy) + 2.0;
+    bool clear = true;
+    for (const auto& b : buildings) {
+      if (!clear) break;
+      for (const auto& v : b.outline) {
+        if ((v - c).norm() < reach) clear = false;
+      }
+      if (distanceToPolygon(c, b.outline) < reach) clear = false;
+    }
+    for (const auto& road : scene.roads) {
+      for (size_t i = 0; clear && i + 1 < road.size(); ++i) {
+        const Eigen::Vector2d a = road[i], e = road[i + 1] - a;
+        const double t = std::clamp((c - a).dot(e) / std::max(e.squaredNorm(), 1e-12), 0.0, 1.0);
+        if ((a + t * e - c).norm() < reach + 6.0) clear = false;
+      }
+    }
+    if (!clear) continue;
+    PriorBuilding b;
+    b.status = PriorBuilding::Status::kPhantom;
+    b.osm_id = next_id++;
+    b.outline = poly;
+    b.tags = {{"building", "yes"}};
+    b.centroid = c;
+    prior.push_back(b);
+    ++k;
+  }
+  return prior;
+}
+
+bool writePriorOsm(const std::string& path, const std::vector<PriorBuilding>& prior,
+                   const Scene& scene, const EnuConverter& enu, std::string* error) {
+  std::ostringstream nodes, ways;
+  int64_t node_id = 1;
+  double min_lat = 90, max_lat = -90, min_lon = 180, max_lon = -180;
+  auto addNode = [&](const Eigen::Vector2d& p) {
+    const GeoPoint g = enu.toGeoPoint(p);
+    min_lat = std::min(min_lat, g.lat);
+    max_lat = std::max(max_lat, g.lat);
+    min_lon = std::min(min_lon, g.lon);
+    max_lon = std::max(max_lon, g.lon);
+    nodes << "  <node id=\"" << node_id << "\" version=\"1\" lat=\"" << fmt("%.9f", g.lat)
+          << "\" lon=\"" << fmt("%.9f", g.lon) << "\"/>\n";
+    return node_id++;
+  };
+  auto addWay = [&](int64_t id, const std::vector<int64_t>& refs, const OsmTags& tags) {
+    ways << "  <way id=\"" << id << "\" version=\"1\">\n";
+    for (int64_t r : refs) ways << "    <nd ref=\"" << r << "\"/>\n";
+    for (const auto& [k, v] : tags) {
+      ways << "    <tag k=\"" << xmlEscape(k) << "\" v=\"" << xmlEscape(v) << "\"/>\n";
+    }
+    ways << "  </way>\n";
+  };
+  for (const auto& b : prior) {
+    if (b.status == PriorBuilding::Status::kRemoved || b.outline.size() < 3) continue;
+    std::vector<int64_t> refs;
+    for (const auto& v : b.outline) refs.push_back(addNode(v));
+    refs.push_back(refs.front());
+    OsmTags tags = b.tags;
+    if (!tags.count("building")) tags["building"] = "yes";
+    addWay(b.osm_id, refs, tags);
+  }
+  auto addRoads = [&](const std::vector<Polyline2>& roads, const std::vector<int64_t>& ids,
+                      const std::vector<std::string>& types) {
+    for (size_t i = 0; i < roads.size(); ++i) {
+      std::vector<int64_t> refs;
+      for (const auto& v : roads[i]) refs.push_back(addNode(v));
+      addWay(ids[i], refs, {{"highway", types[i]}});
+    }
+  };
+  // Road ways share nodes in the source; here each way gets its own nodes at identical
+  // coordinates, which the reader's road graph merges by position.
+  addRoads(scene.roads, scene.road_ids, scene.road_types);
+  addRoads(scene.other_roads, scene.other_road_ids, scene.other_road_types);
+  std::ostringstream out;
+  out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      << "<osm version=\"0.6\" generator=\"osm_graph_slam simulate_urban\">\n"
+      << "  <bounds minlat=\"" << fmt("%.9f", min_lat) << "\" minlon=\"" << fmt("%.9f", min_lon)
+      << "\" maxlat=\"" << fmt("%.9f", max_lat) << "\" maxlon=\"" << fmt("%.9f", max_lon)
+      << "\"/>\n"
+      << nodes.str() << ways.str() << "</osm>\n";
+  return writeTextFileAtomic(path, out.str(), error);
+}
+
+bool writePriorOffsetsCsv(const std::string& path, const std::vector<PriorBuilding>& prior,
+                          std::string* error) {
+  std::ostringstream out;
+  out << "# prior = R(dtheta) * (true - centroid) + centroid + (dx, dy); ENU of the simulation\n"
+      << "osm_id,status,dx_m,dy_m,dtheta_deg,centroid_x,centroid_y\n";
+  for (const auto& b : prior) {
+    const char* status = b.status == PriorBuilding::Status::kPerturbed ? "perturbed"
+                         : b.status == PriorBuilding::Status::kRemoved ? "removed"
+                                                                       : "phantom";
+    out << b.osm_id << ',' << status << ',' << fmt("%.6f", b.dx) << ',' << fmt("%.6f", b.dy) << ','
+        << fmt("%.6f", b.dtheta * 180.0 / M_PI) << ',' << fmt("%.4f", b.centroid.x()) << ','
+        << fmt("%.4f", b.centroid.y()) << '\n';
+  }
+  return writeTextFileAtomic(path, out.str(), error);
+}
+
+bool writeBuildingsGeoJson(const std::string& path, const Scene& scene, const EnuConverter& enu,
+                           std::string* error) {
+  std::ostringstream out;
+  out << "{\"type\":\"FeatureCollection\",\"enu_origin\":{\"lat\":" << fmt("%.9f", enu.originLat())
+      << ",\"lon\":" << fmt("%.9f", enu.originLon()) << ",\"alt\":" << fmt("%.3f", enu.originAlt())
+      << "},\"features\":[\n";
+  const auto& buildings = scene.world.buildings;
+  for (size_t i = 0; i < buildings.size(); ++i) {
+    const auto& b = buildings[i];
+    std::ostringstream geo, local;
+    for (size_t k = 0; k <= b.outline.size(); ++k) {
+      const Eigen::Vector2d& v = b.outline[k % b.outline.size()];
+      const GeoPoint g = enu.toGeoPoint(v);
+      geo << (k ? "," : "") << '[' << fmt("%.9f", g.lon) << ',' << fmt("%.9f", g.lat) << ']';
+      local << (k ? "," : "") << '[' << fmt("%.4f", v.x()) << ',' << fmt("%.4f", v.y()) << ']';
+    }
+    std::string name;
+    if (i < scene.building_tags.size()) {
+      auto it = scene.building_tags[i].find("name");
+      if (it != scene.building_tags[i].end()) name = it->second;
+    }
+    out << "{\"type\":\"Feature\",\"properties\":{\"osm_id\":" << b.osm_id
+        << ",\"height_m\":" << fmt("%.2f", b.height) << ",\"name\":\"" << jsonEscape(name)
+        << "\",\"outline_enu\":[" << local.str()
+        << "]},\"geometry\":{\"type\":\"Polygon\",\"coordinates\":[[" << geo.str() << "]]}}"
+        << (i + 1 < buildings.size() ? ",\n" : "\n");
+  }
+  out << "]}\n";
+  return writeTextFileAtomic(path, out.str(), error);
+}
+
+}  // namespace osm_graph_slam::sim

@@ -1,0 +1,312 @@
+#include "osm_graph_slam/sim/simulator.h"
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "osm_graph_slam/io/kitti_bin.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/osm/osm_reader.h"
+
+namespace fs = std::filesystem;
+
+namespace osm_graph_slam::sim {
+namespace {
+
+constexpr double kGravity = 9.81;
+/// KITTI raw calibration layout: the Velodyne 0.81 m ahead of, 0.32 m right of and 0.80 m above
+/// the OXTS unit, axes aligned.
+const Eigen::Vector3d kVeloInImu(0.81, -0.32, 0.80);
+
+bool fail(std::string* error, const std::string& msg) {
+  if (error) *error = msg;
+  return false;
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), f, v);
+  return buf;
+}
+
+std::string dateFolder(StampNs stamp) {
+  const std::string s = formatKittiTimestamp(stamp);  // YYYY-MM-DD ...
+  return s.substr(0, 4) + "_" + s.substr(5, 2) + "_" + s.substr(8, 2);
+}
+
+}  // namespace
+
+UrbanSimulator::UrbanSimulator() = default;
+UrbanSimulator::~UrbanSimulator() = default;
+
+bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
+  params_ = params;
+  T_imu_velo_ = Eigen::Isometry3d::Identity();
+  T_imu_velo_.translation() = kVeloInImu;
+  T_imu_velo_.translation().z() = kVeloInImu.z();
+  T_velo_imu_ = T_imu_velo_.inverse();
+  double lat0 = params.origin_lat, lon0 = params.origin_lon;
+  if (!params.osm_path.empty()) {
+    const OsmData osm = readOsmFile(params.osm_path);
+    if (!osm.ok)
+      return fail(error, "cannot read OSM extract '" + params.osm_path + "': " + osm.error);
+    if (osm.buildings.empty())
+      return fail(error, "OSM extract '" + params.osm_path + "' has no buildings");
+    if (std::isnan(lat0) || std::isnan(lon0)) {
+      double la0 = 90, la1 = -90, lo0 = 180, lo1 = -180;
+      for (const auto& b : osm.buildings) {
+        for (const auto& g : b.outline_geo) {
+          la0 = std::min(la0, g.lat);
+          la1 = std::max(la1, g.lat);
+          lo0 = std::min(lo0, g.lon);
+          lo1 = std::max(lo1, g.lon);
+        }
+      }
+      lat0 = 0.5 * (la0 + la1);
+      lon0 = 0.5 * (lo0 + lo1);
+    }
+    enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
+    scene_ = sceneFromOsm(osm, *enu_, params.seed);
+  } else {
+    if (std::isnan(lat0) || std::isnan(lon0)) {
+      lat0 = 49.0110;
+      lon0 = 8.4170;
+    }
+    enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
+    CityParams city = params.city;
+    city.seed = params.seed;
+    scene_ = proceduralCity(city);
+  }
+  const RoadGraph graph = RoadGraph::fromPolylines(scene_.roads).drivableCore();
+  RouteParams rp = params.route;
+  rp.seed = params.seed;
+  if (!planRoute(graph, rp, route_, error)) return false;
+  trajectory_ = Trajectory::fromRoute(route_, rp);
+  if (params.clutter_enabled) {
+    ClutterParams cp = params.clutter;
+    cp.seed = params.seed;
+    addClutter(scene_, cp, &trajectory_);
+  }
+  scene_.world.finalize();
+  return true;
+}
+
+size_t UrbanSimulator::numScans() const {
+  const size_t n = size_t(std::floor(trajectory_.duration() * params_.lidar.rate_hz)) + 1;
+  return params_.max_scans > 0 ? std::min(n, size_t(params_.max_scans)) : n;
+}
+
+Eigen::Isometry3d UrbanSimulator::basePose(double t) const {
+  const TrajectoryState s = trajectory_.at(t);
+  Eigen::Vector2d grad;
+  const double z = scene_.world.ground.height(s.position.x(), s.position.y(), grad);
+  const Eigen::Vector2d fwd(std::cos(s.yaw), std::sin(s.yaw)), left(-fwd.y(), fwd.x());
+  const double pitch = -std::atan(grad.dot(fwd));
+  const double roll = std::atan(grad.dot(left));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(s.yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  const double imu_height = params_.lidar.mount_height - kVeloInImu.z();
+  T.translation() = Eigen::Vector3d(s.position.x(), s.position.y(), z) +
+                    T.linear() * Eigen::Vector3d(0, 0, imu_height);
+  return T;
+}
+
+OxtsRecord UrbanSimulator::oxtsAt(double t) const {
+  const TrajectoryState s = trajectory_.at(t);
+  const Eigen::Isometry3d T = basePose(t);
+  const Eigen::Vector3d geo = enu_->toGeodetic(T.translation());
+  OxtsRecord r;
+  r.lat = geo.x();
+  r.lon = geo.y();
+  r.alt = geo.z();
+  const Eigen::Matrix3d& R = T.linear();
+  r.yaw = std::atan2(R(1, 0), R(0, 0));
+  r.pitch = -std::asin(std::clamp(R(2, 0), -1.0, 1.0));
+  r.roll = std::atan2(R(2, 1), R(2, 2));
+  const Eigen::Vector3d fwd = R.col(0);
+  const Eigen::Vector3d vel = s.speed * fwd;
+  r.ve = vel.x();
+  r.vn = vel.y();
+  const Eigen::Vector3d v_body = R.transpose() * vel;
+  r.vf = v_body.x();
+  r.vl = v_body.y();
+  r.vu = v_body.z();
+  const Eigen::Vector2d h(std::cos(s.yaw), std::sin(s.yaw)), left(-h.y(), h.x());
+  const Eigen::Vector2d a2 = s.accel * h + s.speed * s.speed * s.curvature * left;
+  const Eigen::Vector3d a_body = R.transpose() * Eigen::Vector3d(a2.x(), a2.y(), kGravity);
+  r.ax = r.af = a_body.x();
+  r.ay = r.al = a_body.y();
+  r.az = r.au = a_body.z();
+  const Eigen::Vector3d w_body = R.transpose() * Eigen::Vector3d(0, 0, s.yaw_rate);
+  r.wx = r.wf = w_body.x();
+  r.wy = r.wl = w_body.y();
+  r.wz = r.wu = w_body.z();
+  r.pos_accuracy = 0.02;
+  r.vel_accuracy = 0.02;
+  r.navstat = 4;
+  r.numsats = 12;
+  r.posmode = 4;
+  r.velmode = 4;
+  r.orimode = 6;
+  return r;
+}
+
+SimulatedScan UrbanSimulator::simulate(size_t k) const {
+  return simulateScan(
+      scene_.world, params_.lidar, [this](double t) { return sensorPose(t); }, scanTime(k),
+      params_.seed, k, params_.motion_distortion);
+}
+
+bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& stats,
+                                  const std::function<void(size_t, size_t)>& progress,
+                                  std::string* error) const {
+  const auto t_start = std::chrono::steady_clock::now();
+  stats = SimulationStats();
+  const std::string date = dateFolder(params_.start_time_ns);
+  char drive_name[64];
+  std::snprintf(drive_name, sizeof(drive_name), "%s_drive_%04d_sync", date.c_str(),
+                params_.drive_number);
+  const fs::path date_dir = fs::path(out_dir) / date;
+  const fs::path drive = date_dir / drive_name;
+  const fs::path gt_dir = fs::path(out_dir) / "ground_truth";
+  std::error_code ec;
+  for (const auto& d : {drive / "velodyne_points" / "data", drive / "oxts" / "data", gt_dir}) {
+    fs::create_directories(d, ec);
+    if (ec) return fail(error, "cannot create '" + d.string() + "': " + ec.message());
+  }
+  stats.drive_dir = drive.string();
+  if (!writeKittiRigidCalib((date_dir / "calib_imu_to_velo.txt").string(), T_velo_imu_, error)) {
+    return false;
+  }
+  Eigen::Isometry3d T_cam_velo = Eigen::Isometry3d::Identity();
+  T_cam_velo.linear() << 0, -1, 0, 0, 0, -1, 1, 0, 0;  // camera: x right, y down, z forward
+  T_cam_velo.translation() = Eigen::Vector3d(0.0, -0.08, -0.27);
+  if (!writeKittiRigidCalib((date_dir / "calib_velo_to_cam.txt").string(), T_cam_velo, error)) {
+    return false;
+  }
+
+  const size_t n = numScans();
+  std::vector<StampNs> stamps, starts, ends;
+  std::vector<Eigen::Isometry3d> velo_poses, imu_poses;
+  std::ostringstream times;
+  double raycast_s = 0.0, points = 0.0;
+  size_t min_pts = SIZE_MAX, max_pts = 0;
+  std::array<double, 8> label_counts{};
+  for (size_t k = 0; k < n; ++k) {
+    const double t = scanTime(k);
+    const StampNs stamp = params_.start_time_ns + StampNs(std::llround(t * 1e9));
+    const StampNs half = StampNs(std::llround(0.5e9 / params_.lidar.rate_hz));
+    stamps.push_back(stamp);
+    starts.push_back(stamp - half);
+    ends.push_back(stamp + half);
+    const auto t0 = std::chrono::steady_clock::now();
+    const SimulatedScan scan = simulate(k);
+    raycast_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    char name[32];
+    std::snprintf(name, sizeof(name), "%010zu", k);
+    if (!writeKittiBin((drive / "velodyne_points" / "data" / (std::string(name) + ".bin")).string(),
+                       scan.cloud, error)) {
+      return false;
+    }
+    if (!writeOxtsFile((drive / "oxts" / "data" / (std::string(name) + ".txt")).string(), oxtsAt(t),
+                       error)) {
+      return false;
+    }
+    velo_poses.push_back(sensorPose(t));
+    imu_poses.push_back(basePose(t));
+    times << fmt("%.6e", t) << '\n';
+    points += double(scan.cloud.size());
+    min_pts = std::min(min_pts, scan.cloud.size());
+    max_pts = std::max(max_pts, scan.cloud.size());
+    for (SimLabel l : scan.labels) label_counts[size_t(l)] += 1.0;
+    if (progress) progress(k + 1, n);
+  }
+  const std::string vdir = (drive / "velodyne_points").string();
+  const std::string odir = (drive / "oxts").string();
+  bool ok = writeKittiTimestamps(vdir + "/timestamps.txt", stamps, error) &&
+            writeKittiTimestamps(vdir + "/timestamps_start.txt", starts, error) &&
+            writeKittiTimestamps(vdir + "/timestamps_end.txt", ends, error) &&
+            writeKittiTimestamps(odir + "/timestamps.txt", stamps, error) &&
+            writeKittiPoses((gt_dir / "poses_velo.txt").string(), velo_poses, error) &&
+            writeKittiPoses((gt_dir / "poses_imu.txt").string(), imu_poses, error) &&
+            writeTextFileAtomic((gt_dir / "times.txt").string(), times.str(), error);
+  if (!ok) return false;
+
+  const std::vector<PriorBuilding> prior = [&] {
+    PriorPerturbationParams pp = params_.prior;
+    pp.seed = params_.seed;
+    return perturbBuildings(scene_, pp);
+  }();
+  ok = writeBuildingsGeoJson((fs::path(out_dir) / "buildings_true.geojson").string(), scene_, *enu_,
+                             error) &&
+       writePriorOsm((fs::path(out_dir) / "prior.osm").string(), prior, scene_, *enu_, error) &&
+       writePriorOffsetsCsv((fs::path(out_dir) / "prior_offsets.csv").string(), prior, error);
+  if (!ok) return false;
+
+  stats.buildings = scene_.world.buildings.size();
+  stats.primitives = scene_.world.primitives.size();
+  stats.moving_objects = scene_.world.moving.size();
+  stats.walls = scene_.world.numWalls();
+  stats.scans = n;
+  stats.route_length_m = trajectory_.length();
+  stats.duration_s = trajectory_.duration();
+  stats.revisits = countRevisits(trajectory_);
+  stats.max_yaw_rate_deg_s = trajectory_.maxYawRate() * 180.0 / M_PI;
+  stats.max_lateral_accel = trajectory_.maxLateralAccel();
+  stats.mean_points_per_scan = n ? points / double(n) : 0.0;
+  stats.min_points_per_scan = n ? double(min_pts) : 0.0;
+  stats.max_points_per_scan = double(max_pts);
+  const double total = std::max(points, 1.0);
+  stats.building_fraction = label_counts[size_t(SimLabel::kBuilding)] / total;
+  stats.ground_fraction = label_counts[size_t(SimLabel::kGround)] / total;
+  stats.moving_fraction = label_counts[size_t(SimLabel::kMoving)] / total;
+  stats.clutter_fraction =
+      1.0 - stats.building_fraction - stats.ground_fraction - stats.moving_fraction;
+  for (const auto& b : prior) {
+    if (b.status == PriorBuilding::Status::kPerturbed) ++stats.prior_perturbed;
+    if (b.status == PriorBuilding::Status::kRemoved) ++stats.prior_removed;
+    if (b.status == PriorBuilding::Status::kPhantom) ++stats.prior_phantom;
+  }
+  stats.raycast_s = raycast_s;
+  stats.generation_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  stats.scans_per_s = stats.generation_s > 0 ? double(n) / stats.generation_s : 0.0;
+
+  // sim_info.json: parameters and statistics (no timings: same seed, same bytes).
+  std::ostringstream info;
+  info << "{\n  \"seed\": " << params_.seed << ",\n  \"world\": \""
+       << (params_.osm_path.empty() ? std::string("procedural") : params_.osm_path) << "\",\n"
+       << "  \"enu_origin\": {\"lat\": " << fmt("%.9f", enu_->originLat())
+       << ", \"lon\": " << fmt("%.9f", enu_->originLon())
+       << ", \"alt\": " << fmt("%.3f", enu_->originAlt()) << "},\n"
+       << "  \"sensor\": \"" << params_.lidar.name << "\",\n"
+       << "  \"motion_distortion\": " << (params_.motion_distortion ? "true" : "false") << ",\n"
+       << "  \"drive_dir\": \"" << fs::relative(drive, out_dir).string() << "\",\n"
+       << "  \"scans\": " << n << ",\n"
+       << "  \"route_length_m\": " << fmt("%.2f", stats.route_length_m) << ",\n"
+       << "  \"duration_s\": " << fmt("%.2f", stats.duration_s) << ",\n"
+       << "  \"revisits\": " << stats.revisits << ",\n"
+       << "  \"buildings\": " << stats.buildings << ",\n"
+       << "  \"clutter_primitives\": " << stats.primitives << ",\n"
+       << "  \"moving_objects\": " << stats.moving_objects << ",\n"
+       << "  \"mean_points_per_scan\": " << fmt("%.1f", stats.mean_points_per_scan) << ",\n"
+       << "  \"building_hit_fraction\": " << fmt("%.4f", stats.building_fraction) << ",\n"
+       << "  \"ground_hit_fraction\": " << fmt("%.4f", stats.ground_fraction) << ",\n"
+       << "  \"prior\": {\"translation_sigma_m\": " << fmt("%.3f", params_.prior.translation_sigma)
+       << ", \"rotation_sigma_deg\": " << fmt("%.3f", params_.prior.rotation_sigma_deg)
+       << ", \"removal_fraction\": " << fmt("%.3f", params_.prior.removal_fraction)
+       << ", \"phantom_fraction\": " << fmt("%.3f", params_.prior.phantom_fraction)
+       << ", \"perturbed\": " << stats.prior_perturbed << ", \"removed\": " << stats.prior_removed
+       << ", \"phantom\": " << stats.prior_phantom << "},\n"
+       << "  \"ground_truth\": \"ground_truth/poses_velo.txt: velo_link in the ENU frame above, "
+          "KITTI 3x4 rows; poses_imu.txt: base_link (OXTS)\"\n}\n";
+  return writeTextFileAtomic((fs::path(out_dir) / "sim_info.json").string(), info.str(), error);
+}
+
+}  // namespace osm_graph_slam::sim

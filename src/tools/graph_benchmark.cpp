@@ -1,0 +1,206 @@
+// graph_benchmark: optimises a .g2o pose graph with PoseGraph and, in the same run, with the
+// reference formulation of the Ceres documentation examples; prints χ², iterations, ms and the
+// time ratio (text, or one JSON object with --json).
+//
+//   graph_benchmark <file.g2o> [--json] [--threads N] [--repeat N] [--max-iterations N]
+//                   [--autodiff] [--radius R] [--eigen-sparse] [--verbose]
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/graph/g2o_io.h"
+#include "osm_graph_slam/graph/pose_graph.h"
+#include "osm_graph_slam/graph/reference_formulation.h"
+
+namespace {
+
+using namespace osm_graph_slam;
+
+struct Args {
+  std::string file;
+  bool json = false;
+  int threads = 2;
+  int repeat = 3;
+  int max_iterations = 100;
+  bool autodiff = false;
+  bool verbose = false;
+  bool eigen_sparse = false;
+  double radius = OptimizerOptions().initial_trust_region_radius;
+};
+
+void usage() {
+  std::cerr << "usage: graph_benchmark <file.g2o> [--json] [--threads N] [--repeat N] "
+               "[--max-iterations N] [--autodiff] [--radius R] [--eigen-sparse] [--verbose]\n";
+}
+
+bool parseArgs(int argc, char** argv, Args* args) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next_int = [&](int* value) {
+      if (i + 1 >= argc) return false;
+      *value = std::atoi(argv[++i]);
+      return *value > 0;
+    };
+    if (a == "--json") {
+      args->json = true;
+    } else if (a == "--radius") {
+      if (i + 1 >= argc) return false;
+      args->radius = std::atof(argv[++i]);
+    } else if (a == "--eigen-sparse") {
+      args->eigen_sparse = true;
+    } else if (a == "--verbose") {
+      args->verbose = true;
+    } else if (a == "--autodiff") {
+      args->autodiff = true;
+    } else if (a == "--threads") {
+      if (!next_int(&args->threads)) return false;
+    } else if (a == "--repeat") {
+      if (!next_int(&args->repeat)) return false;
+    } else if (a == "--max-iterations") {
+      if (!next_int(&args->max_iterations)) return false;
+    } else if (!a.empty() && a[0] == '-') {
+      return false;
+    } else {
+      args->file = a;
+    }
+  }
+  return !args->file.empty();
+}
+
+double cpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+struct Measured {
+  double initial_chi2 = 0, final_chi2 = 0, ms = 0, cpu_ms = 0, min_ms = 0;  // medians, min
+  int iterations = 0;
+  std::string termination;
+  bool ok = false;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parseArgs(argc, argv, &args)) {
+    usage();
+    return 2;
+  }
+  PoseGraph graph;
+  const G2oReadResult read = readG2o(args.file, &graph);
+  if (!read.ok) {
+    std::cerr << "graph_benchmark: " << read.message << '\n';
+    return 1;
+  }
+  // Gauge: like g2o, fix the lowest id when the file fixes nothing.
+  int fixed_vertex = -1;
+  if (read.num_fixed == 0 && graph.numVertices() > 0) {
+    fixed_vertex = graph.vertexIds().front();
+    graph.setFixed(fixed_vertex, true);
+  }
+
+  OptimizerOptions options;
+  options.num_threads = args.threads;
+  options.max_iterations = args.max_iterations;
+  options.analytic_jacobians = !args.autodiff;
+  options.verbose = args.verbose;
+  if (args.eigen_sparse) options.sparse_library = SparseLibrary::kEigenSparse;
+  options.initial_trust_region_radius = args.radius;
+
+  Measured ours, ref;
+  std::vector<double> ours_ms, ref_ms, ours_cpu, ref_cpu;
+  PoseGraph ref_solution;
+  std::string linear_solver;
+  for (int r = 0; r < args.repeat; ++r) {
+    PoseGraph copy = graph;
+    double cpu_start = cpuMs();
+    const OptimizationResult o = copy.optimize(INT_MAX, options);
+    ours_cpu.push_back(cpuMs() - cpu_start);
+    ours_ms.push_back(o.time_ms);
+    ours = {o.initial_chi2,          o.final_chi2, 0.0, 0.0, 0.0, o.iterations,
+            toString(o.termination), o.success};
+    linear_solver = o.linear_solver;
+    if (args.verbose)
+      std::cerr << o.report << "ours: total " << o.time_ms << " ms, solve " << o.solve_ms
+                << " ms\n";
+
+    cpu_start = cpuMs();
+    const ReferenceSolveResult s = solveReferenceFormulation(graph, options, &ref_solution);
+    ref_cpu.push_back(cpuMs() - cpu_start);
+    if (!s.ok) {
+      std::cerr << "graph_benchmark: reference formulation failed: " << s.message << '\n';
+      return 1;
+    }
+    ref_ms.push_back(s.time_ms);
+    if (args.verbose) std::cerr << s.report << "reference: total " << s.time_ms << " ms\n";
+    ref = {s.initial_chi2, s.final_chi2, 0.0, 0.0, 0.0, s.iterations, s.termination, s.ok};
+  }
+  ours.ms = median(ours_ms);
+  ref.ms = median(ref_ms);
+  ours.cpu_ms = median(ours_cpu);
+  ref.cpu_ms = median(ref_cpu);
+  const double cpu_ratio = ours.cpu_ms / ref.cpu_ms;
+  ours.min_ms = *std::min_element(ours_ms.begin(), ours_ms.end());
+  ref.min_ms = *std::min_element(ref_ms.begin(), ref_ms.end());
+  const double min_ratio = ours.min_ms / ref.min_ms;
+  // The reference solution scored by PoseGraph's own g2o-convention χ² (same objective check).
+  const double ref_chi2_by_ours = ref_solution.chi2();
+  const double ratio = ours.ms / ref.ms;
+  const double chi2_rel =
+      std::abs(ours.final_chi2 - ref.final_chi2) / std::max(1e-12, ref.final_chi2);
+
+  if (args.json) {
+    std::printf(
+        "{\"file\": \"%s\", \"vertices\": %zu, \"edges\": %zu, \"initialised_vertices\": %d, "
+        "\"threads\": %d, \"repeat\": %d, \"initial_trust_region_radius\": %g, "
+        "\"linear_solver\": \"%s\", "
+        "\"ours\": {\"initial_chi2\": %.10g, \"final_chi2\": %.10g, \"iterations\": %d, "
+        "\"ms\": %.3f, \"min_ms\": %.3f, \"cpu_ms\": %.3f, \"termination\": \"%s\"}, "
+        "\"reference\": {\"initial_chi2\": %.10g, \"final_chi2\": %.10g, \"iterations\": %d, "
+        "\"ms\": %.3f, \"min_ms\": %.3f, \"cpu_ms\": %.3f, \"termination\": \"%s\", "
+        "\"final_chi2_by_ours\": %.10g}, "
+        "\"time_ratio_ours_over_reference\": %.4f, \"min_time_ratio_ours_over_reference\": %.4f, "
+        "\"cpu_ratio_ours_over_reference\": %.4f, "
+        "\"final_chi2_relative_difference\": %.3g}\n",
+        args.file.c_str(), graph.numVertices(), graph.numEdges(), read.num_initialised,
+        args.threads, args.repeat, args.radius, linear_solver.c_str(), ours.initial_chi2,
+        ours.final_chi2, ours.iterations, ours.ms, ours.min_ms, ours.cpu_ms,
+        ours.termination.c_str(), ref.initial_chi2, ref.final_chi2, ref.iterations, ref.ms,
+        ref.min_ms, ref.cpu_ms, ref.termination.c_str(), ref_chi2_by_ours, ratio, min_ratio,
+        cpu_ratio, chi2_rel);
+    return 0;
+  }
+  std::printf("%s: %zu vertices (%d initialised from edges), %zu edges, gauge: %s\n",
+              args.file.c_str(), graph.numVertices(), read.num_initialised, graph.numEdges(),
+              fixed_vertex >= 0 ? ("vertex " + std::to_string(fixed_vertex) + " fixed").c_str()
+                                : "fixed in file");
+  std::printf("threads %d, median of %d runs, %s, initial trust region radius %g\n", args.threads,
+              args.repeat, linear_solver.c_str(), args.radius);
+  std::printf("%-28s %16s %16s %6s %10s %10s  %s\n", "", "initial chi2", "final chi2", "iters",
+              "wall ms", "cpu ms", "termination");
+  std::printf("%-28s %16.8g %16.8g %6d %10.2f %10.2f  %s\n", "PoseGraph (analytic, SE3/SE2)",
+              ours.initial_chi2, ours.final_chi2, ours.iterations, ours.ms, ours.cpu_ms,
+              ours.termination.c_str());
+  std::printf("%-28s %16.8g %16.8g %6d %10.2f %10.2f  %s\n", "reference (Ceres examples)",
+              ref.initial_chi2, ref.final_chi2, ref.iterations, ref.ms, ref.cpu_ms,
+              ref.termination.c_str());
+  std::printf("reference final chi2 scored by PoseGraph: %.8g\n", ref_chi2_by_ours);
+  std::printf("min wall ms: ours %.2f, reference %.2f\n", ours.min_ms, ref.min_ms);
+  std::printf(
+      "ratio ours/reference: wall %.3f (min %.3f), cpu %.3f   final chi2 relative difference: "
+      "%.2e\n",
+      ratio, min_ratio, cpu_ratio, chi2_rel);
+  return 0;
+}
