@@ -261,8 +261,9 @@ class FastGicp : public Registration {
         break;
       }
     }
-    // Fitness on nearest points (not voxel means) so that every method reports the same measure.
-    updateCorrespondences(src, t, corr, false);
+    // Fitness on nearest points (not voxel means) so that every method reports the same measure;
+    // GICP reuses its last nearest neighbours (the final step moved the points by < epsilon).
+    if (voxelized_) updateCorrespondences(src, t, corr, false);
     eq = linearise(src, t, corr, false, false);
     result.transform = t;
     result.fitness =
