@@ -94,7 +94,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                             msg->header.stamp.toSec(), result.message.c_str());
     }
     publishOdometry(msg->header.stamp, result.pose);
-    if (result.new_keyframe) publishKeyframe(*msg);
+    if (result.new_keyframe) publishKeyframe(*msg, result);
   }
 
   void publishOdometry(const ros::Time& stamp, const Eigen::Isometry3d& pose) {
@@ -113,7 +113,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
   }
 
-  void publishKeyframe(const sensor_msgs::PointCloud2& cloud) {
+  void publishKeyframe(const sensor_msgs::PointCloud2& cloud, const TrackResult& result) {
     const Keyframe& kf = tracker_->keyframe();
     boost::shared_ptr<KeyFrame> msg(new KeyFrame);
     msg->header.stamp = cloud.header.stamp;
@@ -121,6 +121,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->id = kf.id;
     msg->odom_pose = toPoseMsg(kf.pose);
     msg->accum_distance = kf.accum_distance;
+    msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
     msg->cloud = cloud;
     keyframe_pub_.publish(boost::shared_ptr<const KeyFrame>(msg));
   }

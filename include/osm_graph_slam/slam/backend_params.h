@@ -1,0 +1,69 @@
+#pragma once
+// Parameters of the graph back-end. Defaults here are the only defaults: the nodelet reads each
+// field with these as fallback and config/graph_backend.yaml repeats them with comments.
+#include <string>
+
+#include "osm_graph_slam/lines/line_matcher.h"
+
+namespace osm_graph_slam {
+
+/// OSM-SLAM modes (ART-SLAM §5.1.5-5.1.6).
+enum class OsmMode {
+  kPrior,    ///< buildings fixed: the map only corrects the robot
+  kRigid,    ///< one global-match transform moves every building seen by a keyframe
+  kNonRigid  ///< per-building local matching
+};
+const char* toString(OsmMode mode);
+bool parseOsmMode(const std::string& text, OsmMode* mode);
+
+/// Odometry edge information from the registration fitness (hdl_graph_slam style): the standard
+/// deviations grow linearly from min to max as the fitness grows to max_fitness. Standard
+/// deviations are in metres and radians and are squared into variances.
+struct InformationParams {
+  double min_std_xyz = 0.02, max_std_xyz = 0.25;   ///< [m]
+  double min_std_rot = 0.002, max_std_rot = 0.02;  ///< [rad]
+  double max_fitness = 0.5;  ///< fitness [m^2] at and above which the max deviations apply
+};
+
+struct GraphBackendParams {
+  bool use_osm = true;
+  OsmMode mode = OsmMode::kNonRigid;
+  InformationParams odometry;
+  // --- loops ---
+  std::string loop_kernel = "cauchy";  ///< none | huber | cauchy
+  double loop_kernel_width = 1.0;
+  // --- initial pose ---
+  /// The first keyframe is fixed at the map origin (the first GPS fix); its heading comes from
+  /// the first global matching with unbounded rotation (§3.4) unless initial_yaw_known.
+  bool initial_yaw_known = false;
+  double initial_yaw = 0.0;  ///< [rad] ENU yaw of the first keyframe when known
+  // --- OSM priors ---
+  double osm_query_radius = 35.0;     ///< buildings within this of a keyframe are matched [m]
+  double osm_max_wait = 10.0;         ///< [s] a keyframe waits this long for its buildings
+  int min_keyframe_segments = 3;      ///< fewer segments: no OSM matching for that keyframe
+  double global_min_fitness = -20.0;  ///< global matches below this add no prior
+  int global_min_matched = 3;
+  /// Standard deviations of a global-matching prior on a robot pose for the best possible match
+  /// (an edge feature at full fitness); weaker matches get proportionally less information and
+  /// a single visible wall constrains only its normal (§3.3.5). They should reflect how well the
+  /// OSM map itself is registered: a prior from misplaced buildings is only as good as they are.
+  double global_prior_std_xy = 0.5;    ///< [m]
+  double global_prior_std_yaw = 0.02;  ///< [rad]
+  double local_min_fitness = -20.0;    ///< local matches below this add no building edge
+  int local_min_matched = 2;
+  /// Robot↔building edge standard deviations for the best possible local match (same scaling).
+  double local_edge_std_xy = 0.1;           ///< [m]
+  double local_edge_std_theta = 0.01;       ///< [rad]
+  double building_prior_std_xy = 1.0;       ///< OSM prior of each building [m]
+  double building_prior_std_theta = 0.035;  ///< [rad] (2 deg)
+  // --- optimisation ---
+  int max_iterations = 50;
+  int num_threads = 1;
+  bool resolve_overlaps = true;
+  int overlap_max_iterations = 5;
+  double overlap_information = 1e6;  ///< hard building↔building constraints (§3.5)
+  double overlap_min_area = 0.05;    ///< [m^2] smaller intersections are touching walls
+  LineMatcherParams matcher;
+};
+
+}  // namespace osm_graph_slam

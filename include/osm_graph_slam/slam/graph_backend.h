@@ -1,0 +1,141 @@
+#pragma once
+// The SLAM back-end core (OSM thesis §3.3.5-3.5, ART-SLAM §3.1.8 and §5.1.5-5.1.6), shared by the
+// graph_backend nodelet and the offline runner. Inputs are queued from any thread and never
+// dropped while an optimisation runs; update() moves them into the pose graph, adds the OSM
+// prior constraints and runs the two-phase optimisation plus overlap resolution.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/common/logger.h"
+#include "osm_graph_slam/graph/pose_graph.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/lines/line_matcher.h"
+#include "osm_graph_slam/osm/building.h"
+#include "osm_graph_slam/slam/backend_params.h"
+
+namespace osm_graph_slam {
+
+class EnuConverter;
+
+struct KeyframeInput {
+  uint64_t id = 0;
+  double stamp = 0.0;
+  Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
+  double accum_distance = 0.0;
+  double odom_fitness = -1.0;  ///< fitness of the match that made it (< 0: unknown)
+  PointCloudConstPtr cloud;    ///< filtered cloud in base_link (may be null)
+};
+
+struct LoopClosureInput {
+  uint64_t from_id = 0;                                             ///< current keyframe
+  uint64_t to_id = 0;                                               ///< earlier keyframe
+  Eigen::Isometry3d relative_pose = Eigen::Isometry3d::Identity();  ///< from in to's frame
+  Matrix6d information = Matrix6d::Identity();
+};
+
+/// What one update() did (for logs, status topics and tests).
+struct BackendUpdateReport {
+  size_t keyframes_added = 0, loops_added = 0, loops_rejected = 0;
+  size_t global_priors = 0, global_rejected = 0;
+  size_t building_edges = 0, buildings_added = 0;
+  size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
+  bool heading_initialized_now = false;
+  OptimizationResult phase1, phase2, overlap;
+  bool optimized = false;
+  double total_ms = 0.0;
+};
+
+struct KeyframeState {
+  uint64_t id = 0;
+  double stamp = 0.0;
+  Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
+  double accum_distance = 0.0;
+  PointCloudConstPtr cloud;
+  std::vector<LineSegment2> segments;  ///< base_link
+  bool osm_processed = false;
+  bool has_global_prior = false;
+};
+
+/// A building as the back-end knows it: the OSM prior and the current estimate.
+struct BuildingState {
+  Building prior;          ///< as received (ENU)
+  Pose2 pose;              ///< current estimate of the reference pose
+  Polygon2 local_outline;  ///< outline in the building frame (prior pose⁻¹ · outline)
+  int vertex_id = -1;
+  size_t observations = 0;  ///< robot↔building edges
+  /// The prior with outline, reference pose and segments moved to the current estimate.
+  Building corrected() const;
+};
+
+class GraphBackend {
+ public:
+  explicit GraphBackend(const GraphBackendParams& params = {},
+                        std::shared_ptr<const Logger> logger = nullptr);
+  ~GraphBackend();
+
+  // --- inputs: thread-safe, cheap (queued until update()) ------------------------------------
+  void setOrigin(double lat, double lon, double alt);
+  bool hasOrigin() const;
+  void addKeyframe(KeyframeInput keyframe);
+  void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
+  /// Buildings (ENU filled) answering a query of radius query_radius around query_center.
+  void addBuildings(std::vector<Building> buildings, const Eigen::Vector2d& query_center,
+                    double query_radius);
+  void addLoopClosure(const LoopClosureInput& loop);
+
+  // --- processing ------------------------------------------------------------------------------
+  /// Moves queued inputs into the graph and, if anything changed (or force), optimises.
+  BackendUpdateReport update(bool force_optimize = false);
+
+  // --- outputs: thread-safe snapshots --------------------------------------------------------
+  std::vector<KeyframeState> keyframes() const;
+  size_t numKeyframes() const;
+  std::optional<KeyframeState> latestKeyframe() const;
+  /// map -> odom, so that map_pose(latest) = mapToOdom * odom_pose(latest).
+  Eigen::Isometry3d mapToOdom() const;
+  Trajectory trajectory() const;      ///< corrected keyframe poses (map)
+  Trajectory odomTrajectory() const;  ///< the same keyframes as odometry saw them
+  std::vector<BuildingState> buildings() const;
+  std::vector<Building> correctedBuildings() const;  ///< outline_geo filled when the origin is set
+  PoseGraph graphSnapshot() const;
+  std::vector<LoopClosureInput> loopClosures() const;  ///< the ones added to the graph
+  std::optional<EnuConverter> origin() const;
+  const GraphBackendParams& params() const { return params_; }
+  size_t pendingInputs() const;
+
+  /// Vertex id of a building's SE2 vertex (robot keyframe k has vertex id k).
+  static constexpr int kBuildingVertexBase = 1 << 30;
+
+ private:
+  struct Pending;
+  struct State;
+  void flushKeyframes(BackendUpdateReport& report);
+  void flushLoops(BackendUpdateReport& report);
+  void flushBuildings(BackendUpdateReport& report);
+  void processOsmPriors(BackendUpdateReport& report);
+  bool keyframeCovered(const Eigen::Vector2d& position) const;
+  Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
+  void optimizeTwoPhase(BackendUpdateReport& report);
+  void resolveOverlaps(BackendUpdateReport& report);
+  void updateMapToOdom();
+
+  GraphBackendParams params_;
+  std::shared_ptr<const Logger> logger_;
+  LineMatcher matcher_;
+
+  mutable std::mutex queue_mutex_;
+  std::unique_ptr<Pending> pending_;
+  mutable std::mutex state_mutex_;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace osm_graph_slam

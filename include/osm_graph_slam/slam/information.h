@@ -1,0 +1,13 @@
+#pragma once
+// Information matrices of odometry-like SE3 edges from a registration fitness.
+#include "osm_graph_slam/graph/pose_graph.h"
+#include "osm_graph_slam/slam/backend_params.h"
+
+namespace osm_graph_slam {
+
+/// Diagonal 6×6 information (x y z, then rotation) whose standard deviations grow linearly from
+/// the minimum to the maximum as fitness goes from 0 to max_fitness; a negative (unknown)
+/// fitness uses the middle of the range. Standard deviations are squared into variances.
+Matrix6d odometryInformation(double fitness, const InformationParams& params);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,36 @@
+#pragma once
+// What save_map and dump_graph write. Every file is written atomically (temporary file, then
+// rename); a failure returns success = false with the reason and keeps the back-end untouched.
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/slam/graph_backend.h"
+
+namespace osm_graph_slam {
+
+struct MapExportResult {
+  bool success = false;
+  std::string message;
+  std::vector<std::string> files;
+};
+
+/// Keyframe clouds in the map frame, merged and reduced to one point (the centroid) per voxel.
+/// resolution <= 0 keeps every point. A hash grid instead of pcl::VoxelGrid: the latter's 32-bit
+/// voxel index overflows on city-sized maps at fine resolutions.
+PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double resolution);
+
+/// The corrected buildings as OSM XML: original way ids and tags, corrected coordinates (nodes
+/// get new negative ids, as editors expect for new geometry). Loadable in JOSM.
+std::string buildingsToOsmXml(const std::vector<Building>& buildings);
+
+/// save_map: map.pcd, buildings_corrected.geojson, buildings_corrected.osm,
+/// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o.
+MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
+                        double resolution);
+
+/// dump_graph: everything needed to rebuild and re-optimise the graph offline by replaying it
+/// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, loops.csv,
+/// buildings_prior.geojson, origin.txt) plus graph.g2o for inspection.
+MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,294 @@
+// GraphBackendNodelet: keyframes, wall segments, OSM buildings and loop closures -> GraphBackend
+// (slam/), optimised on its own thread every optimization_period; publishes the corrected pose,
+// path, buildings, markers, map cloud and TF map -> odom; services save_map and dump_graph.
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Path.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/NavSatFix.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "osm_graph_slam/DumpGraph.h"
+#include "osm_graph_slam/KeyFrame.h"
+#include "osm_graph_slam/LineSegmentArray.h"
+#include "osm_graph_slam/LoopClosure.h"
+#include "osm_graph_slam/SaveMap.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/ros/backend_markers.h"
+#include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/osm_conversions.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/map_export.h"
+#include "osm_graph_slam/slam/params_io.h"
+
+namespace osm_graph_slam {
+
+class GraphBackendNodelet : public nodelet::Nodelet {
+ public:
+  ~GraphBackendNodelet() override {
+    {
+      std::lock_guard<std::mutex> lock(wake_mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    if (worker_.joinable()) worker_.join();
+  }
+
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    pnh.param<std::string>("map_frame", map_frame_, "map");
+    pnh.param<std::string>("odom_frame", odom_frame_, "odom");
+    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
+    pnh.param("optimization_period", optimization_period_, 3.0);
+    pnh.param("tf_publish_rate", tf_rate_, 20.0);
+    pnh.param("map_cloud_resolution", map_resolution_, 0.5);
+    pnh.param("warn_throttle_period", warn_period_, 5.0);
+
+    GraphBackendParams params;
+    std::string error;
+    if (!readParams(RosParamReader(pnh), params, &error))
+      NODELET_ERROR("graph_backend: %s; using '%s'", error.c_str(), toString(params.mode));
+    auto logger = std::make_shared<Logger>([this](LogLevel level, const std::string& msg) {
+      switch (level) {
+        case LogLevel::kDebug:
+          NODELET_DEBUG("%s", msg.c_str());
+          break;
+        case LogLevel::kInfo:
+          NODELET_INFO("%s", msg.c_str());
+          break;
+        case LogLevel::kWarn:
+          NODELET_WARN("%s", msg.c_str());
+          break;
+        case LogLevel::kError:
+          NODELET_ERROR("%s", msg.c_str());
+          break;
+      }
+    });
+    backend_ = std::make_unique<GraphBackend>(params, logger);
+
+    pose_pub_ = nh.advertise<geometry_msgs::PoseStamped>("slam/pose", 10);
+    path_pub_ = nh.advertise<nav_msgs::Path>("slam/path", 1, true);
+    buildings_pub_ = nh.advertise<BuildingArray>("slam/buildings", 1, true);
+    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("slam/markers", 1, true);
+    map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("slam/map_points", 1, true);
+    keyframe_sub_ = nh.subscribe("keyframe", 100, &GraphBackendNodelet::onKeyframe, this);
+    segments_sub_ = nh.subscribe("line_segments", 100, &GraphBackendNodelet::onSegments, this);
+    buildings_sub_ = nh.subscribe("osm/buildings", 10, &GraphBackendNodelet::onBuildings, this);
+    loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
+    origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
+    save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
+    dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
+    if (tf_rate_ > 0.0)
+      tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / tf_rate_),
+                                     &GraphBackendNodelet::publishTf, this);
+    worker_ = std::thread(&GraphBackendNodelet::optimizationLoop, this);
+    NODELET_INFO(
+        "graph back-end: OSM %s (mode %s), optimisation every %.1f s, frames %s -> %s -> %s",
+        params.use_osm ? "on" : "off", toString(params.mode), optimization_period_,
+        map_frame_.c_str(), odom_frame_.c_str(), base_link_frame_.c_str());
+  }
+
+  // --- inputs (subscriber threads: convert and queue only) --------------------------------------
+  void onKeyframe(const KeyFrameConstPtr& msg) {
+    KeyframeInput kf;
+    kf.id = msg->id;
+    kf.stamp = msg->header.stamp.toSec();
+    kf.odom_pose = fromPoseMsg(msg->odom_pose);
+    kf.accum_distance = msg->accum_distance;
+    kf.odom_fitness = msg->fitness;
+    auto cloud = std::make_shared<PointCloud>();
+    std::string error;
+    if (fromPointCloud2(msg->cloud, *cloud, &error)) {
+      kf.cloud = cloud;
+    } else {
+      NODELET_WARN_THROTTLE(warn_period_,
+                            "keyframe %lu without a usable cloud (%s); kept for the graph",
+                            static_cast<unsigned long>(msg->id), error.c_str());
+    }
+    backend_->addKeyframe(std::move(kf));
+    // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
+    const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
+    geometry_msgs::PoseStamped pose;
+    pose.header.stamp = msg->header.stamp;
+    pose.header.frame_id = map_frame_;
+    pose.pose = toPoseMsg(map_to_odom * fromPoseMsg(msg->odom_pose));
+    pose_pub_.publish(pose);
+    last_stamp_ = msg->header.stamp;
+  }
+
+  void onSegments(const LineSegmentArrayConstPtr& msg) {
+    std::vector<LineSegment2> segments;
+    segments.reserve(msg->segments.size());
+    for (const auto& s : msg->segments) {
+      if (!std::isfinite(s.start.x) || !std::isfinite(s.start.y) || !std::isfinite(s.end.x) ||
+          !std::isfinite(s.end.y))
+        continue;
+      segments.emplace_back(Eigen::Vector2d(s.start.x, s.start.y),
+                            Eigen::Vector2d(s.end.x, s.end.y), s.support);
+    }
+    backend_->addLineSegments(msg->keyframe_id, std::move(segments));
+  }
+
+  void onBuildings(const BuildingArrayConstPtr& msg) {
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != map_frame_) {
+      NODELET_WARN_THROTTLE(warn_period_, "osm/buildings in frame '%s', expected '%s'; ignored",
+                            msg->header.frame_id.c_str(), map_frame_.c_str());
+      return;
+    }
+    backend_->addBuildings(buildingsFromMsg(*msg),
+                           Eigen::Vector2d(msg->query_center.x, msg->query_center.y),
+                           msg->query_radius);
+  }
+
+  void onLoop(const LoopClosureConstPtr& msg) {
+    LoopClosureInput loop;
+    loop.from_id = msg->from_id;
+    loop.to_id = msg->to_id;
+    loop.relative_pose = fromPoseMsg(msg->relative_pose);
+    for (int i = 0; i < 36; ++i) loop.information(i / 6, i % 6) = msg->information[i];
+    if (!loop.information.allFinite() || loop.information.diagonal().minCoeff() <= 0.0) {
+      NODELET_WARN_THROTTLE(
+          warn_period_, "loop %lu -> %lu has an invalid information matrix; ignored",
+          static_cast<unsigned long>(msg->from_id), static_cast<unsigned long>(msg->to_id));
+      return;
+    }
+    backend_->addLoopClosure(loop);
+  }
+
+  void onOrigin(const sensor_msgs::NavSatFixConstPtr& fix) {
+    if (!std::isfinite(fix->latitude) || !std::isfinite(fix->longitude)) return;
+    if (backend_->hasOrigin()) return;
+    backend_->setOrigin(fix->latitude, fix->longitude,
+                        std::isfinite(fix->altitude) ? fix->altitude : 0.0);
+    NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
+  }
+
+  // --- optimisation thread ----------------------------------------------------------------------
+  void optimizationLoop() {
+    std::unique_lock<std::mutex> lock(wake_mutex_);
+    while (!stop_) {
+      wake_.wait_for(lock, std::chrono::duration<double>(optimization_period_));
+      if (stop_) break;
+      lock.unlock();
+      const BackendUpdateReport report = backend_->update();
+      if (report.optimized) {
+        {
+          std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+          map_to_odom_ = backend_->mapToOdom();
+        }
+        NODELET_DEBUG(
+            "graph: +%zu keyframes, +%zu loops, +%zu map priors, +%zu building edges, "
+            "%zu overlap edges, chi2 %.3g -> %.3g, %.1f ms",
+            report.keyframes_added, report.loops_added, report.global_priors, report.building_edges,
+            report.overlap_edges, report.phase1.initial_chi2, report.phase1.final_chi2,
+            report.total_ms);
+        publishOutputs();
+      }
+      lock.lock();
+    }
+  }
+
+  Eigen::Isometry3d cachedMapToOdom() {
+    std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+    return map_to_odom_;
+  }
+
+  void publishOutputs() {
+    std_msgs::Header header;
+    header.frame_id = map_frame_;
+    header.stamp = last_stamp_;
+    const std::vector<KeyframeState> keyframes = backend_->keyframes();
+    nav_msgs::PathPtr path(new nav_msgs::Path);
+    path->header = header;
+    for (const auto& kf : keyframes) {
+      geometry_msgs::PoseStamped p;
+      p.header.frame_id = map_frame_;
+      p.header.stamp.fromSec(kf.stamp);
+      p.pose = toPoseMsg(kf.map_pose);
+      path->poses.push_back(p);
+    }
+    path_pub_.publish(path);
+    if (!keyframes.empty()) {
+      geometry_msgs::PoseStamped pose = path->poses.back();
+      pose_pub_.publish(pose);
+    }
+    const std::vector<Building> buildings = backend_->correctedBuildings();
+    buildings_pub_.publish(buildingArrayToMsg(buildings, header, Eigen::Vector2d::Zero(), 0.0));
+    if (markers_pub_.getNumSubscribers() > 0)
+      markers_pub_.publish(
+          backendMarkers(backend_->graphSnapshot(), keyframes, backend_->buildings(), header));
+    if (map_pub_.getNumSubscribers() > 0) {  // built only while someone listens
+      sensor_msgs::PointCloud2Ptr cloud(new sensor_msgs::PointCloud2);
+      toPointCloud2(*buildMapCloud(keyframes, map_resolution_), *cloud);
+      cloud->header = header;
+      map_pub_.publish(cloud);
+    }
+  }
+
+  void publishTf(const ros::WallTimerEvent&) {
+    if (backend_->numKeyframes() == 0) return;
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = last_stamp_.isZero() ? ros::Time::now() : last_stamp_;
+    tf.header.frame_id = map_frame_;
+    tf.child_frame_id = odom_frame_;
+    tf.transform = toTransformMsg(cachedMapToOdom());
+    tf_broadcaster_.sendTransform(tf);
+  }
+
+  // --- services ---------------------------------------------------------------------------------
+  bool onSaveMap(SaveMap::Request& req, SaveMap::Response& res) {
+    backend_->update();  // include everything received so far
+    const MapExportResult r = saveMap(*backend_, req.destination, req.resolution);
+    res.success = r.success;
+    res.message = r.message;
+    res.files = r.files;
+    if (r.success)
+      NODELET_INFO("save_map: %s", r.message.c_str());
+    else
+      NODELET_WARN("save_map failed: %s", r.message.c_str());
+    return true;
+  }
+
+  bool onDumpGraph(DumpGraph::Request& req, DumpGraph::Response& res) {
+    const MapExportResult r = dumpGraph(*backend_, req.destination);
+    res.success = r.success;
+    res.message = r.message;
+    res.files = r.files;
+    if (!r.success) NODELET_WARN("dump_graph failed: %s", r.message.c_str());
+    return true;
+  }
+
+  std::string map_frame_, odom_frame_, base_link_frame_;
+  double optimization_period_ = 3.0, tf_rate_ = 20.0, map_resolution_ = 0.5, warn_period_ = 5.0;
+  std::unique_ptr<GraphBackend> backend_;
+  std::mutex map_to_odom_mutex_;
+  Eigen::Isometry3d map_to_odom_ = Eigen::Isometry3d::Identity();
+  ros::Time last_stamp_;
+
+  std::thread worker_;
+  std::mutex wake_mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+  ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
+  ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_;
+  ros::ServiceServer save_srv_, dump_srv_;
+  ros::WallTimer tf_timer_;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::GraphBackendNodelet, nodelet::Nodelet)

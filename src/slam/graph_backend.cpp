@@ -1,0 +1,630 @@
+#include "osm_graph_slam/slam/graph_backend.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/information.h"
+
+namespace osm_graph_slam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+Eigen::Isometry3d yawRotation(double yaw) {
+  Eigen::Isometry3d r = Eigen::Isometry3d::Identity();
+  r.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return r;
+}
+
+RobustKernel loopKernel(const GraphBackendParams& p) {
+  if (p.loop_kernel == "huber") return RobustKernel::huber(p.loop_kernel_width);
+  if (p.loop_kernel == "cauchy") return RobustKernel::cauchy(p.loop_kernel_width);
+  return RobustKernel::none();
+}
+
+/// Distance from a point to a building outline (0 inside is not needed: vehicles drive outside).
+double distanceToOutline(const Eigen::Vector2d& p, const Polygon2& outline) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& s : polygonSegments(outline)) best = std::min(best, pointSegmentDistance(p, s));
+  return best;
+}
+
+/// Information of a 2D match (translation in map axes) re-expressed in the axes of an edge whose
+/// error is measured in a frame rotated by `frame_yaw` (the g2o SE2 error convention).
+Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_yaw) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  R.topLeftCorner<2, 2>() = Pose2(0, 0, frame_yaw).rotation();
+  return R.transpose() * info_map * R;
+}
+
+/// The matcher's information (§3.3.5: by feature type, scaled by fitness) rescaled so that the
+/// best possible match (edge feature, full fitness) has the given standard deviations.
+Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
+                                  double std_theta, const LineMatcherParams& m) {
+  Eigen::Matrix3d info = matcher_info;
+  const double sxy = 1.0 / (std_xy * std_xy * m.edge_information_xy);
+  const double sth = 1.0 / (std_theta * std_theta * m.edge_information_theta);
+  info.topLeftCorner<2, 2>() *= sxy;
+  info(2, 2) *= sth;
+  info.topRightCorner<2, 1>() *= std::sqrt(sxy * sth);
+  info.bottomLeftCorner<1, 2>() *= std::sqrt(sxy * sth);
+  return info;
+}
+
+}  // namespace
+
+const char* toString(OsmMode mode) {
+  switch (mode) {
+    case OsmMode::kPrior:
+      return "prior";
+    case OsmMode::kRigid:
+      return "rigid";
+    case OsmMode::kNonRigid:
+      return "non_rigid";
+  }
+  return "?";
+}
+
+bool parseOsmMode(const std::string& text, OsmMode* mode) {
+  for (OsmMode m : {OsmMode::kPrior, OsmMode::kRigid, OsmMode::kNonRigid}) {
+    if (text == toString(m)) {
+      *mode = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+Building BuildingState::corrected() const {
+  Building b = prior;
+  b.outline_enu = transformPolygon(local_outline, pose);
+  b.reference_pose = pose;
+  b.segments = polygonSegments(b.outline_enu);
+  return b;
+}
+
+struct GraphBackend::Pending {
+  std::deque<KeyframeInput> keyframes;
+  std::map<uint64_t, std::vector<LineSegment2>> segments;
+  std::deque<LoopClosureInput> loops;
+  struct BuildingBatch {
+    std::vector<Building> buildings;
+    Eigen::Vector2d center;
+    double radius;
+  };
+  std::deque<BuildingBatch> buildings;
+};
+
+struct GraphBackend::State {
+  PoseGraph graph;
+  std::map<uint64_t, KeyframeState> keyframes;
+  std::map<int64_t, BuildingState> buildings;
+  std::map<uint64_t, std::vector<LineSegment2>> early_segments;  ///< keyframe not yet inserted
+  std::deque<LoopClosureInput> early_loops;                      ///< current keyframe not yet in
+  std::vector<std::pair<Eigen::Vector2d, double>> coverage;      ///< answered OSM queries
+  std::optional<EnuConverter> origin;
+  Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
+  bool heading_initialized = false;
+  int next_building_vertex = kBuildingVertexBase;
+  std::vector<int> overlap_edges;
+  std::vector<LoopClosureInput> loops;
+  bool dirty = false;
+  double latest_stamp = 0.0;
+
+  int buildingVertex(BuildingState& b, const GraphBackendParams& p) {
+    if (b.vertex_id >= 0) return b.vertex_id;
+    b.vertex_id = next_building_vertex++;
+    graph.addVertexSE2(b.vertex_id, b.pose, p.mode == OsmMode::kPrior);
+    Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+    info(0, 0) = info(1, 1) = 1.0 / (p.building_prior_std_xy * p.building_prior_std_xy);
+    info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
+    graph.addPriorSE2(b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
+    return b.vertex_id;
+  }
+};
+
+GraphBackend::GraphBackend(const GraphBackendParams& params, std::shared_ptr<const Logger> logger)
+    : params_(params),
+      logger_(logger ? std::move(logger) : std::make_shared<Logger>()),
+      matcher_(params.matcher),
+      pending_(std::make_unique<Pending>()),
+      state_(std::make_unique<State>()) {
+  state_->heading_initialized = params_.initial_yaw_known;
+}
+
+GraphBackend::~GraphBackend() = default;
+
+// ------------------------------------------------------------------------------------------------
+// Inputs
+// ------------------------------------------------------------------------------------------------
+
+void GraphBackend::setOrigin(double lat, double lon, double alt) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  if (state_->origin) return;  // the first valid fix defines the map frame for good
+  state_->origin.emplace(lat, lon, alt);
+}
+
+bool GraphBackend::hasOrigin() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->origin.has_value();
+}
+
+void GraphBackend::addKeyframe(KeyframeInput keyframe) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  pending_->keyframes.push_back(std::move(keyframe));
+}
+
+void GraphBackend::addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  pending_->segments[keyframe_id] = std::move(segments);
+}
+
+void GraphBackend::addBuildings(std::vector<Building> buildings,
+                                const Eigen::Vector2d& query_center, double query_radius) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  pending_->buildings.push_back({std::move(buildings), query_center, query_radius});
+}
+
+void GraphBackend::addLoopClosure(const LoopClosureInput& loop) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  pending_->loops.push_back(loop);
+}
+
+size_t GraphBackend::pendingInputs() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return pending_->keyframes.size() + pending_->segments.size() + pending_->loops.size() +
+         pending_->buildings.size();
+}
+
+// ------------------------------------------------------------------------------------------------
+// Update
+// ------------------------------------------------------------------------------------------------
+
+BackendUpdateReport GraphBackend::update(bool force_optimize) {
+  const auto t0 = Clock::now();
+  BackendUpdateReport report;
+  std::lock_guard<std::mutex> state_lock(state_mutex_);
+  flushKeyframes(report);
+  flushLoops(report);
+  flushBuildings(report);
+  if (params_.use_osm) processOsmPriors(report);
+  if (state_->dirty || force_optimize) {
+    optimizeTwoPhase(report);
+    state_->dirty = false;
+  }
+  report.total_ms = msSince(t0);
+  return report;
+}
+
+void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
+  std::deque<KeyframeInput> incoming;
+  std::map<uint64_t, std::vector<LineSegment2>> segments;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    incoming.swap(pending_->keyframes);
+    segments.swap(pending_->segments);
+  }
+  State& s = *state_;
+  for (auto& [id, segs] : segments) {
+    auto it = s.keyframes.find(id);
+    if (it != s.keyframes.end()) {
+      it->second.segments = std::move(segs);
+    } else {
+      s.early_segments[id] = std::move(segs);
+    }
+  }
+  std::sort(incoming.begin(), incoming.end(),
+            [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
+  for (auto& in : incoming) {
+    if (in.id >= static_cast<uint64_t>(kBuildingVertexBase)) {
+      logger_->warnOnce("kf_id", "keyframe id " + std::to_string(in.id) + " is too large; ignored");
+      continue;
+    }
+    if (!s.keyframes.empty() && in.id <= s.keyframes.rbegin()->first) {
+      logger_->warnOnce("kf_order", "keyframe " + std::to_string(in.id) +
+                                        " is not newer than the last one (" +
+                                        std::to_string(s.keyframes.rbegin()->first) +
+                                        "); duplicate or out of order, ignored");
+      continue;
+    }
+    KeyframeState kf;
+    kf.id = in.id;
+    kf.stamp = in.stamp;
+    kf.odom_pose = in.odom_pose;
+    kf.accum_distance = in.accum_distance;
+    kf.cloud = in.cloud;
+    const int vid = static_cast<int>(in.id);
+    if (s.keyframes.empty()) {
+      // The first keyframe sits at the map origin (the first GPS fix) with the known heading, or
+      // odometry's until the first global matching sets it.
+      const double odom_yaw = planarPose(in.odom_pose).theta;
+      const double yaw0 = params_.initial_yaw_known ? params_.initial_yaw : odom_yaw;
+      kf.map_pose = yawRotation(yaw0 - odom_yaw) * in.odom_pose;
+      kf.map_pose.translation().setZero();
+      s.map_to_odom = kf.map_pose * in.odom_pose.inverse();
+      s.graph.addVertexSE3(vid, kf.map_pose, true);
+    } else {
+      const KeyframeState& prev = s.keyframes.rbegin()->second;
+      const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
+      kf.map_pose = prev.map_pose * delta;
+      s.graph.addVertexSE3(vid, kf.map_pose);
+      s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta,
+                         odometryInformation(in.odom_fitness, params_.odometry),
+                         EdgeOptions{0, {}});
+    }
+    auto early = s.early_segments.find(in.id);
+    if (early != s.early_segments.end()) {
+      kf.segments = std::move(early->second);
+      s.early_segments.erase(early);
+    }
+    s.latest_stamp = std::max(s.latest_stamp, in.stamp);
+    s.keyframes.emplace(in.id, std::move(kf));
+    ++report.keyframes_added;
+    s.dirty = true;
+  }
+  // Segments for keyframes that will never come (older than the newest keyframe) are dropped.
+  if (!s.keyframes.empty()) {
+    const uint64_t newest = s.keyframes.rbegin()->first;
+    for (auto it = s.early_segments.begin(); it != s.early_segments.end();) {
+      if (it->first < newest) {
+        logger_->warnOnce("segments_unknown", "line segments for unknown keyframe " +
+                                                  std::to_string(it->first) + " dropped");
+        it = s.early_segments.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+}
+
+void GraphBackend::flushLoops(BackendUpdateReport& report) {
+  State& s = *state_;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    for (auto& l : pending_->loops) s.early_loops.push_back(l);
+    pending_->loops.clear();
+  }
+  const uint64_t newest = s.keyframes.empty() ? 0 : s.keyframes.rbegin()->first;
+  std::deque<LoopClosureInput> keep;
+  for (const auto& loop : s.early_loops) {
+    const bool have_from = s.keyframes.count(loop.from_id) != 0;
+    const bool have_to = s.keyframes.count(loop.to_id) != 0;
+    if (!have_from && (s.keyframes.empty() || loop.from_id > newest)) {
+      keep.push_back(loop);  // its keyframe is still on the way
+      continue;
+    }
+    if (!have_from || !have_to || loop.from_id == loop.to_id) {
+      logger_->warnOnce("loop_unknown", "loop closure " + std::to_string(loop.from_id) + " -> " +
+                                            std::to_string(loop.to_id) +
+                                            " names an unknown keyframe; ignored");
+      ++report.loops_rejected;
+      continue;
+    }
+    s.graph.addEdgeSE3(static_cast<int>(loop.to_id), static_cast<int>(loop.from_id),
+                       loop.relative_pose, loop.information, EdgeOptions{0, loopKernel(params_)});
+    s.loops.push_back(loop);
+    ++report.loops_added;
+    s.dirty = true;
+  }
+  s.early_loops.swap(keep);
+}
+
+void GraphBackend::flushBuildings(BackendUpdateReport& report) {
+  std::deque<Pending::BuildingBatch> batches;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    batches.swap(pending_->buildings);
+  }
+  State& s = *state_;
+  for (auto& batch : batches) {
+    s.coverage.emplace_back(batch.center, batch.radius);
+    for (auto& b : batch.buildings) {
+      if (b.outline_enu.size() < 3 || s.buildings.count(b.id)) continue;
+      BuildingState state;
+      state.pose = b.reference_pose;
+      state.local_outline = transformPolygon(b.outline_enu, b.reference_pose.inverse());
+      state.prior = std::move(b);
+      s.buildings.emplace(state.prior.id, std::move(state));
+      ++report.buildings_added;
+    }
+  }
+}
+
+Eigen::Matrix3d GraphBackend::localInformation(const LineMatchResult& match) const {
+  return scaledInformation(match.information, params_.local_edge_std_xy,
+                           params_.local_edge_std_theta, params_.matcher);
+}
+
+bool GraphBackend::keyframeCovered(const Eigen::Vector2d& position) const {
+  for (const auto& [center, radius] : state_->coverage)
+    if ((position - center).norm() <= radius) return true;
+  return false;
+}
+
+void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
+  State& s = *state_;
+  for (auto& [id, kf] : s.keyframes) {
+    if (kf.osm_processed) continue;
+    if (static_cast<int>(kf.segments.size()) < params_.min_keyframe_segments) {
+      // Segments may still be on their way; give up once the keyframe is old.
+      if (s.latest_stamp - kf.stamp > params_.osm_max_wait) kf.osm_processed = true;
+      continue;
+    }
+    Pose2 robot = planarPose(kf.map_pose);
+    if (!keyframeCovered(robot.translation())) {
+      if (s.latest_stamp - kf.stamp > params_.osm_max_wait) {
+        logger_->warnOnce("osm_wait", "no OSM buildings arrived for keyframe " +
+                                          std::to_string(id) + " within " +
+                                          std::to_string(params_.osm_max_wait) +
+                                          " s; it gets no map prior (logged once)");
+        kf.osm_processed = true;
+      }
+      continue;
+    }
+    kf.osm_processed = true;
+    std::vector<BuildingState*> nearby;
+    std::vector<LineSegment2> map_segments;
+    for (auto& [bid, b] : s.buildings) {
+      if (distanceToOutline(robot.translation(), b.prior.outline_enu) > params_.osm_query_radius)
+        continue;
+      nearby.push_back(&b);
+      map_segments.insert(map_segments.end(), b.prior.segments.begin(), b.prior.segments.end());
+    }
+    if (nearby.empty()) continue;
+
+    // Global matching (§3.4): keyframe segments against every nearby building.
+    const bool unbounded = !s.heading_initialized;
+    const LineMatchResult global =
+        matcher_.matchGlobal(kf.segments, map_segments, robot, unbounded);
+    const bool accepted = global.success && global.fitness >= params_.global_min_fitness &&
+                          global.matched_segments >= params_.global_min_matched;
+    if (unbounded) {
+      if (!accepted) continue;  // heading still unknown: try the next keyframe
+      // Rotate the whole trajectory about the origin so that this keyframe gets the heading.
+      const double dyaw = wrapAngle(global.transform.theta - robot.theta);
+      const Eigen::Isometry3d rot = yawRotation(dyaw);
+      for (auto& [other_id, other] : s.keyframes) {
+        other.map_pose = rot * other.map_pose;
+        s.graph.setVertexSE3(static_cast<int>(other_id), other.map_pose);
+      }
+      s.map_to_odom = rot * s.map_to_odom;
+      s.heading_initialized = true;
+      report.heading_initialized_now = true;
+      logger_->info("initial heading set by global matching: rotated the trajectory by " +
+                    std::to_string(dyaw * 180.0 / M_PI) + " deg (fitness " +
+                    std::to_string(global.fitness) + ")");
+      s.dirty = true;
+      continue;
+    }
+    Pose2 observed_from = robot;
+    if (accepted) {
+      const Eigen::Matrix3d info =
+          scaledInformation(global.information, params_.global_prior_std_xy,
+                            params_.global_prior_std_yaw, params_.matcher);
+      s.graph.addPriorSE3XY(static_cast<int>(id), global.transform.translation(),
+                            info.topLeftCorner<2, 2>(), EdgeOptions{0, {}});
+      s.graph.addPriorSE3Yaw(static_cast<int>(id), global.transform.theta, info(2, 2),
+                             EdgeOptions{0, {}});
+      kf.has_global_prior = true;
+      observed_from = global.transform;
+      ++report.global_priors;
+      s.dirty = true;
+    } else {
+      ++report.global_rejected;
+    }
+    if (params_.mode == OsmMode::kPrior) continue;
+
+    if (params_.mode == OsmMode::kRigid) {
+      if (!accepted) continue;
+      // One transform for the whole neighbourhood: building = robot · G⁻¹ · prior.
+      for (BuildingState* b : nearby) {
+        const Pose2 z = global.transform.inverse() * b->prior.reference_pose;
+        const Eigen::Matrix3d info =
+            rotateInformation(localInformation(global), b->prior.reference_pose.theta);
+        s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
+                              EdgeOptions{1, {}});
+        ++b->observations;
+        ++report.building_edges;
+      }
+      continue;
+    }
+
+    // Non-rigid: each building aligned on its own to the keyframe's walls (local matching).
+    std::vector<LineSegment2> kf_map;
+    kf_map.reserve(kf.segments.size());
+    for (const auto& seg : kf.segments) kf_map.push_back(seg.transformed(observed_from));
+    for (BuildingState* b : nearby) {
+      const LineMatchResult local =
+          matcher_.matchLocal(polygonSegments(b->local_outline), kf_map, b->pose);
+      if (!local.success || local.fitness < params_.local_min_fitness ||
+          local.matched_segments < params_.local_min_matched)
+        continue;
+      const Pose2 z = observed_from.inverse() * local.transform;
+      const Eigen::Matrix3d info =
+          rotateInformation(localInformation(local), local.transform.theta);
+      s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
+                            EdgeOptions{1, {}});
+      ++b->observations;
+      ++report.building_edges;
+      s.dirty = true;
+    }
+  }
+}
+
+void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
+  State& s = *state_;
+  OptimizerOptions options;
+  options.max_iterations = params_.max_iterations;
+  options.num_threads = params_.num_threads;
+
+  // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
+  report.phase1 = s.graph.optimize(0, options);
+  report.optimized = true;
+  for (auto& [id, kf] : s.keyframes)
+    if (auto pose = s.graph.vertexSE3(static_cast<int>(id))) kf.map_pose = *pose;
+
+  // Phase 2 (level 1): robot vertices fixed, buildings move to satisfy their constraints.
+  bool have_buildings = false;
+  for (const auto& [bid, b] : s.buildings) have_buildings |= b.vertex_id >= 0;
+  if (have_buildings && params_.mode != OsmMode::kPrior) {
+    std::vector<int> unfix;
+    for (const auto& [id, kf] : s.keyframes) {
+      const int vid = static_cast<int>(id);
+      if (!s.graph.isFixed(vid)) {
+        s.graph.setFixed(vid, true);
+        unfix.push_back(vid);
+      }
+    }
+    for (int edge : s.overlap_edges) s.graph.removeEdge(edge);  // re-derived below
+    s.overlap_edges.clear();
+    report.phase2 = s.graph.optimize(1, options);
+    for (auto& [bid, b] : s.buildings)
+      if (auto pose = s.graph.vertexSE2(b.vertex_id)) b.pose = *pose;
+    if (params_.resolve_overlaps) resolveOverlaps(report);
+    for (int vid : unfix) s.graph.setFixed(vid, false);
+  }
+  updateMapToOdom();
+}
+
+void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
+  // Algorithm 3.2: hard building↔building edges from the overlap-removal matcher, re-optimised
+  // at level 2 (robots stay fixed), until no outline intersects or the iterations run out.
+  State& s = *state_;
+  OptimizerOptions options;
+  options.max_iterations = params_.max_iterations;
+  options.num_threads = params_.num_threads;
+  std::vector<BuildingState*> order;
+  std::vector<Building> outlines;
+  for (auto& [bid, b] : s.buildings) {
+    order.push_back(&b);
+    outlines.push_back(b.corrected());
+  }
+  auto overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
+  for (int iter = 0; iter < params_.overlap_max_iterations && !overlaps.empty(); ++iter) {
+    size_t added = 0;
+    for (const auto& [i, j] : overlaps) {
+      // Move the less observed building (a building nobody saw has only its OSM prior).
+      BuildingState* a = order[i];
+      BuildingState* b = order[j];
+      if (a->observations > b->observations) std::swap(a, b);
+      const LineMatchResult sep = matcher_.removeOverlap(
+          a->local_outline, a->pose, transformPolygon(b->local_outline, b->pose));
+      if (!sep.success) continue;
+      const Pose2 z = sep.transform.inverse() * b->pose;  // relPose of Alg. 3.2, line 10
+      const Eigen::Matrix3d info = Eigen::Matrix3d::Identity() * params_.overlap_information;
+      const int edge =
+          s.graph.addEdgeSE2(s.buildingVertex(*a, params_), s.buildingVertex(*b, params_), z, info,
+                             EdgeOptions{2, {}});
+      if (edge >= 0) {
+        s.overlap_edges.push_back(edge);
+        ++added;
+      }
+    }
+    report.overlap_iterations = static_cast<size_t>(iter + 1);
+    report.overlap_edges += added;
+    if (added == 0) break;
+    report.overlap = s.graph.optimize(2, options);
+    outlines.clear();
+    for (BuildingState* b : order) {
+      if (auto pose = s.graph.vertexSE2(b->vertex_id)) b->pose = *pose;
+      outlines.push_back(b->corrected());
+    }
+    overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
+  }
+  report.overlaps_remaining = overlaps.size();
+}
+
+void GraphBackend::updateMapToOdom() {
+  State& s = *state_;
+  if (s.keyframes.empty()) return;
+  const KeyframeState& last = s.keyframes.rbegin()->second;
+  s.map_to_odom = last.map_pose * last.odom_pose.inverse();
+}
+
+// ------------------------------------------------------------------------------------------------
+// Outputs
+// ------------------------------------------------------------------------------------------------
+
+std::vector<KeyframeState> GraphBackend::keyframes() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<KeyframeState> out;
+  out.reserve(state_->keyframes.size());
+  for (const auto& [id, kf] : state_->keyframes) out.push_back(kf);
+  return out;
+}
+
+size_t GraphBackend::numKeyframes() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->keyframes.size();
+}
+
+std::optional<KeyframeState> GraphBackend::latestKeyframe() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  if (state_->keyframes.empty()) return std::nullopt;
+  return state_->keyframes.rbegin()->second;
+}
+
+Eigen::Isometry3d GraphBackend::mapToOdom() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->map_to_odom;
+}
+
+Trajectory GraphBackend::trajectory() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  Trajectory t;
+  for (const auto& [id, kf] : state_->keyframes) t.push_back({kf.stamp, kf.map_pose});
+  return t;
+}
+
+Trajectory GraphBackend::odomTrajectory() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  Trajectory t;
+  for (const auto& [id, kf] : state_->keyframes) t.push_back({kf.stamp, kf.odom_pose});
+  return t;
+}
+
+std::vector<BuildingState> GraphBackend::buildings() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<BuildingState> out;
+  for (const auto& [id, b] : state_->buildings) out.push_back(b);
+  return out;
+}
+
+std::vector<Building> GraphBackend::correctedBuildings() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<Building> out;
+  for (const auto& [id, b] : state_->buildings) {
+    Building c = b.corrected();
+    if (state_->origin) {
+      c.outline_geo.clear();
+      for (const auto& v : c.outline_enu) c.outline_geo.push_back(state_->origin->toGeoPoint(v));
+    }
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+PoseGraph GraphBackend::graphSnapshot() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->graph;
+}
+
+std::vector<LoopClosureInput> GraphBackend::loopClosures() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->loops;
+}
+
+std::optional<EnuConverter> GraphBackend::origin() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->origin;
+}
+
+}  // namespace osm_graph_slam

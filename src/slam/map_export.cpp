@@ -1,0 +1,308 @@
+#include "osm_graph_slam/slam/map_export.h"
+
+#include <pcl/common/transforms.h>
+#include <pcl/io/pcd_io.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <sstream>
+#include <unordered_map>
+
+#include "osm_graph_slam/graph/g2o_io.h"
+#include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+
+namespace osm_graph_slam {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct VoxelSum {
+  double x = 0, y = 0, z = 0, intensity = 0;
+  size_t n = 0;
+};
+
+int64_t voxelKey(const PointT& p, double inv) {
+  // 21 bits per axis: ±1,048,576 voxels, i.e. ±105 km at 0.1 m.
+  const auto q = [inv](float v) {
+    return static_cast<int64_t>(std::floor(v * inv)) & ((int64_t{1} << 21) - 1);
+  };
+  return (q(p.x) << 42) | (q(p.y) << 21) | q(p.z);
+}
+
+bool prepareDirectory(const std::string& directory, MapExportResult& result) {
+  if (directory.empty()) {
+    result.message = "no destination folder given";
+    return false;
+  }
+  std::error_code ec;
+  fs::create_directories(directory, ec);
+  if (ec || !fs::is_directory(directory)) {
+    result.message = "cannot create folder '" + directory + "': " + ec.message();
+    return false;
+  }
+  const fs::path probe = fs::path(directory) / ".osm_graph_slam_write_test";
+  std::string error;
+  if (!writeFileAtomically(probe.string(), "", &error)) {
+    result.message = "folder '" + directory + "' is not writable";
+    return false;
+  }
+  fs::remove(probe, ec);
+  return true;
+}
+
+bool writePcdAtomically(const std::string& path, const PointCloud& cloud, std::string* error) {
+  const std::string tmp = path + ".tmp";
+  if (cloud.empty() || pcl::io::savePCDFileBinary(tmp, cloud) != 0) {
+    if (error) *error = cloud.empty() ? "empty cloud for '" + path + "'" : "cannot write " + tmp;
+    std::remove(tmp.c_str());
+    return false;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    if (error) *error = "cannot rename '" + tmp + "'";
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+/// Adds one written file or records the first failure.
+struct Writer {
+  MapExportResult& result;
+  const std::string directory;
+  std::string first_error;
+
+  void operator()(const std::string& name, bool ok, const std::string& error) {
+    if (ok) {
+      result.files.push_back((fs::path(directory) / name).string());
+    } else if (first_error.empty()) {
+      first_error = name + ": " + error;
+    }
+  }
+  std::string path(const std::string& name) const { return (fs::path(directory) / name).string(); }
+};
+
+std::string poseRow(const Eigen::Isometry3d& pose) {
+  std::ostringstream os;
+  os << std::setprecision(12);
+  const Eigen::Matrix4d m = pose.matrix();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) os << (r || c ? " " : "") << m(r, c);
+  return os.str();
+}
+
+}  // namespace
+
+PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double resolution) {
+  auto map = std::make_shared<PointCloud>();
+  PointCloud transformed;
+  if (resolution <= 0.0) {
+    for (const auto& kf : keyframes) {
+      if (!kf.cloud) continue;
+      pcl::transformPointCloud(*kf.cloud, transformed, kf.map_pose.matrix().cast<float>());
+      *map += transformed;
+    }
+    return map;
+  }
+  const double inv = 1.0 / resolution;
+  std::unordered_map<int64_t, VoxelSum> voxels;
+  for (const auto& kf : keyframes) {
+    if (!kf.cloud) continue;
+    pcl::transformPointCloud(*kf.cloud, transformed, kf.map_pose.matrix().cast<float>());
+    for (const auto& p : transformed) {
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+      VoxelSum& v = voxels[voxelKey(p, inv)];
+      v.x += p.x;
+      v.y += p.y;
+      v.z += p.z;
+      v.intensity += p.intensity;
+      ++v.n;
+    }
+  }
+  map->reserve(voxels.size());
+  for (const auto& [key, v] : voxels) {
+    PointT p;
+    const double n = static_cast<double>(v.n);
+    p.x = static_cast<float>(v.x / n);
+    p.y = static_cast<float>(v.y / n);
+    p.z = static_cast<float>(v.z / n);
+    p.intensity = static_cast<float>(v.intensity / n);
+    map->push_back(p);
+  }
+  map->width = static_cast<uint32_t>(map->size());
+  map->height = 1;
+  map->is_dense = true;
+  return map;
+}
+
+std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
+  std::ostringstream os;
+  os << std::setprecision(10);
+  os << "<?xml version='1.0' encoding='UTF-8'?>\n"
+     << "<osm version='0.6' generator='osm_graph_slam'>\n";
+  auto escape = [](const std::string& in) {
+    std::string out;
+    for (char c : in) {
+      switch (c) {
+        case '&':
+          out += "&amp;";
+          break;
+        case '<':
+          out += "&lt;";
+          break;
+        case '>':
+          out += "&gt;";
+          break;
+        case '\'':
+          out += "&apos;";
+          break;
+        case '"':
+          out += "&quot;";
+          break;
+        default:
+          out += c;
+      }
+    }
+    return out;
+  };
+  int64_t next_node = -1;
+  std::ostringstream ways;
+  int64_t next_way = -1;
+  for (const auto& b : buildings) {
+    if (b.outline_geo.size() < 3) continue;
+    std::vector<int64_t> refs;
+    for (const auto& g : b.outline_geo) {
+      os << "  <node id='" << next_node << "' lat='" << g.lat << "' lon='" << g.lon << "'/>\n";
+      refs.push_back(next_node--);
+    }
+    // Ways keep their OSM id; a building from a multipolygon relation becomes a new way that
+    // names its relation.
+    const bool way = b.id > 0;
+    ways << "  <way id='" << (way ? b.id : next_way--) << "'" << (way ? " version='1'" : "")
+         << ">\n";
+    for (int64_t r : refs) ways << "    <nd ref='" << r << "'/>\n";
+    ways << "    <nd ref='" << refs.front() << "'/>\n";
+    for (const auto& [k, v] : b.tags)
+      ways << "    <tag k='" << escape(k) << "' v='" << escape(v) << "'/>\n";
+    if (!b.tags.count("building")) ways << "    <tag k='building' v='yes'/>\n";
+    if (!way) ways << "    <tag k='osm_graph_slam:relation' v='" << -b.id << "'/>\n";
+    ways << "  </way>\n";
+  }
+  os << ways.str() << "</osm>\n";
+  return os.str();
+}
+
+MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
+                        double resolution) {
+  MapExportResult result;
+  const std::vector<KeyframeState> keyframes = backend.keyframes();
+  if (keyframes.empty()) {
+    result.message = "the graph is empty: no keyframe has been received yet";
+    return result;
+  }
+  if (!prepareDirectory(directory, result)) return result;
+  Writer write{result, directory, {}};
+  std::string error;
+
+  const PointCloudPtr map = buildMapCloud(keyframes, resolution);
+  write("map.pcd", writePcdAtomically(write.path("map.pcd"), *map, &error), error);
+
+  const std::vector<Building> buildings = backend.correctedBuildings();
+  if (!buildings.empty()) {
+    if (!backend.hasOrigin()) {
+      write("buildings_corrected.geojson", false,
+            "no GPS origin: corrected buildings cannot be given in lat/lon");
+    } else {
+      write("buildings_corrected.geojson",
+            writeBuildingsGeoJson(write.path("buildings_corrected.geojson"), buildings, &error),
+            error);
+      write("buildings_corrected.osm",
+            writeFileAtomically(write.path("buildings_corrected.osm"), buildingsToOsmXml(buildings),
+                                &error),
+            error);
+    }
+  }
+  const Trajectory trajectory = backend.trajectory();
+  write("trajectory_kitti.txt",
+        writeKittiPoses(write.path("trajectory_kitti.txt"), trajectory, false, &error), error);
+  write("trajectory_tum.txt",
+        writeTumTrajectory(write.path("trajectory_tum.txt"), trajectory, &error), error);
+  const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
+  write("graph.g2o", g2o.ok, g2o.message);
+
+  result.success = write.first_error.empty();
+  result.message = result.success ? "wrote " + std::to_string(result.files.size()) + " files (" +
+                                        std::to_string(map->size()) + " map points, " +
+                                        std::to_string(buildings.size()) + " buildings, " +
+                                        std::to_string(keyframes.size()) + " keyframes)"
+                                  : write.first_error;
+  return result;
+}
+
+MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory) {
+  MapExportResult result;
+  const std::vector<KeyframeState> keyframes = backend.keyframes();
+  if (keyframes.empty()) {
+    result.message = "the graph is empty: no keyframe has been received yet";
+    return result;
+  }
+  if (!prepareDirectory(directory, result)) return result;
+  std::error_code ec;
+  fs::create_directories(fs::path(directory) / "keyframes", ec);
+  Writer write{result, directory, {}};
+  std::string error;
+
+  std::ostringstream kf_csv, seg_csv;
+  kf_csv << std::setprecision(17) << "# id stamp accum_distance odom_pose(3x4 row-major)\n";
+  seg_csv << std::setprecision(12) << "# keyframe_id x1 y1 x2 y2 support\n";
+  for (const auto& kf : keyframes) {
+    kf_csv << kf.id << ' ' << kf.stamp << ' ' << kf.accum_distance << ' ' << poseRow(kf.odom_pose)
+           << '\n';
+    for (const auto& s : kf.segments)
+      seg_csv << kf.id << ' ' << s.start.x() << ' ' << s.start.y() << ' ' << s.end.x() << ' '
+              << s.end.y() << ' ' << s.support << '\n';
+    if (kf.cloud && !kf.cloud->empty()) {
+      char name[64];
+      std::snprintf(name, sizeof(name), "keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
+      write(name, writePcdAtomically(write.path(name), *kf.cloud, &error), error);
+    }
+  }
+  write("keyframes.csv", writeFileAtomically(write.path("keyframes.csv"), kf_csv.str(), &error),
+        error);
+  write("segments.csv", writeFileAtomically(write.path("segments.csv"), seg_csv.str(), &error),
+        error);
+
+  std::ostringstream loops;
+  loops << std::setprecision(17) << "# from_id to_id relative_pose(3x4) information(6x6)\n";
+  for (const auto& l : backend.loopClosures()) {
+    loops << l.from_id << ' ' << l.to_id << ' ' << poseRow(l.relative_pose);
+    for (int i = 0; i < 36; ++i) loops << ' ' << l.information(i / 6, i % 6);
+    loops << '\n';
+  }
+  write("loops.csv", writeFileAtomically(write.path("loops.csv"), loops.str(), &error), error);
+
+  std::vector<Building> priors;
+  for (const auto& b : backend.buildings()) priors.push_back(b.prior);
+  write("buildings_prior.geojson",
+        writeBuildingsGeoJson(write.path("buildings_prior.geojson"), priors, &error), error);
+  if (const auto origin = backend.origin()) {
+    std::ostringstream o;
+    o << std::setprecision(12) << origin->originLat() << ' ' << origin->originLon() << ' '
+      << origin->originAlt() << '\n';
+    write("origin.txt", writeFileAtomically(write.path("origin.txt"), o.str(), &error), error);
+  }
+  const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
+  write("graph.g2o", g2o.ok, g2o.message);
+
+  result.success = write.first_error.empty();
+  result.message = result.success
+                       ? "dumped " + std::to_string(keyframes.size()) + " keyframes in " +
+                             std::to_string(result.files.size()) + " files"
+                       : write.first_error;
+  return result;
+}
+
+}  // namespace osm_graph_slam

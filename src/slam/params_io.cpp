@@ -1,0 +1,81 @@
+#include "osm_graph_slam/slam/params_io.h"
+
+namespace osm_graph_slam {
+
+void readParams(const ParamReader& r, LineMatcherParams& p) {
+  r.param("min_edge_angle_deg", p.min_edge_angle_deg);
+  r.param("edge_endpoint_tolerance", p.edge_endpoint_tolerance);
+  r.param("max_virtual_edge_distance", p.max_virtual_edge_distance);
+  r.param("edge_angle_tolerance_deg", p.edge_angle_tolerance_deg);
+  r.param("edge_length_slack", p.edge_length_slack);
+  r.param("max_translation", p.max_translation);
+  r.param("max_rotation_deg", p.max_rotation_deg);
+  r.param("refine_k_nearest", p.refine_k_nearest);
+  r.param("refine_rounds", p.refine_rounds);
+  r.param("least_squares_polish", p.least_squares_polish);
+  r.param("polish_iterations", p.polish_iterations);
+  r.param("weight_distance", p.weight_distance);
+  r.param("weight_coverage", p.weight_coverage);
+  r.param("weight_translation", p.weight_translation);
+  r.param("max_avg_distance", p.max_avg_distance);
+  r.param("max_translation_fitness", p.max_translation_fitness);
+  r.param("max_correspondence_distance", p.max_correspondence_distance);
+  r.param("max_correspondence_angle_deg", p.max_correspondence_angle_deg);
+  r.param("matched_distance", p.matched_distance);
+  r.param("min_fitness", p.min_fitness);
+  r.param("min_matched_segments", p.min_matched_segments);
+  r.param("two_dof_max_angle_deg", p.two_dof_max_angle_deg);
+  r.param("two_dof_along_scale", p.two_dof_along_scale);
+  r.param("edge_information_xy", p.edge_information_xy);
+  r.param("edge_information_theta", p.edge_information_theta);
+  r.param("line_information_xy", p.line_information_xy);
+  r.param("line_information_theta", p.line_information_theta);
+  r.param("overlap_max_rotation_deg", p.overlap_max_rotation_deg);
+  r.param("overlap_max_translation", p.overlap_max_translation);
+  r.param("min_overlap_area", p.min_overlap_area);
+  r.param("grid_cell", p.grid_cell);
+  r.param("brute_force", p.brute_force);
+}
+
+bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error) {
+  bool ok = true;
+  r.param("use_osm", p.use_osm);
+  std::string mode = toString(p.mode);
+  r.param("mode", mode);
+  if (!parseOsmMode(mode, &p.mode)) {
+    ok = false;
+    if (error) *error = "unknown mode '" + mode + "' (prior | rigid | non_rigid)";
+  }
+  r.param("odometry_min_std_xyz", p.odometry.min_std_xyz);
+  r.param("odometry_max_std_xyz", p.odometry.max_std_xyz);
+  r.param("odometry_min_std_rot", p.odometry.min_std_rot);
+  r.param("odometry_max_std_rot", p.odometry.max_std_rot);
+  r.param("odometry_max_fitness", p.odometry.max_fitness);
+  r.param("loop_kernel", p.loop_kernel);
+  r.param("loop_kernel_width", p.loop_kernel_width);
+  r.param("initial_yaw_known", p.initial_yaw_known);
+  r.param("initial_yaw", p.initial_yaw);
+  r.param("osm_query_radius", p.osm_query_radius);
+  r.param("osm_max_wait", p.osm_max_wait);
+  r.param("min_keyframe_segments", p.min_keyframe_segments);
+  r.param("global_min_fitness", p.global_min_fitness);
+  r.param("global_min_matched", p.global_min_matched);
+  r.param("global_prior_std_xy", p.global_prior_std_xy);
+  r.param("global_prior_std_yaw", p.global_prior_std_yaw);
+  r.param("local_min_fitness", p.local_min_fitness);
+  r.param("local_min_matched", p.local_min_matched);
+  r.param("local_edge_std_xy", p.local_edge_std_xy);
+  r.param("local_edge_std_theta", p.local_edge_std_theta);
+  r.param("building_prior_std_xy", p.building_prior_std_xy);
+  r.param("building_prior_std_theta", p.building_prior_std_theta);
+  r.param("max_iterations", p.max_iterations);
+  r.param("num_threads", p.num_threads);
+  r.param("resolve_overlaps", p.resolve_overlaps);
+  r.param("overlap_max_iterations", p.overlap_max_iterations);
+  r.param("overlap_information", p.overlap_information);
+  r.param("overlap_min_area", p.overlap_min_area);
+  readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
+  return ok;
+}
+
+}  // namespace osm_graph_slam

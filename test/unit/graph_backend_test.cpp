@@ -1,0 +1,212 @@
+// GraphBackend on synthetic drives with known truth: a street of buildings, a simulated LiDAR,
+// the real wall/segment extraction, drifting odometry and perturbed OSM priors.
+#include <gtest/gtest.h>
+
+#include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/eval/trajectory_metrics.h"
+#include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+#include "street_drive.h"
+
+using namespace osm_graph_slam;
+
+namespace {
+
+using test::StreetDrive;
+using test::toBuilding;
+
+const StreetDrive& drive() {
+  static const StreetDrive d(36);
+  return d;
+}
+
+GraphBackendParams baseParams(OsmMode mode) {
+  GraphBackendParams p;
+  p.mode = mode;
+  p.initial_yaw_known = true;
+  p.initial_yaw = drive().true_poses[0].theta;
+  return p;
+}
+
+double ate(const GraphBackend& backend) {
+  return evaluateTrajectory(backend.trajectory(), drive().trueTrajectory()).ate.mean;
+}
+
+}  // namespace
+
+TEST(GraphBackend, SimulatedKeyframesHaveWallSegments) {
+  for (const auto& segs : drive().segments) EXPECT_GE(segs.size(), 4u);
+}
+
+TEST(GraphBackend, PriorModeCorrectsDriftingOdometryWithAnExactMap) {
+  const auto odom = drive().odometry(0.004, 1.01);
+  GraphBackendParams params = baseParams(OsmMode::kPrior);
+  params.global_prior_std_xy = 0.05;  // the map is exact here: trust it
+  params.global_prior_std_yaw = 0.005;
+  GraphBackend backend(params);
+  drive().feed(backend, odom, drive().truth);
+  const BackendUpdateReport r = backend.update();
+  EXPECT_EQ(r.keyframes_added, drive().true_poses.size());
+  EXPECT_GT(r.global_priors, drive().true_poses.size() * 2 / 3);
+  EXPECT_EQ(r.building_edges, 0u);  // buildings are fixed in prior mode
+
+  Trajectory odom_traj;
+  for (size_t k = 0; k < odom.size(); ++k) odom_traj.push_back({0.1 * k, odom[k]});
+  const double odom_ate = evaluateTrajectory(odom_traj, drive().trueTrajectory()).ate.mean;
+  EXPECT_GT(odom_ate, 0.8);
+  EXPECT_LT(ate(backend), 0.10) << "odometry-only ATE " << odom_ate;
+  std::cout << "prior mode: odometry ATE " << odom_ate << " m, SLAM ATE " << ate(backend) << " m\n";
+  // Buildings untouched.
+  const BuildingErrors b = evaluateBuildings(backend.correctedBuildings(), drive().truth);
+  EXPECT_LT(b.max_corner_error, 1e-9);
+}
+
+TEST(GraphBackend, NonRigidModeCorrectsEachBuilding) {
+  const auto odom = drive().odometry(0.0005, 1.001);
+  const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 5);
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.global_prior_std_xy = 2.0;  // a noisy map: its global priors weigh little here
+  params.global_prior_std_yaw = 0.05;
+  GraphBackend backend(params);
+  drive().feed(backend, odom, prior);
+  const BackendUpdateReport r = backend.update();
+  EXPECT_GT(r.building_edges, 50u);
+  const BuildingErrors before = evaluateBuildings(prior, drive().truth);
+  const BuildingErrors after = evaluateBuildings(backend.correctedBuildings(), drive().truth);
+  EXPECT_GT(before.mean_corner_error, 0.6);
+  EXPECT_LT(after.mean_corner_error, 0.5 * before.mean_corner_error)
+      << "before " << before.mean_corner_error << " after " << after.mean_corner_error;
+  EXPECT_LT(ate(backend), 0.2);
+  std::cout << "non-rigid: building corner error " << before.mean_corner_error << " -> "
+            << after.mean_corner_error << " m, ATE " << ate(backend) << " m\n";
+}
+
+TEST(GraphBackend, RigidModeRecoversACommonMapShift) {
+  const auto odom = drive().odometry(0.0, 1.0);
+  const Pose2 shift(0.9, -0.6, 0.01);
+  const auto prior = drive().perturbedPrior(0.0, 0.0, shift, 5);
+  GraphBackendParams params = baseParams(OsmMode::kRigid);
+  params.global_prior_std_xy = 20.0;  // trust the (exact) odometry, move the map
+  params.global_prior_std_yaw = 1.0;
+  GraphBackend backend(params);
+  drive().feed(backend, odom, prior);
+  const BackendUpdateReport r = backend.update();
+  EXPECT_GT(r.building_edges, 50u);
+  const BuildingErrors before = evaluateBuildings(prior, drive().truth);
+  const BuildingErrors after = evaluateBuildings(backend.correctedBuildings(), drive().truth);
+  EXPECT_GT(before.mean_corner_error, 1.0);
+  EXPECT_LT(after.mean_corner_error, 0.15) << "before " << before.mean_corner_error;
+  EXPECT_LT(ate(backend), 0.05);
+  std::cout << "rigid: building corner error " << before.mean_corner_error << " -> "
+            << after.mean_corner_error << " m, ATE " << ate(backend) << " m\n";
+}
+
+TEST(GraphBackend, PhaseTwoMovesOnlyBuildings) {
+  const auto odom = drive().odometry(0.002, 1.005);
+  const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 9);
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.resolve_overlaps = false;
+  // Reference: the same graph optimised at level 0 only (no building may influence robots).
+  GraphBackendParams level0 = params;
+  level0.mode = OsmMode::kPrior;  // same global priors, no building edges
+  GraphBackend with_buildings(params), robots_only(level0);
+  drive().feed(with_buildings, odom, prior);
+  drive().feed(robots_only, odom, prior);
+  with_buildings.update();
+  robots_only.update();
+  const auto a = with_buildings.trajectory(), b = robots_only.trajectory();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k)
+    EXPECT_LT((a[k].pose.translation() - b[k].pose.translation()).norm(), 1e-6) << k;
+}
+
+TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
+  const auto odom = drive().odometry(0.0, 1.0);
+  std::vector<Building> prior = drive().truth;
+  // Push building 3 along the street into its neighbour 4 by 2 m.
+  double max3 = -1e9, min4 = 1e9;
+  for (const auto& v : prior[3].outline_enu) max3 = std::max(max3, v.x());
+  for (const auto& v : prior[4].outline_enu) min4 = std::min(min4, v.x());
+  prior[3] = toBuilding(prior[3].id,
+                        transformPolygon(prior[3].outline_enu, Pose2(min4 - max3 + 2.0, 0.0, 0.0)));
+  ASSERT_EQ(findOverlappingBuildings(prior).size(), 1u);
+
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.local_edge_std_xy = 100.0;  // isolate the overlap step: the scans barely move buildings
+  params.local_edge_std_theta = 10.0;
+  GraphBackend resolved(params);
+  params.resolve_overlaps = false;
+  GraphBackend unresolved(params);
+  drive().feed(resolved, odom, prior);
+  drive().feed(unresolved, odom, prior);
+  const BackendUpdateReport r = resolved.update();
+  unresolved.update();
+  EXPECT_GE(r.overlap_edges, 1u);
+  EXPECT_EQ(r.overlaps_remaining, 0u);
+  const auto fixed = resolved.correctedBuildings();
+  EXPECT_TRUE(findOverlappingBuildings(fixed).empty());
+  const auto other = unresolved.correctedBuildings();
+  ASSERT_EQ(fixed.size(), other.size());
+  for (size_t i = 0; i < fixed.size(); ++i) {
+    const double moved =
+        (fixed[i].reference_pose.translation() - other[i].reference_pose.translation()).norm();
+    if (fixed[i].id == prior[3].id || fixed[i].id == prior[4].id) continue;
+    EXPECT_LT(moved, 1e-4) << "building " << fixed[i].id << " is not involved";
+  }
+}
+
+TEST(GraphBackend, BadInputIsReportedAndKept) {
+  std::vector<std::string> warnings;
+  auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
+    if (level == LogLevel::kWarn) warnings.push_back(msg);
+  });
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  GraphBackend backend(params, logger);
+  // An update before any data is harmless.
+  EXPECT_NO_THROW(backend.update(true));
+  EXPECT_EQ(backend.numKeyframes(), 0u);
+  EXPECT_TRUE(backend.correctedBuildings().empty());
+
+  const auto odom = drive().odometry(0.0, 1.0);
+  for (size_t k = 0; k < 10; ++k) {
+    KeyframeInput kf;
+    kf.id = k;
+    kf.stamp = 0.1 * k;
+    kf.odom_pose = odom[k];
+    backend.addKeyframe(kf);  // no segments at all
+  }
+  LoopClosureInput loop;
+  loop.from_id = 5;
+  loop.to_id = 4242;  // unknown
+  backend.addLoopClosure(loop);
+  KeyframeInput dup;
+  dup.id = 3;  // duplicate, arrives after 9
+  BackendUpdateReport r = backend.update();
+  backend.addKeyframe(dup);
+  r = backend.update();
+  EXPECT_EQ(backend.numKeyframes(), 10u);
+  EXPECT_EQ(r.loops_rejected, 0u);  // reported in the first update
+  bool saw_loop = false, saw_dup = false;
+  for (const auto& w : warnings) {
+    saw_loop |= w.find("unknown keyframe") != std::string::npos;
+    saw_dup |= w.find("out of order") != std::string::npos;
+  }
+  EXPECT_TRUE(saw_loop);
+  EXPECT_TRUE(saw_dup);
+
+  // Buildings arriving late still get matched to the keyframes that waited for them.
+  for (size_t k = 10; k < 20; ++k) {
+    KeyframeInput kf;
+    kf.id = k;
+    kf.stamp = 0.1 * k;
+    kf.odom_pose = odom[k];
+    backend.addKeyframe(kf);
+    backend.addLineSegments(k, drive().segments[k]);
+  }
+  r = backend.update();
+  EXPECT_EQ(r.global_priors, 0u);  // no buildings yet
+  backend.addBuildings(drive().truth, Eigen::Vector2d::Zero(), 1000.0);
+  r = backend.update();
+  EXPECT_GT(r.global_priors, 5u);
+  EXPECT_GT(r.building_edges, 10u);
+}

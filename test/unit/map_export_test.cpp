@@ -1,0 +1,136 @@
+#include <gtest/gtest.h>
+
+#include <pcl/io/pcd_io.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "osm_graph_slam/graph/g2o_io.h"
+#include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/osm/osm_reader.h"
+#include "osm_graph_slam/slam/map_export.h"
+#include "street_drive.h"
+
+using namespace osm_graph_slam;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ExportFixture : ::testing::Test {
+  static void SetUpTestSuite() {
+    drive_ = new test::StreetDrive(12, 2.5, true);
+    GraphBackendParams params;
+    params.initial_yaw_known = true;
+    params.initial_yaw = drive_->true_poses[0].theta;
+    backend_ = new GraphBackend(params);
+    backend_->setOrigin(49.0, 8.4, 110.0);
+    const EnuConverter enu(49.0, 8.4, 110.0);
+    std::vector<Building> prior = drive_->truth;
+    for (auto& b : prior)
+      for (const auto& v : b.outline_enu) b.outline_geo.push_back(enu.toGeoPoint(v));
+    prior[0].tags = {{"building", "yes"}, {"name", "A & B <quoted>"}};
+    drive_->feed(*backend_, drive_->odometry(0.0, 1.0), prior);
+    LoopClosureInput loop;
+    loop.from_id = 11;
+    loop.to_id = 2;
+    loop.relative_pose = test::se3(drive_->true_poses[2].inverse() * drive_->true_poses[11]);
+    backend_->addLoopClosure(loop);
+    backend_->update();
+  }
+  static void TearDownTestSuite() {
+    delete backend_;
+    delete drive_;
+  }
+  std::string tempDir(const std::string& name) const {
+    const fs::path dir = fs::path(::testing::TempDir()) / name;
+    fs::remove_all(dir);
+    return dir.string();
+  }
+  static test::StreetDrive* drive_;
+  static GraphBackend* backend_;
+};
+test::StreetDrive* ExportFixture::drive_ = nullptr;
+GraphBackend* ExportFixture::backend_ = nullptr;
+
+}  // namespace
+
+TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
+  const std::string dir = tempDir("save_map");
+  const MapExportResult r = saveMap(*backend_, dir, 0.2);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.files.size(), 6u);
+  for (const auto& f : r.files) EXPECT_TRUE(fs::exists(f)) << f;
+  for (const auto& entry : fs::directory_iterator(dir))
+    EXPECT_NE(entry.path().extension(), ".tmp") << "temporary file left behind";
+
+  PointCloud map;
+  ASSERT_EQ(pcl::io::loadPCDFile(dir + "/map.pcd", map), 0);
+  size_t raw = 0;
+  for (const auto& c : drive_->clouds) raw += c->size();
+  EXPECT_GT(map.size(), 1000u);
+  EXPECT_LT(map.size(), raw);  // voxelised
+
+  const BuildingFileResult geo = readBuildingsGeoJson(dir + "/buildings_corrected.geojson");
+  ASSERT_TRUE(geo.ok) << geo.error;
+  EXPECT_EQ(geo.buildings.size(), drive_->truth.size());
+
+  const OsmData osm = readOsmFile(dir + "/buildings_corrected.osm");
+  ASSERT_TRUE(osm.ok) << osm.error;
+  ASSERT_EQ(osm.buildings.size(), drive_->truth.size());
+  const auto corrected = backend_->correctedBuildings();
+  for (const auto& b : osm.buildings) {
+    auto it = std::find_if(corrected.begin(), corrected.end(),
+                           [&](const Building& c) { return c.id == b.id; });
+    ASSERT_NE(it, corrected.end()) << "way id " << b.id << " kept";
+    EXPECT_NEAR(b.outline_geo[0].lat, it->outline_geo[0].lat, 1e-7);  // OSM stores 1e-7 deg
+  }
+
+  const TrajectoryReadResult kitti = readKittiPoses(dir + "/trajectory_kitti.txt");
+  ASSERT_TRUE(kitti.ok) << kitti.error;
+  EXPECT_EQ(kitti.trajectory.size(), 12u);
+  const TrajectoryReadResult tum = readTumTrajectory(dir + "/trajectory_tum.txt");
+  ASSERT_TRUE(tum.ok) << tum.error;
+  EXPECT_NEAR(tum.trajectory.back().stamp, 1.1, 1e-9);
+
+  PoseGraph graph;
+  const G2oReadResult g2o = readG2o(dir + "/graph.g2o", &graph);
+  ASSERT_TRUE(g2o.ok) << g2o.message;
+  EXPECT_GE(graph.numVertices(), 12u);
+}
+
+TEST_F(ExportFixture, DumpGraphKeepsEveryInput) {
+  const std::string dir = tempDir("dump_graph");
+  const MapExportResult r = dumpGraph(*backend_, dir);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir + "/keyframes"), fs::directory_iterator{}),
+            12);
+  std::ifstream kf(dir + "/keyframes.csv"), loops(dir + "/loops.csv");
+  std::string line;
+  int rows = 0;
+  while (std::getline(kf, line)) rows += line[0] != '#';
+  EXPECT_EQ(rows, 12);
+  rows = 0;
+  while (std::getline(loops, line)) rows += line[0] != '#';
+  EXPECT_EQ(rows, 1);
+  EXPECT_TRUE(fs::exists(dir + "/origin.txt"));
+  EXPECT_TRUE(readBuildingsGeoJson(dir + "/buildings_prior.geojson").ok);
+}
+
+TEST(MapExport, EmptyGraphAndUnwritableFolderFailWithReason) {
+  GraphBackend empty;
+  MapExportResult r = saveMap(empty, ::testing::TempDir() + "/never", 0.1);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("empty"), std::string::npos);
+  EXPECT_FALSE(dumpGraph(empty, ::testing::TempDir() + "/never").success);
+
+  GraphBackend one;
+  KeyframeInput kf;
+  one.addKeyframe(kf);
+  one.update();
+  const std::string file = ::testing::TempDir() + "/a_file";
+  std::ofstream(file) << "x";
+  r = saveMap(one, file + "/sub", 0.1);  // a folder below a regular file cannot exist
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("cannot create"), std::string::npos) << r.message;
+}
