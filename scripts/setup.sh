@@ -43,10 +43,21 @@ fi
 
 [ "${1:-}" = "--no-build" ] && exit 0
 
+# The package in the workspace is a folder of links to the checkout's entries, not one link to
+# the checkout: a link to the checkout would contain build_ws itself, and roslaunch/rostest
+# (which walk package folders following links) would then recurse forever.
+PKG="$WS/src/osm_graph_slam"
 mkdir -p "$WS/src"
-if [ ! -e "$WS/src/osm_graph_slam" ]; then
-  ln -s "$ROOT" "$WS/src/osm_graph_slam"
-fi
+[ -L "$PKG" ] && rm "$PKG"
+mkdir -p "$PKG"
+for entry in "$ROOT"/* "$ROOT"/.clang-format; do
+  name=$(basename "$entry")
+  [ "$entry" = "$WS" ] || [ "$name" = build_ws ] && continue
+  ln -sfn "$entry" "$PKG/$name"
+done
+for link in "$PKG"/* "$PKG"/.[!.]*; do
+  [ -L "$link" ] && [ ! -e "$link" ] && rm -f "$link"
+done
 cd "$WS"
 echo "[setup] building catkin workspace $WS (-j$JOBS)"
 set +e
