@@ -461,9 +461,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
 
 void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
   State& s = *state_;
-  OptimizerOptions options;
-  options.max_iterations = params_.max_iterations;
-  options.num_threads = params_.num_threads;
+  const OptimizerOptions& options = params_.optimizer;
 
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
   report.phase1 = s.graph.optimize(0, options);
@@ -498,9 +496,7 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
   // Algorithm 3.2: hard building↔building edges from the overlap-removal matcher, re-optimised
   // at level 2 (robots stay fixed), until no outline intersects or the iterations run out.
   State& s = *state_;
-  OptimizerOptions options;
-  options.max_iterations = params_.max_iterations;
-  options.num_threads = params_.num_threads;
+  const OptimizerOptions& options = params_.optimizer;
   std::vector<BuildingState*> order;
   std::vector<Building> outlines;
   for (auto& [bid, b] : s.buildings) {

@@ -68,14 +68,40 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("local_edge_std_theta", p.local_edge_std_theta);
   r.param("building_prior_std_xy", p.building_prior_std_xy);
   r.param("building_prior_std_theta", p.building_prior_std_theta);
-  r.param("max_iterations", p.max_iterations);
-  r.param("num_threads", p.num_threads);
   r.param("resolve_overlaps", p.resolve_overlaps);
   r.param("overlap_max_iterations", p.overlap_max_iterations);
   r.param("overlap_information", p.overlap_information);
   r.param("overlap_min_area", p.overlap_min_area);
   readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
+  if (!readParams(PrefixedParamReader(r, "graph_optimizer"), p.optimizer, error)) ok = false;
   return ok;
+}
+
+bool readParams(const ParamReader& r, OptimizerOptions& p, std::string* error) {
+  r.param("max_iterations", p.max_iterations);
+  r.param("function_tolerance", p.function_tolerance);
+  r.param("gradient_tolerance", p.gradient_tolerance);
+  r.param("parameter_tolerance", p.parameter_tolerance);
+  r.param("num_threads", p.num_threads);
+  r.param("initial_trust_region_radius", p.initial_trust_region_radius);
+  r.param("analytic_jacobians", p.analytic_jacobians);
+  r.param("verbose", p.verbose);
+  std::string library = p.sparse_library == SparseLibrary::kSuiteSparse   ? "suite_sparse"
+                        : p.sparse_library == SparseLibrary::kEigenSparse ? "eigen_sparse"
+                                                                          : "auto";
+  r.param("sparse_library", library);
+  if (library == "auto") {
+    p.sparse_library = SparseLibrary::kAuto;
+  } else if (library == "suite_sparse") {
+    p.sparse_library = SparseLibrary::kSuiteSparse;
+  } else if (library == "eigen_sparse") {
+    p.sparse_library = SparseLibrary::kEigenSparse;
+  } else {
+    if (error)
+      *error = "unknown sparse_library '" + library + "' (auto | suite_sparse | eigen_sparse)";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace osm_graph_slam

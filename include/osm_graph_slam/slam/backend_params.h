@@ -3,6 +3,7 @@
 // field with these as fallback and config/graph_backend.yaml repeats them with comments.
 #include <string>
 
+#include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 
 namespace osm_graph_slam {
@@ -57,8 +58,7 @@ struct GraphBackendParams {
   double building_prior_std_xy = 1.0;       ///< OSM prior of each building [m]
   double building_prior_std_theta = 0.035;  ///< [rad] (2 deg)
   // --- optimisation ---
-  int max_iterations = 50;
-  int num_threads = 1;
+  OptimizerOptions optimizer;  ///< every optimize() call (phase 1, phase 2, overlaps)
   bool resolve_overlaps = true;
   int overlap_max_iterations = 5;
   double overlap_information = 1e6;  ///< hard building↔building constraints (§3.5)

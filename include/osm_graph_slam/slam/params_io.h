@@ -12,5 +12,6 @@ void readParams(const ParamReader& reader, LineMatcherParams& params);
 /// The back-end's keys at the top level, the matcher's below "line_matcher/". Returns false with
 /// a reason for an invalid value (e.g. an unknown mode); valid fields are still read.
 bool readParams(const ParamReader& reader, GraphBackendParams& params, std::string* error);
+bool readParams(const ParamReader& reader, OptimizerOptions& params, std::string* error);
 
 }  // namespace osm_graph_slam
