@@ -64,7 +64,9 @@ BuildingFileResult parseBuildingsGeoJson(const std::string& text) {
       Building b;
       b.outline_geo = ringFromJson(geometry.at("coordinates").at(0));
       const json& props = f.value("properties", json::object());
-      b.id = props.value("id", int64_t{0});
+      // "osm_id" is what the simulator's buildings_true.geojson calls it.
+      b.id =
+          props.contains("id") ? props.value("id", int64_t{0}) : props.value("osm_id", int64_t{0});
       if (props.contains("tags")) b.tags = props.at("tags").get<OsmTags>();
       result.buildings.push_back(std::move(b));
       ++index;

@@ -1,0 +1,79 @@
+#pragma once
+// The whole SLAM pipeline in one object, without ROS: prefilter -> keyframe tracker -> wall
+// segments -> loop detection -> OSM buffer -> graph back-end. The offline runner drives it as
+// fast as the CPU allows; the nodelets run the same stages, connected by topics.
+#include <memory>
+#include <string>
+
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/lines/line_segment_extractor.h"
+#include "osm_graph_slam/loop/loop_detector.h"
+#include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/osm/osm_buffer.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+
+namespace osm_graph_slam {
+
+struct SlamPipelineParams {
+  CloudPrefilterParams prefilter;
+  KeyframeTrackerParams tracker;
+  WallPointExtractorParams wall;
+  LineSegmentExtractorParams segments;
+  bool use_loops = true;
+  LoopDetectorParams loop;
+  OsmBufferParams osm;
+  GraphBackendParams backend;
+  /// The nodelet optimises on a timer (3 s = 30 scans at 10 Hz); offline, every N keyframes.
+  int optimize_every_keyframes = 15;
+};
+
+/// Milliseconds spent per stage over the whole run.
+struct PipelineTimings {
+  size_t scans = 0, keyframes = 0, loops = 0;
+  double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
+         backend_ms = 0;
+  double wall_time_s = 0;  ///< from the first scan to finish()
+  double scansPerSecond() const { return wall_time_s > 0 ? scans / wall_time_s : 0.0; }
+};
+
+class SlamPipeline {
+ public:
+  /// osm_source may be null (no OSM priors: odometry + loops only).
+  SlamPipeline(const SlamPipelineParams& params, std::shared_ptr<OsmMapSource> osm_source,
+               std::shared_ptr<const Logger> logger = nullptr);
+  ~SlamPipeline();
+
+  /// The first valid GPS fix: the map origin. Needed before OSM buildings can be used.
+  void setOrigin(double lat, double lon, double alt);
+  /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter). Bad scans are
+  /// reported and skipped; returns true if the scan produced a pose.
+  bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud);
+  /// Flushes every queue and runs the final optimisation.
+  BackendUpdateReport finish();
+
+  const GraphBackend& backend() const { return *backend_; }
+  PipelineTimings timings() const { return timings_; }
+  std::string timingTable() const;
+  std::string timingJson() const;
+
+ private:
+  void processKeyframe(const Keyframe& kf, double fitness);
+
+  SlamPipelineParams params_;
+  std::shared_ptr<const Logger> logger_;
+  std::shared_ptr<OsmMapSource> osm_source_;
+  CloudPrefilter prefilter_;
+  KeyframeTracker tracker_;
+  WallPointExtractor walls_;
+  LineSegmentExtractor segments_;
+  std::unique_ptr<LoopDetector> loops_;
+  std::unique_ptr<OsmBuffer> osm_buffer_;
+  std::unique_ptr<GraphBackend> backend_;
+  PipelineTimings timings_;
+  size_t keyframes_since_update_ = 0;
+  std::chrono::steady_clock::time_point start_;
+  bool started_ = false;
+};
+
+}  // namespace osm_graph_slam

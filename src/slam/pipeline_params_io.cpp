@@ -1,0 +1,60 @@
+#include "osm_graph_slam/slam/pipeline_params_io.h"
+
+#include "osm_graph_slam/io/yaml_param_reader.h"
+#include "osm_graph_slam/slam/params_io.h"
+
+namespace osm_graph_slam {
+
+bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string* error) {
+  return readParams(PrefixedParamReader(r, "graph_backend"), p.backend, error);
+}
+
+bool loadPipelineParams(const std::string& config_dir, const std::string& override_file,
+                        SlamPipelineParams& params, std::string* error) {
+  // Each config/<nodelet>.yaml holds that nodelet's keys at its top level.
+  for (const char* nodelet : {"prefiltering", "scan_matching", "line_extraction", "loop_detection",
+                              "osm_buffer", "graph_backend"}) {
+    const std::string path = config_dir + "/" + nodelet + ".yaml";
+    const YamlParamReader file = YamlParamReader::fromFile(path);
+    if (!file.ok()) {
+      if (error) *error = file.error();
+      return false;
+    }
+    // Present the file as if it were keyed by nodelet name, like an override file.
+    struct Nested : ParamReader {
+      const YamlParamReader& file;
+      std::string prefix;
+      Nested(const YamlParamReader& f, std::string p) : file(f), prefix(std::move(p) + "/") {}
+      std::string strip(const std::string& key) const {
+        return key.rfind(prefix, 0) == 0 ? key.substr(prefix.size()) : std::string("\x01");
+      }
+      bool getDouble(const std::string& k, double* v) const override {
+        return file.getDouble(strip(k), v);
+      }
+      bool getInt(const std::string& k, int* v) const override { return file.getInt(strip(k), v); }
+      bool getBool(const std::string& k, bool* v) const override {
+        return file.getBool(strip(k), v);
+      }
+      bool getString(const std::string& k, std::string* v) const override {
+        return file.getString(strip(k), v);
+      }
+    } nested(file, nodelet);
+    if (!readPipelineParams(nested, params, error)) {
+      if (error) *error = path + ": " + *error;
+      return false;
+    }
+  }
+  if (override_file.empty()) return true;
+  const YamlParamReader overrides = YamlParamReader::fromFile(override_file);
+  if (!overrides.ok()) {
+    if (error) *error = overrides.error();
+    return false;
+  }
+  if (!readPipelineParams(overrides, params, error)) {
+    if (error) *error = override_file + ": " + *error;
+    return false;
+  }
+  return true;
+}
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,205 @@
+#include "osm_graph_slam/slam/slam_pipeline.h"
+
+#include <chrono>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "osm_graph_slam/graph/pose_graph.h"
+#include "osm_graph_slam/registration/registration.h"
+
+namespace osm_graph_slam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Adds the elapsed milliseconds of a scope to a counter.
+class StageTimer {
+ public:
+  explicit StageTimer(double& total) : total_(total), t0_(Clock::now()) {}
+  ~StageTimer() { total_ += std::chrono::duration<double, std::milli>(Clock::now() - t0_).count(); }
+
+ private:
+  double& total_;
+  Clock::time_point t0_;
+};
+
+}  // namespace
+
+SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
+                           std::shared_ptr<OsmMapSource> osm_source,
+                           std::shared_ptr<const Logger> logger)
+    : params_(params),
+      logger_(logger ? std::move(logger) : std::make_shared<Logger>()),
+      osm_source_(std::move(osm_source)),
+      prefilter_(params.prefilter),
+      tracker_(params.tracker),
+      walls_(params.wall, logger_),
+      segments_(params.segments) {
+  GraphBackendParams backend = params.backend;
+  backend.use_osm = backend.use_osm && osm_source_ != nullptr;
+  backend_ = std::make_unique<GraphBackend>(backend, logger_);
+  if (params.use_loops) {
+    const std::shared_ptr<const Logger> log = logger_;
+    loops_ = std::make_unique<LoopDetector>(
+        params.loop, [](const RegistrationParams& p) { return createRegistration(p); },
+        [log](LogLevel level, const std::string& msg) { log->log(level, msg); });
+  }
+}
+
+SlamPipeline::~SlamPipeline() = default;
+
+void SlamPipeline::setOrigin(double lat, double lon, double alt) {
+  if (backend_->hasOrigin()) return;
+  backend_->setOrigin(lat, lon, alt);
+  if (osm_source_ && backend_->params().use_osm)
+    osm_buffer_ =
+        std::make_unique<OsmBuffer>(osm_source_, EnuConverter(lat, lon, alt), params_.osm, logger_);
+}
+
+bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud) {
+  if (!started_) {
+    start_ = Clock::now();
+    started_ = true;
+  }
+  ++timings_.scans;
+  if (!sensor_cloud) {
+    logger_->warnOnce("null_scan", "scan at " + std::to_string(stamp) + " has no cloud; skipped");
+    return false;
+  }
+  CloudPrefilterResult filtered;
+  {
+    StageTimer t(timings_.prefilter_ms);
+    filtered = prefilter_.filter(*sensor_cloud);
+  }
+  if (!filtered.ok) {
+    logger_->warnOnce("bad_scan", "scan at " + std::to_string(stamp) +
+                                      " skipped: " + filtered.reason + " (logged once)");
+    return false;
+  }
+  TrackResult result;
+  {
+    StageTimer t(timings_.tracking_ms);
+    result = tracker_.track(stamp, filtered.cloud);
+  }
+  if (!result.has_pose()) return false;
+  if (result.new_keyframe)
+    processKeyframe(tracker_.keyframe(),
+                    result.registration.converged ? result.registration.fitness : -1.0);
+  return true;
+}
+
+void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness) {
+  ++timings_.keyframes;
+  KeyframeInput input;
+  input.id = kf.id;
+  input.stamp = kf.stamp;
+  input.odom_pose = kf.pose;
+  input.accum_distance = kf.accum_distance;
+  input.odom_fitness = fitness;
+  input.cloud = kf.cloud;
+  backend_->addKeyframe(input);
+
+  std::vector<LineSegment2> segments;
+  if (backend_->params().use_osm) {
+    PointCloudPtr wall_points;
+    {
+      StageTimer t(timings_.walls_ms);
+      wall_points = walls_.extract(*kf.cloud);
+    }
+    StageTimer t(timings_.segments_ms);
+    segments = segments_.extract(*wall_points);
+  }
+  backend_->addLineSegments(kf.id, std::move(segments));
+
+  if (loops_) {
+    StageTimer t(timings_.loops_ms);
+    LoopKeyframe lk;
+    lk.id = kf.id;
+    lk.odom_pose = kf.pose;
+    lk.accum_distance = kf.accum_distance;
+    lk.cloud = kf.cloud;
+    if (auto loop = loops_->process(lk)) {
+      LoopClosureInput in;
+      in.from_id = loop->from_id;
+      in.to_id = loop->to_id;
+      in.relative_pose = loop->relative_pose;
+      in.information = loop->information;
+      backend_->addLoopClosure(in);
+      ++timings_.loops;
+    }
+  }
+
+  if (osm_buffer_) {
+    StageTimer t(timings_.osm_ms);
+    // The query position is the keyframe's estimate in the map (map->odom of the last update).
+    const Eigen::Vector2d position = (backend_->mapToOdom() * kf.pose).translation().head<2>();
+    OsmQueryResult q = osm_buffer_->query(position);
+    if (!q.buffer_valid && kf.id == 0) {
+      // The very first fill is the only time the pipeline waits for the map (thesis §3.1).
+      osm_buffer_->fillBlocking(position);
+      q = osm_buffer_->query(position);
+    }
+    if (q.buffer_valid)
+      backend_->addBuildings(std::move(q.buildings), position, osm_buffer_->params().query_radius);
+  }
+
+  if (++keyframes_since_update_ >= static_cast<size_t>(params_.optimize_every_keyframes)) {
+    StageTimer t(timings_.backend_ms);
+    backend_->update();
+    keyframes_since_update_ = 0;
+  }
+}
+
+BackendUpdateReport SlamPipeline::finish() {
+  BackendUpdateReport report;
+  {
+    StageTimer t(timings_.backend_ms);
+    report = backend_->update(true);
+  }
+  if (started_) timings_.wall_time_s = std::chrono::duration<double>(Clock::now() - start_).count();
+  return report;
+}
+
+std::string SlamPipeline::timingTable() const {
+  const PipelineTimings& t = timings_;
+  const double scans = std::max<size_t>(1, t.scans);
+  const double kfs = std::max<size_t>(1, t.keyframes);
+  char buf[1024];
+  std::snprintf(buf, sizeof(buf),
+                "stage            total [ms]   per scan [ms]   per keyframe [ms]\n"
+                "prefilter        %10.0f   %13.2f   %17.2f\n"
+                "tracking         %10.0f   %13.2f   %17.2f\n"
+                "wall points      %10.0f   %13.2f   %17.2f\n"
+                "segments         %10.0f   %13.2f   %17.2f\n"
+                "loop detection   %10.0f   %13.2f   %17.2f\n"
+                "osm buffer       %10.0f   %13.2f   %17.2f\n"
+                "graph back-end   %10.0f   %13.2f   %17.2f\n"
+                "%zu scans, %zu keyframes, %zu loops in %.1f s: %.1f scans/s\n",
+                t.prefilter_ms, t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms,
+                t.tracking_ms / scans, t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans,
+                t.walls_ms / kfs, t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs,
+                t.loops_ms, t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans,
+                t.osm_ms / kfs, t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans,
+                t.keyframes, t.loops, t.wall_time_s, t.scansPerSecond());
+  return buf;
+}
+
+std::string SlamPipeline::timingJson() const {
+  const PipelineTimings& t = timings_;
+  const nlohmann::json doc = {{"scans", t.scans},
+                              {"keyframes", t.keyframes},
+                              {"loops", t.loops},
+                              {"wall_time_s", t.wall_time_s},
+                              {"scans_per_second", t.scansPerSecond()},
+                              {"ms",
+                               {{"prefilter", t.prefilter_ms},
+                                {"tracking", t.tracking_ms},
+                                {"walls", t.walls_ms},
+                                {"segments", t.segments_ms},
+                                {"loops", t.loops_ms},
+                                {"osm", t.osm_ms},
+                                {"backend", t.backend_ms}}}};
+  return doc.dump(2);
+}
+
+}  // namespace osm_graph_slam
