@@ -59,6 +59,30 @@ Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double st
   return info;
 }
 
+/// A unary SE3 edge that constrains only roll and pitch (the x/y components of the rotation
+/// error in the measurement frame, whose yaw is the current estimate's).
+Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch) {
+  const double yaw = planarPose(pose).theta;
+  Eigen::Isometry3d z = Eigen::Isometry3d::Identity();
+  z.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  z.translation() = pose.translation();
+  return z;
+}
+
+Matrix6d attitudeInformation(double std_rad) {
+  Matrix6d info = Matrix6d::Identity() * 1e-9;  // positive definite; effectively unconstrained
+  info(3, 3) = info(4, 4) = 1.0 / (std_rad * std_rad);
+  return info;
+}
+
+Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
+  const Eigen::Matrix3d r = pose.rotation();
+  return {std::atan2(r(2, 1), r(2, 2)), std::asin(-std::clamp(r(2, 0), -1.0, 1.0))};
+}
+
 }  // namespace
 
 const char* toString(OsmMode mode) {
@@ -260,6 +284,13 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
                          odometryInformation(in.odom_fitness, params_.odometry),
                          EdgeOptions{0, {}});
     }
+    if (in.gravity_roll_pitch) {
+      kf.has_attitude = true;
+      s.graph.addPriorSE3(
+          vid,
+          attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(), in.gravity_roll_pitch->y()),
+          attitudeInformation(params_.imu_attitude_std), EdgeOptions{0, {}});
+    }
     auto early = s.early_segments.find(in.id);
     if (early != s.early_segments.end()) {
       kf.segments = std::move(early->second);
@@ -414,6 +445,11 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
       s.graph.addPriorSE3Yaw(static_cast<int>(id), global.transform.theta, info(2, 2),
                              EdgeOptions{0, {}});
       kf.has_global_prior = true;
+      if (!kf.has_attitude) {
+        const Eigen::Vector2d rp = rollPitch(kf.map_pose);
+        s.graph.addPriorSE3(static_cast<int>(id), attitudeMeasurement(kf.map_pose, rp.x(), rp.y()),
+                            attitudeInformation(params_.odometry_attitude_std), EdgeOptions{0, {}});
+      }
       observed_from = global.transform;
       ++report.global_priors;
       s.dirty = true;

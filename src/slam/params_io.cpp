@@ -51,6 +51,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_min_std_rot", p.odometry.min_std_rot);
   r.param("odometry_max_std_rot", p.odometry.max_std_rot);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
+  r.param("imu_attitude_std", p.imu_attitude_std);
+  r.param("odometry_attitude_std", p.odometry_attitude_std);
   r.param("loop_kernel", p.loop_kernel);
   r.param("loop_kernel_width", p.loop_kernel_width);
   r.param("initial_yaw_known", p.initial_yaw_known);

@@ -56,7 +56,8 @@ void SlamPipeline::setOrigin(double lat, double lon, double alt) {
         std::make_unique<OsmBuffer>(osm_source_, EnuConverter(lat, lon, alt), params_.osm, logger_);
 }
 
-bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud) {
+bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
+                               const std::optional<Eigen::Vector2d>& gravity_roll_pitch) {
   if (!started_) {
     start_ = Clock::now();
     started_ = true;
@@ -84,11 +85,13 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   if (!result.has_pose()) return false;
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
-                    result.registration.converged ? result.registration.fitness : -1.0);
+                    result.registration.converged ? result.registration.fitness : -1.0,
+                    gravity_roll_pitch);
   return true;
 }
 
-void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness) {
+void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
+                                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch) {
   ++timings_.keyframes;
   KeyframeInput input;
   input.id = kf.id;
@@ -97,6 +100,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness) {
   input.accum_distance = kf.accum_distance;
   input.odom_fitness = fitness;
   input.cloud = kf.cloud;
+  input.gravity_roll_pitch = gravity_roll_pitch;
   backend_->addKeyframe(input);
 
   std::vector<LineSegment2> segments;

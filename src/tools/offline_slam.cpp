@@ -5,7 +5,8 @@
 //
 //   offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR] [--osm FILE.osm|.pbf]
 //                [--config OVERRIDES.yaml] [--no-osm] [--no-loops] [--max-scans N] [--json]
-//                [--initial-heading imu|global_matching]
+//                [--initial-heading imu|global_matching] [--no-imu]
+// With OXTS data the IMU's roll/pitch become attitude priors (unless --no-imu).
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -56,7 +57,7 @@ void progress(size_t done, size_t total) {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  bool json = false, use_osm = true, use_loops = true;
+  bool json = false, use_osm = true, use_loops = true, use_imu = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--json") {
@@ -65,6 +66,8 @@ int main(int argc, char** argv) {
       use_osm = false;
     } else if (a == "--no-loops") {
       use_loops = false;
+    } else if (a == "--no-imu") {
+      use_imu = false;
     } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
       args[a.substr(2)] = argv[++i];
     } else {
@@ -135,10 +138,13 @@ int main(int argc, char** argv) {
       continue;
     }
     const double stamp = static_cast<double>(drive.scan_stamps[i]) * 1e-9;
-    pipeline.processScan(stamp, cloud);
     OxtsRecord r;
-    if (i < drive.oxts_files.size() && readOxtsFile(drive.oxts_files[i], r))
+    std::optional<Eigen::Vector2d> attitude;
+    if (i < drive.oxts_files.size() && readOxtsFile(drive.oxts_files[i], r)) {
       truth_by_stamp[stamp] = oxtsPose(r, enu);
+      if (use_imu) attitude = Eigen::Vector2d(r.roll, r.pitch);
+    }
+    pipeline.processScan(stamp, cloud, attitude);
     progress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

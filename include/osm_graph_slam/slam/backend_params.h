@@ -30,6 +30,11 @@ struct GraphBackendParams {
   bool use_osm = true;
   OsmMode mode = OsmMode::kNonRigid;
   InformationParams odometry;
+  // --- attitude (OSM priors say nothing about roll and pitch) ---
+  double imu_attitude_std = 0.01;  ///< [rad] roll/pitch prior of keyframes with an IMU attitude
+  /// [rad] without an IMU, keyframes with a map prior keep odometry's roll/pitch this firmly, so
+  /// that planar priors are not satisfied by tilting the trajectory.
+  double odometry_attitude_std = 0.02;
   // --- loops ---
   std::string loop_kernel = "cauchy";  ///< none | huber | cauchy
   double loop_kernel_width = 1.0;

@@ -32,6 +32,8 @@ struct KeyframeInput {
   double accum_distance = 0.0;
   double odom_fitness = -1.0;  ///< fitness of the match that made it (< 0: unknown)
   PointCloudConstPtr cloud;    ///< filtered cloud in base_link (may be null)
+  /// Roll and pitch of base_link against gravity (an IMU), if known [rad].
+  std::optional<Eigen::Vector2d> gravity_roll_pitch;
 };
 
 struct LoopClosureInput {
@@ -63,6 +65,7 @@ struct KeyframeState {
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
   bool has_global_prior = false;
+  bool has_attitude = false;  ///< an IMU roll/pitch prior was added
 };
 
 /// A building as the back-end knows it: the OSM prior and the current estimate.

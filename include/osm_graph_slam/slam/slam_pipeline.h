@@ -48,7 +48,9 @@ class SlamPipeline {
   void setOrigin(double lat, double lon, double alt);
   /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter). Bad scans are
   /// reported and skipped; returns true if the scan produced a pose.
-  bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud);
+  /// gravity_roll_pitch: base_link roll and pitch from an IMU at the scan's time, if any.
+  bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
+                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt);
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
 
@@ -58,7 +60,8 @@ class SlamPipeline {
   std::string timingJson() const;
 
  private:
-  void processKeyframe(const Keyframe& kf, double fitness);
+  void processKeyframe(const Keyframe& kf, double fitness,
+                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
