@@ -5,6 +5,7 @@
 #include <boost/geometry/geometries/point_xy.hpp>
 #include <boost/geometry/geometries/polygon.hpp>
 #include <cmath>
+#include <limits>
 
 namespace osm_graph_slam {
 namespace {
@@ -155,6 +156,15 @@ double polygonOverlapArea(const Polygon2& a, const Polygon2& b) {
   } catch (const std::exception&) {
     return 0.0;  // invalid (self-intersecting) input: no defined overlap
   }
+}
+
+double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& polygon) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < polygon.size(); ++i) {
+    const LineSegment2 edge(polygon[i], polygon[(i + 1) % polygon.size()]);
+    best = std::min(best, pointSegmentDistance(p, edge));
+  }
+  return best;
 }
 
 Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T) {

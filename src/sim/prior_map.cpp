@@ -1,4 +1,6 @@
 #include "osm_graph_slam/sim/prior_map.h"
+#include "osm_graph_slam/common/xml_escape.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 
 #include <algorithm>
 #include <cmath>
@@ -19,32 +21,6 @@ Eigen::Vector2d vertexMean(const Polygon2& poly) {
   return poly.empty() ? c : Eigen::Vector2d(c / double(poly.size()));
 }
 
-std::string xmlEscape(const std::string& s) {
-  std::string out;
-  for (char ch : s) {
-    switch (ch) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&apos;";
-        break;
-      default:
-        out += ch;
-    }
-  }
-  return out;
-}
-
 std::string jsonEscape(const std::string& s) {
   std::string out;
   for (char ch : s) {
@@ -58,16 +34,6 @@ std::string fmt(const char* f, double v) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), f, v);
   return buf;
-}
-
-double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& poly) {
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i < poly.size(); ++i) {
-    const Eigen::Vector2d a = poly[i], e = poly[(i + 1) % poly.size()] - a;
-    const double t = std::clamp((p - a).dot(e) / std::max(e.squaredNorm(), 1e-12), 0.0, 1.0);
-    best = std::min(best, (a + t * e - p).norm());
-  }
-  return best;
 }
 
 }  // namespace

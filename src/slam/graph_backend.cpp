@@ -30,13 +30,6 @@ RobustKernel loopKernel(const GraphBackendParams& p) {
   return RobustKernel::none();
 }
 
-/// Distance from a point to a building outline (0 inside is not needed: vehicles drive outside).
-double distanceToOutline(const Eigen::Vector2d& p, const Polygon2& outline) {
-  double best = std::numeric_limits<double>::infinity();
-  for (const auto& s : polygonSegments(outline)) best = std::min(best, pointSegmentDistance(p, s));
-  return best;
-}
-
 /// Information of a 2D match (translation in map axes) re-expressed in the axes of an edge whose
 /// error is measured in a frame rotated by `frame_yaw` (the g2o SE2 error convention).
 Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_yaw) {
@@ -404,7 +397,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
     std::vector<BuildingState*> nearby;
     std::vector<LineSegment2> map_segments;
     for (auto& [bid, b] : s.buildings) {
-      if (distanceToOutline(robot.translation(), b.prior.outline_enu) > params_.osm_query_radius)
+      if (distanceToPolygon(robot.translation(), b.prior.outline_enu) > params_.osm_query_radius)
         continue;
       nearby.push_back(&b);
       map_segments.insert(map_segments.end(), b.prior.segments.begin(), b.prior.segments.end());

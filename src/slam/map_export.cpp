@@ -10,6 +10,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/xml_escape.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
@@ -143,31 +144,6 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
   os << std::setprecision(10);
   os << "<?xml version='1.0' encoding='UTF-8'?>\n"
      << "<osm version='0.6' generator='osm_graph_slam'>\n";
-  auto escape = [](const std::string& in) {
-    std::string out;
-    for (char c : in) {
-      switch (c) {
-        case '&':
-          out += "&amp;";
-          break;
-        case '<':
-          out += "&lt;";
-          break;
-        case '>':
-          out += "&gt;";
-          break;
-        case '\'':
-          out += "&apos;";
-          break;
-        case '"':
-          out += "&quot;";
-          break;
-        default:
-          out += c;
-      }
-    }
-    return out;
-  };
   int64_t next_node = -1;
   std::ostringstream ways;
   int64_t next_way = -1;
@@ -186,7 +162,7 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
     for (int64_t r : refs) ways << "    <nd ref='" << r << "'/>\n";
     ways << "    <nd ref='" << refs.front() << "'/>\n";
     for (const auto& [k, v] : b.tags)
-      ways << "    <tag k='" << escape(k) << "' v='" << escape(v) << "'/>\n";
+      ways << "    <tag k='" << xmlEscape(k) << "' v='" << xmlEscape(v) << "'/>\n";
     if (!b.tags.count("building")) ways << "    <tag k='building' v='yes'/>\n";
     if (!way) ways << "    <tag k='osm_graph_slam:relation' v='" << -b.id << "'/>\n";
     ways << "  </way>\n";

@@ -46,6 +46,9 @@ struct EdgeParams {
 /// an edge for each side of that segment.
 std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, const EdgeParams& p);
 
+/// Distance from p to the nearest edge of a closed polygon (0 only on an edge, not inside).
+double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& polygon);
+
 /// The closed outline of a polygon as segments.
 std::vector<LineSegment2> polygonSegments(const Polygon2& polygon);
 
