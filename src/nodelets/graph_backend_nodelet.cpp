@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -125,7 +126,22 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pose.header.frame_id = map_frame_;
     pose.pose = toPoseMsg(map_to_odom * fromPoseMsg(msg->odom_pose));
     pose_pub_.publish(pose);
+    std::lock_guard<std::mutex> guard(stamp_mutex_);
     last_stamp_ = msg->header.stamp;
+    keyframe_stamps_[msg->id] = msg->header.stamp;
+  }
+
+  /// The keyframe's exact header stamp (the core keeps seconds as a double, which loses the
+  /// nanoseconds at epoch times: TF lookups at path stamps would then miss by ~50 ns).
+  ros::Time keyframeStamp(const KeyframeState& kf) {
+    std::lock_guard<std::mutex> guard(stamp_mutex_);
+    const auto it = keyframe_stamps_.find(kf.id);
+    return it != keyframe_stamps_.end() ? it->second : ros::Time().fromSec(kf.stamp);
+  }
+
+  ros::Time lastStamp() {
+    std::lock_guard<std::mutex> guard(stamp_mutex_);
+    return last_stamp_;
   }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
@@ -208,14 +224,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void publishOutputs() {
     std_msgs::Header header;
     header.frame_id = map_frame_;
-    header.stamp = last_stamp_;
+    header.stamp = lastStamp();
     const std::vector<KeyframeState> keyframes = backend_->keyframes();
     nav_msgs::PathPtr path(new nav_msgs::Path);
     path->header = header;
     for (const auto& kf : keyframes) {
       geometry_msgs::PoseStamped p;
       p.header.frame_id = map_frame_;
-      p.header.stamp.fromSec(kf.stamp);
+      p.header.stamp = keyframeStamp(kf);
       p.pose = toPoseMsg(kf.map_pose);
       path->poses.push_back(p);
     }
@@ -240,7 +256,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void publishTf(const ros::WallTimerEvent&) {
     if (backend_->numKeyframes() == 0) return;
     geometry_msgs::TransformStamped tf;
-    tf.header.stamp = last_stamp_.isZero() ? ros::Time::now() : last_stamp_;
+    const ros::Time last = lastStamp();
+    tf.header.stamp = last.isZero() ? ros::Time::now() : last;
     tf.header.frame_id = map_frame_;
     tf.child_frame_id = odom_frame_;
     tf.transform = toTransformMsg(cachedMapToOdom());
@@ -275,7 +292,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::unique_ptr<GraphBackend> backend_;
   std::mutex map_to_odom_mutex_;
   Eigen::Isometry3d map_to_odom_ = Eigen::Isometry3d::Identity();
+  std::mutex stamp_mutex_;
   ros::Time last_stamp_;
+  std::map<uint64_t, ros::Time> keyframe_stamps_;
 
   std::thread worker_;
   std::mutex wake_mutex_;
