@@ -6,6 +6,7 @@
 #include <nav_msgs/Path.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
@@ -13,6 +14,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -56,6 +58,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pnh.param("tf_publish_rate", tf_rate_, 20.0);
     pnh.param("map_cloud_resolution", map_resolution_, 0.5);
     pnh.param("warn_throttle_period", warn_period_, 5.0);
+    pnh.param("use_imu", use_imu_, true);
+    pnh.param("imu_max_time_difference", imu_max_dt_, 0.05);
 
     GraphBackendParams params;
     std::string error;
@@ -89,6 +93,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     buildings_sub_ = nh.subscribe("osm/buildings", 10, &GraphBackendNodelet::onBuildings, this);
     loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
     origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
+    if (use_imu_) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
     if (tf_rate_ > 0.0)
@@ -118,6 +123,23 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
     }
+    const std::optional<ImuSample> imu = imuAt(msg->header.stamp);
+    if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
+    if (!first_keyframe_seen_) {
+      // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
+      // orientation), else the parameter or the first global matching (OSM thesis §3.4).
+      first_keyframe_seen_ = true;
+      std::optional<double> yaw;
+      if (imu && !backend_->params().initial_yaw_known) {
+        yaw = imu->yaw;
+        backend_->setInitialHeading(imu->yaw);
+        NODELET_INFO("initial heading %.1f deg from imu/data", imu->yaw * 180.0 / M_PI);
+      } else if (backend_->params().initial_yaw_known) {
+        yaw = backend_->params().initial_yaw;
+      }
+      std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+      map_to_odom_ = initialMapToOdom(kf.odom_pose, yaw);
+    }
     backend_->addKeyframe(std::move(kf));
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
     const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
@@ -142,6 +164,42 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Time lastStamp() {
     std::lock_guard<std::mutex> guard(stamp_mutex_);
     return last_stamp_;
+  }
+
+  struct ImuSample {
+    ros::Time stamp;
+    double roll = 0, pitch = 0, yaw = 0;
+  };
+
+  void onImu(const sensor_msgs::ImuConstPtr& msg) {
+    if (msg->orientation_covariance[0] < 0.0) return;  // REP-145: no orientation
+    const auto& q = msg->orientation;
+    const Eigen::Quaterniond quat(q.w, q.x, q.y, q.z);
+    if (!std::isfinite(quat.norm()) || quat.norm() < 1e-6) return;
+    const Eigen::Matrix3d r = quat.normalized().toRotationMatrix();
+    ImuSample sample;
+    sample.stamp = msg->header.stamp;
+    sample.roll = std::atan2(r(2, 1), r(2, 2));
+    sample.pitch = std::asin(-std::clamp(r(2, 0), -1.0, 1.0));
+    sample.yaw = std::atan2(r(1, 0), r(0, 0));
+    std::lock_guard<std::mutex> guard(imu_mutex_);
+    imu_.push_back(sample);
+    while (imu_.size() > 2000) imu_.pop_front();
+  }
+
+  /// The IMU attitude closest to stamp, if one is within imu_max_time_difference.
+  std::optional<ImuSample> imuAt(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> guard(imu_mutex_);
+    std::optional<ImuSample> best;
+    double best_dt = imu_max_dt_;
+    for (const auto& sample : imu_) {
+      const double dt = std::abs((sample.stamp - stamp).toSec());
+      if (dt <= best_dt) {
+        best_dt = dt;
+        best = sample;
+      }
+    }
+    return best;
   }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
@@ -303,6 +361,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
+  bool use_imu_ = true, first_keyframe_seen_ = false;
+  double imu_max_dt_ = 0.05;
+  std::mutex imu_mutex_;
+  std::deque<ImuSample> imu_;
+  ros::Subscriber imu_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_;
   ros::ServiceServer save_srv_, dump_srv_;
   ros::WallTimer tf_timer_;

@@ -14,6 +14,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// Inputs for keyframes this far beyond the newest one are not waited for (bounded memory).
+constexpr uint64_t kMaxKeyframesAhead = 1000;
+
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -78,6 +81,14 @@ Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
 
 }  // namespace
 
+Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
+                                   std::optional<double> yaw) {
+  const double odom_yaw = planarPose(first_odom_pose).theta;
+  Eigen::Isometry3d first = yawRotation(yaw ? *yaw - odom_yaw : 0.0) * first_odom_pose;
+  first.translation().setZero();
+  return first * first_odom_pose.inverse();
+}
+
 const char* toString(OsmMode mode) {
   switch (mode) {
     case OsmMode::kPrior:
@@ -130,6 +141,7 @@ struct GraphBackend::State {
   std::optional<EnuConverter> origin;
   Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
   bool heading_initialized = false;
+  std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
   int next_building_vertex = kBuildingVertexBase;
   std::vector<int> overlap_edges;
   std::vector<LoopClosureInput> loops;
@@ -155,6 +167,7 @@ GraphBackend::GraphBackend(const GraphBackendParams& params, std::shared_ptr<con
       pending_(std::make_unique<Pending>()),
       state_(std::make_unique<State>()) {
   state_->heading_initialized = params_.initial_yaw_known;
+  if (params_.initial_yaw_known) state_->initial_yaw = params_.initial_yaw;
 }
 
 GraphBackend::~GraphBackend() = default;
@@ -232,10 +245,14 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
   State& s = *state_;
   for (auto& [id, segs] : segments) {
     auto it = s.keyframes.find(id);
+    const uint64_t newest = s.keyframes.empty() ? 0 : s.keyframes.rbegin()->first;
     if (it != s.keyframes.end()) {
       it->second.segments = std::move(segs);
-    } else {
+    } else if (id <= newest + kMaxKeyframesAhead) {
       s.early_segments[id] = std::move(segs);
+    } else {
+      logger_->warnOnce("segments_ahead", "line segments for keyframe " + std::to_string(id) +
+                                              ", far ahead of the newest keyframe; ignored");
     }
   }
   std::sort(incoming.begin(), incoming.end(),
@@ -262,11 +279,8 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     if (s.keyframes.empty()) {
       // The first keyframe sits at the map origin (the first GPS fix) with the known heading, or
       // odometry's until the first global matching sets it.
-      const double odom_yaw = planarPose(in.odom_pose).theta;
-      const double yaw0 = params_.initial_yaw_known ? params_.initial_yaw : odom_yaw;
-      kf.map_pose = yawRotation(yaw0 - odom_yaw) * in.odom_pose;
-      kf.map_pose.translation().setZero();
-      s.map_to_odom = kf.map_pose * in.odom_pose.inverse();
+      s.map_to_odom = initialMapToOdom(in.odom_pose, s.initial_yaw);
+      kf.map_pose = s.map_to_odom * in.odom_pose;
       s.graph.addVertexSE3(vid, kf.map_pose, true);
     } else {
       const KeyframeState& prev = s.keyframes.rbegin()->second;
@@ -322,7 +336,13 @@ void GraphBackend::flushLoops(BackendUpdateReport& report) {
     const bool have_from = s.keyframes.count(loop.from_id) != 0;
     const bool have_to = s.keyframes.count(loop.to_id) != 0;
     if (!have_from && (s.keyframes.empty() || loop.from_id > newest)) {
-      keep.push_back(loop);  // its keyframe is still on the way
+      if (loop.from_id <= newest + kMaxKeyframesAhead) {
+        keep.push_back(loop);  // its keyframe is still on the way
+        continue;
+      }
+      logger_->warnOnce("loop_ahead", "loop closure from keyframe " + std::to_string(loop.from_id) +
+                                          ", far ahead of the newest keyframe; ignored");
+      ++report.loops_rejected;
       continue;
     }
     if (!have_from || !have_to || loop.from_id == loop.to_id) {
@@ -414,12 +434,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
       if (!accepted) continue;  // heading still unknown: try the next keyframe
       // Rotate the whole trajectory about the origin so that this keyframe gets the heading.
       const double dyaw = wrapAngle(global.transform.theta - robot.theta);
-      const Eigen::Isometry3d rot = yawRotation(dyaw);
-      for (auto& [other_id, other] : s.keyframes) {
-        other.map_pose = rot * other.map_pose;
-        s.graph.setVertexSE3(static_cast<int>(other_id), other.map_pose);
-      }
-      s.map_to_odom = rot * s.map_to_odom;
+      rotateTrajectory(dyaw);
       s.heading_initialized = true;
       report.heading_initialized_now = true;
       logger_->info("initial heading set by global matching: rotated the trajectory by " +
@@ -565,6 +580,28 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
     overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
   }
   report.overlaps_remaining = overlaps.size();
+}
+
+void GraphBackend::rotateTrajectory(double dyaw) {
+  State& s = *state_;
+  const Eigen::Isometry3d rot = yawRotation(dyaw);
+  for (auto& [id, kf] : s.keyframes) {
+    kf.map_pose = rot * kf.map_pose;
+    s.graph.setVertexSE3(static_cast<int>(id), kf.map_pose);
+  }
+  s.map_to_odom = rot * s.map_to_odom;
+}
+
+void GraphBackend::setInitialHeading(double yaw) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  State& s = *state_;
+  if (s.heading_initialized) return;
+  s.heading_initialized = true;
+  s.initial_yaw = yaw;
+  if (s.keyframes.empty()) return;  // applied when the first keyframe arrives
+  rotateTrajectory(wrapAngle(yaw - planarPose(s.keyframes.begin()->second.map_pose).theta));
+  s.dirty = true;
+  logger_->info("initial heading set to " + std::to_string(yaw * 180.0 / M_PI) + " deg");
 }
 
 void GraphBackend::updateMapToOdom() {

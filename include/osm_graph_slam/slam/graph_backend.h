@@ -79,6 +79,11 @@ struct BuildingState {
   Building corrected() const;
 };
 
+/// map -> odom that puts the first keyframe at the map origin with the given ENU yaw (or with
+/// odometry's yaw when unknown), keeping odometry's roll and pitch.
+Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
+                                   std::optional<double> yaw);
+
 class GraphBackend {
  public:
   explicit GraphBackend(const GraphBackendParams& params = {},
@@ -88,6 +93,9 @@ class GraphBackend {
   // --- inputs: thread-safe, cheap (queued until update()) ------------------------------------
   void setOrigin(double lat, double lon, double alt);
   bool hasOrigin() const;
+  /// ENU yaw of the first keyframe (e.g. from an IMU), if the heading is not known yet: the
+  /// trajectory so far is rotated about the origin. Ignored once the heading is set.
+  void setInitialHeading(double yaw);
   void addKeyframe(KeyframeInput keyframe);
   void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
   /// Buildings (ENU filled) answering a query of radius query_radius around query_center.
@@ -130,6 +138,7 @@ class GraphBackend {
   void optimizeTwoPhase(BackendUpdateReport& report);
   void resolveOverlaps(BackendUpdateReport& report);
   void updateMapToOdom();
+  void rotateTrajectory(double dyaw);
 
   GraphBackendParams params_;
   std::shared_ptr<const Logger> logger_;
