@@ -149,7 +149,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
 
   if (++keyframes_since_update_ >= static_cast<size_t>(params_.optimize_every_keyframes)) {
     StageTimer t(timings_.backend_ms);
-    backend_->update();
+    account(backend_->update());
     keyframes_since_update_ = 0;
   }
 }
@@ -160,8 +160,16 @@ BackendUpdateReport SlamPipeline::finish() {
     StageTimer t(timings_.backend_ms);
     report = backend_->update(true);
   }
+  account(report);
   if (started_) timings_.wall_time_s = std::chrono::duration<double>(Clock::now() - start_).count();
   return report;
+}
+
+void SlamPipeline::account(const BackendUpdateReport& report) {
+  timings_.global_priors += report.global_priors;
+  timings_.global_rejected += report.global_rejected;
+  timings_.building_edges += report.building_edges;
+  timings_.overlap_edges = report.overlap_edges;  // re-derived at every update
 }
 
 std::string SlamPipeline::timingTable() const {
@@ -178,13 +186,16 @@ std::string SlamPipeline::timingTable() const {
                 "loop detection   %10.0f   %13.2f   %17.2f\n"
                 "osm buffer       %10.0f   %13.2f   %17.2f\n"
                 "graph back-end   %10.0f   %13.2f   %17.2f\n"
-                "%zu scans, %zu keyframes, %zu loops in %.1f s: %.1f scans/s\n",
+                "%zu scans, %zu keyframes, %zu loops in %.1f s: %.1f scans/s\n"
+                "map priors: %zu global priors (%zu rejected), %zu robot-building edges, %zu "
+                "overlap edges\n",
                 t.prefilter_ms, t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms,
                 t.tracking_ms / scans, t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans,
                 t.walls_ms / kfs, t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs,
                 t.loops_ms, t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans,
                 t.osm_ms / kfs, t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans,
-                t.keyframes, t.loops, t.wall_time_s, t.scansPerSecond());
+                t.keyframes, t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors,
+                t.global_rejected, t.building_edges, t.overlap_edges);
   return buf;
 }
 

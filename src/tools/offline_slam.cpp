@@ -5,7 +5,7 @@
 //
 //   offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR] [--osm FILE.osm|.pbf]
 //                [--config OVERRIDES.yaml] [--no-osm] [--no-loops] [--max-scans N] [--json]
-//                [--initial-heading imu|global_matching] [--no-imu]
+//                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
 // With OXTS data the IMU's roll/pitch become attitude priors (unless --no-imu).
 #include <filesystem>
 #include <iostream>
@@ -31,7 +31,8 @@ int usage(const std::string& why) {
   std::cerr << "offline_slam: " << why << "\n"
             << "usage: offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR]\n"
                "       [--osm FILE] [--config OVERRIDES.yaml] [--no-osm] [--no-loops]\n"
-               "       [--max-scans N] [--initial-heading imu|global_matching] [--json]\n";
+               "       [--max-scans N] [--initial-heading imu|global_matching] [--no-imu]\n"
+               "       [--dump DIR] [--json]\n";
   return 2;
 }
 
@@ -154,6 +155,10 @@ int main(int argc, char** argv) {
   if (!saved.success) {
     std::cerr << "offline_slam: " << saved.message << "\n";
     return 1;
+  }
+  if (args.count("dump")) {
+    const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"]);
+    if (!dumped.success) std::cerr << "offline_slam: dump failed: " << dumped.message << "\n";
   }
   Trajectory truth;
   for (const auto& sp : pipeline.backend().trajectory()) {

@@ -31,6 +31,7 @@ struct SlamPipelineParams {
 /// Milliseconds spent per stage over the whole run.
 struct PipelineTimings {
   size_t scans = 0, keyframes = 0, loops = 0;
+  size_t global_priors = 0, global_rejected = 0, building_edges = 0, overlap_edges = 0;
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
@@ -60,6 +61,7 @@ class SlamPipeline {
   std::string timingJson() const;
 
  private:
+  void account(const BackendUpdateReport& report);
   void processKeyframe(const Keyframe& kf, double fitness,
                        const std::optional<Eigen::Vector2d>& gravity_roll_pitch);
 
