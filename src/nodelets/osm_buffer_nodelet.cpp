@@ -14,8 +14,8 @@
 
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/osm/params_io.h"
-#include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 
