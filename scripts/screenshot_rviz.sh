@@ -3,6 +3,10 @@
 # a PNG of the screen. Exits non-zero when rviz dies, reports a configuration/plugin error, or the
 # screenshot is blank.
 #   scripts/screenshot_rviz.sh [--out FILE.png] [--config FILE.rviz] [--wait SEC] [--bag FILE.bag]
+#                              [--launch "PKG FILE.launch ARG:=VALUE ..."]
+#   --launch: run roslaunch with these arguments on the private master first (source the
+#          workspace's devel/setup.bash before), e.g. a whole SLAM run to look at:
+#          --launch "osm_graph_slam sim.launch osm_file:=/tmp/sim/prior.osm bag:=/tmp/sim/drive.bag"
 #   --bag: play a bag (rosbag play --clock) on the private master while rviz runs; without it
 #          rviz shows the empty views (fixed frame 'map' absent: "Global Status: Warn").
 # Only the processes this script starts are stopped (by their ids). Needs Xvfb (xvfb),
@@ -16,13 +20,15 @@ OUT="$ROOT/rviz_screenshot.png"
 CONFIG="$ROOT/rviz/osm_graph_slam.rviz"
 WAIT=12
 BAG=""
+LAUNCH=""
 while (($#)); do
   case "$1" in
     --out) OUT="$2"; shift 2 ;;
     --config) CONFIG="$2"; shift 2 ;;
     --wait) WAIT="$2"; shift 2 ;;
     --bag) BAG="$2"; shift 2 ;;
-    -h|--help) sed -n 2,11p "$0"; exit 0 ;;
+    --launch) LAUNCH="$2"; shift 2 ;;
+    -h|--help) sed -n 2,15p "$0"; exit 0 ;;
     *) echo "screenshot_rviz: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -55,6 +61,7 @@ trap cleanup EXIT
 fail() {
   echo "screenshot_rviz: FAILED: $*" >&2
   [ -f "$WORK/rviz.log" ] && { echo "--- rviz log (last 30 lines)" >&2; tail -n 30 "$WORK/rviz.log" >&2; }
+  [ -f "$WORK/launch.log" ] && { echo "--- roslaunch log (last 30 lines)" >&2; tail -n 30 "$WORK/launch.log" >&2; }
   exit 1
 }
 start() {  # start <log> <command...>: own process group, so cleanup stops its children too
@@ -80,6 +87,10 @@ for _ in $(seq 50); do [ -s "$WORK/display" ] && break; sleep 0.2; done
 [ -s "$WORK/display" ] || fail "Xvfb did not start ($(cat "$WORK/xvfb.log"))"
 export DISPLAY=":$(head -n1 "$WORK/display")"
 
+if [ -n "$LAUNCH" ]; then
+  # shellcheck disable=SC2086
+  start "$WORK/launch.log" roslaunch $LAUNCH
+fi
 if [ -n "$BAG" ]; then
   rosparam set use_sim_time true
   start "$WORK/play.log" rosbag play --clock "$BAG"
@@ -89,6 +100,7 @@ LIBGL_ALWAYS_SOFTWARE=1 start "$WORK/rviz.log" rviz -d "$CONFIG"
 RVIZ_PID=${PIDS[-1]}
 sleep "$WAIT"
 kill -0 "$RVIZ_PID" 2>/dev/null || fail "rviz exited while loading $CONFIG"
+[ -n "$LAUNCH" ] && cp "$WORK/launch.log" "${OUT%.png}.launch.log"
 # rviz reports an unreadable config, an unknown display class or a bad topic type in its log.
 if grep -E -i "failed to load|could not be loaded|PluginlibFactory|yaml.*error|error.*yaml|\[ *ERROR\]" "$WORK/rviz.log" >"$WORK/errors"; then
   fail "rviz reported errors for $CONFIG: $(head -n 5 "$WORK/errors")"
