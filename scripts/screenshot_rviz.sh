@@ -16,7 +16,7 @@ export PATH=/usr/bin:/bin:$PATH  # pyenv's python3 breaks the ROS tools
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-OUT="$ROOT/rviz_screenshot.png"
+OUT="$ROOT/build_ws/rviz_screenshot.png"  # build_ws/ is not committed
 CONFIG="$ROOT/rviz/osm_graph_slam.rviz"
 WAIT=12
 BAG=""
@@ -81,7 +81,7 @@ for _ in $(seq 60); do rostopic list >/dev/null 2>&1 && break; sleep 0.5; done
 rostopic list >/dev/null 2>&1 || fail "roscore on port $PORT did not come up ($(tail -n 3 "$WORK/roscore.log"))"
 
 # Xvfb on a display it picks itself (-displayfd), frame buffer mapped to an XWD file.
-mkdir -p "$WORK/fb"
+mkdir -p "$WORK/fb" "$(dirname "$OUT")"
 start "$WORK/xvfb.log" Xvfb -displayfd 3 -screen 0 1400x900x24 -fbdir "$WORK/fb" -nolisten tcp 3>"$WORK/display"
 for _ in $(seq 50); do [ -s "$WORK/display" ] && break; sleep 0.2; done
 [ -s "$WORK/display" ] || fail "Xvfb did not start ($(cat "$WORK/xvfb.log"))"
