@@ -10,8 +10,11 @@
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/LineSegmentArray.h"
+#include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
+#include "osm_graph_slam/lines/params_io.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 
@@ -30,31 +33,11 @@ class LineExtractionNodelet : public nodelet::Nodelet {
       else
         NODELET_DEBUG_STREAM(msg);
     });
+    const RosParamReader reader(pnh);
     WallPointExtractorParams wp;
-    pnh.param("wall/horizon_height", wp.horizon_height, wp.horizon_height);
-    pnh.param("wall/min_range", wp.min_range, wp.min_range);
-    pnh.param("wall/max_range", wp.max_range, wp.max_range);
-    pnh.param("wall/voxel_size", wp.voxel_size, wp.voxel_size);
-    pnh.param("wall/k_neighbors", wp.k_neighbors, wp.k_neighbors);
-    pnh.param("wall/max_normal_angle_deg", wp.max_normal_angle_deg, wp.max_normal_angle_deg);
-    pnh.param("wall/max_neighbor_distance", wp.max_neighbor_distance, wp.max_neighbor_distance);
-    pnh.param("wall/normal_backend", wp.normal_backend, wp.normal_backend);
-    pnh.param("wall/num_threads", wp.num_threads, wp.num_threads);
+    readParams(PrefixedParamReader(reader, "wall"), wp);
     LineSegmentExtractorParams lp;
-    int seed = int(lp.seed);
-    pnh.param("segments/merge_resolution", lp.merge_resolution, lp.merge_resolution);
-    pnh.param("segments/distance_threshold", lp.distance_threshold, lp.distance_threshold);
-    pnh.param("segments/max_iterations", lp.max_iterations, lp.max_iterations);
-    pnh.param("segments/sample_cell", lp.sample_cell, lp.sample_cell);
-    pnh.param("segments/cluster_tolerance", lp.cluster_tolerance, lp.cluster_tolerance);
-    pnh.param("segments/min_cluster_size", lp.min_cluster_size, lp.min_cluster_size);
-    pnh.param("segments/min_segment_length", lp.min_segment_length, lp.min_segment_length);
-    pnh.param("segments/max_segments", lp.max_segments, lp.max_segments);
-    pnh.param("segments/max_consecutive_rejects", lp.max_consecutive_rejects,
-              lp.max_consecutive_rejects);
-    pnh.param("segments/refine", lp.refine, lp.refine);
-    pnh.param("segments/seed", seed, seed);
-    lp.seed = uint32_t(seed);
+    readParams(PrefixedParamReader(reader, "segments"), lp);
     pnh.param<std::string>("base_frame", base_frame_, "base_link");
     pnh.param("marker_z", marker_z_, 0.0);
 

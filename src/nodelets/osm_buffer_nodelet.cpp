@@ -13,7 +13,9 @@
 #include <set>
 
 #include "osm_graph_slam/osm/osm_buffer.h"
+#include "osm_graph_slam/osm/params_io.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 
@@ -74,29 +76,9 @@ class OsmBufferNodelet : public nodelet::Nodelet {
     pnh_.param("min_publish_distance", min_publish_distance_, min_publish_distance_);
     pnh_.param("origin", origin_param_, origin_param_);
 
-    pnh_.param("buffer_radius", buffer_params_.buffer_radius, buffer_params_.buffer_radius);
-    pnh_.param("query_radius", buffer_params_.query_radius, buffer_params_.query_radius);
-    pnh_.param("refresh_distance", buffer_params_.refresh_distance,
-               buffer_params_.refresh_distance);
-    pnh_.param("retry_initial", buffer_params_.retry_initial_s, buffer_params_.retry_initial_s);
-    pnh_.param("retry_factor", buffer_params_.retry_factor, buffer_params_.retry_factor);
-    pnh_.param("retry_max", buffer_params_.retry_max_s, buffer_params_.retry_max_s);
-
-    pnh_.param("overpass_url", overpass_.endpoint, overpass_.endpoint);
-    pnh_.param("overpass_timeout", overpass_.timeout_s, overpass_.timeout_s);
-    pnh_.param("overpass_connect_timeout", overpass_.connect_timeout_s,
-               overpass_.connect_timeout_s);
-    pnh_.param("overpass_server_timeout", overpass_.server_timeout_s, overpass_.server_timeout_s);
-    pnh_.param("overpass_max_retries", overpass_.max_retries, overpass_.max_retries);
-    pnh_.param("overpass_backoff_initial", overpass_.backoff_initial_s,
-               overpass_.backoff_initial_s);
-    pnh_.param("overpass_backoff_factor", overpass_.backoff_factor, overpass_.backoff_factor);
-    pnh_.param("overpass_backoff_max", overpass_.backoff_max_s, overpass_.backoff_max_s);
-    pnh_.param("overpass_user_agent", overpass_.user_agent, overpass_.user_agent);
-    int max_bytes = static_cast<int>(overpass_.max_response_bytes);
-    pnh_.param("overpass_max_response_bytes", max_bytes, max_bytes);
-    overpass_.max_response_bytes = static_cast<size_t>(std::max(1, max_bytes));
-    pnh_.param("overpass_verify_tls", overpass_.verify_tls, overpass_.verify_tls);
+    const RosParamReader reader(pnh_);
+    osm_graph_slam::readParams(reader, buffer_params_);
+    osm_graph_slam::readParams(reader, overpass_);
   }
 
   bool createSource() {

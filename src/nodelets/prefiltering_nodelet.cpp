@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 
@@ -21,7 +23,7 @@ class PrefilteringNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    params_ = readParams(pnh);
+    readParams(RosParamReader(pnh), params_);  // defaults: CloudPrefilterParams
     pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
     pnh.param("sensor_to_base_from_tf", sensor_to_base_from_tf_, true);
     pnh.param("tf_timeout", tf_timeout_, 0.2);
@@ -45,27 +47,6 @@ class PrefilteringNodelet : public nodelet::Nodelet {
         params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off", params_.min_range,
         params_.max_range, params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
         params_.parallel_octants ? " (8 octants in parallel)" : "", base_link_frame_.c_str());
-  }
-
-  static CloudPrefilterParams readParams(ros::NodeHandle& pnh) {
-    CloudPrefilterParams p;
-    pnh.param("remove_invalid", p.remove_invalid, p.remove_invalid);
-    pnh.param("use_range_crop", p.use_range_crop, p.use_range_crop);
-    pnh.param("min_range", p.min_range, p.min_range);
-    pnh.param("max_range", p.max_range, p.max_range);
-    pnh.param("use_voxel_grid", p.use_voxel_grid, p.use_voxel_grid);
-    pnh.param("voxel_method", p.voxel_method, p.voxel_method);
-    pnh.param("voxel_leaf_size", p.voxel_leaf_size, p.voxel_leaf_size);
-    pnh.param("use_outlier_removal", p.use_outlier_removal, p.use_outlier_removal);
-    pnh.param("outlier_method", p.outlier_method, p.outlier_method);
-    pnh.param("radius_search", p.radius_search, p.radius_search);
-    pnh.param("radius_min_neighbors", p.radius_min_neighbors, p.radius_min_neighbors);
-    pnh.param("statistical_mean_k", p.statistical_mean_k, p.statistical_mean_k);
-    pnh.param("statistical_stddev", p.statistical_stddev, p.statistical_stddev);
-    pnh.param("parallel_octants", p.parallel_octants, p.parallel_octants);
-    pnh.param("octant_margin", p.octant_margin, p.octant_margin);
-    pnh.param("num_threads", p.num_threads, p.num_threads);
-    return p;
   }
 
   /// sensor -> base_link for a frame: identity for base_link itself, else TF (cached: static)

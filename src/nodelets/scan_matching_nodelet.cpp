@@ -13,7 +13,9 @@
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/ScanMatchingStatus.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 
@@ -26,7 +28,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
     pnh.param("publish_tf", publish_tf_, true);
     pnh.param("warn_throttle_period", warn_period_, 5.0);
-    const KeyframeTrackerParams params = readParams(pnh);
+    KeyframeTrackerParams params;
+    readParams(RosParamReader(pnh), params);
     try {
       tracker_ = std::make_unique<KeyframeTracker>(params);
     } catch (const std::exception& e) {
@@ -43,32 +46,6 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                  params.registration.method.c_str(), params.keyframe_delta_trans,
                  params.keyframe_delta_angle, params.keyframe_delta_time, odom_frame_.c_str(),
                  base_link_frame_.c_str());
-  }
-
-  static KeyframeTrackerParams readParams(ros::NodeHandle& pnh) {
-    KeyframeTrackerParams p;
-    RegistrationParams& r = p.registration;
-    pnh.param("registration_method", r.method, r.method);
-    pnh.param("num_threads", r.num_threads, r.num_threads);
-    pnh.param("max_iterations", r.max_iterations, r.max_iterations);
-    pnh.param("max_correspondence_distance", r.max_correspondence_distance,
-              r.max_correspondence_distance);
-    pnh.param("transformation_epsilon", r.transformation_epsilon, r.transformation_epsilon);
-    pnh.param("k_correspondences", r.k_correspondences, r.k_correspondences);
-    pnh.param("ndt_resolution", r.ndt_resolution, r.ndt_resolution);
-    pnh.param("ndt_step_size", r.ndt_step_size, r.ndt_step_size);
-    pnh.param("vgicp_resolution", r.vgicp_resolution, r.vgicp_resolution);
-    pnh.param("gicp_covariance_epsilon", r.gicp_covariance_epsilon, r.gicp_covariance_epsilon);
-    pnh.param("min_correspondences", r.min_correspondences, r.min_correspondences);
-    pnh.param("keyframe_delta_trans", p.keyframe_delta_trans, p.keyframe_delta_trans);
-    pnh.param("keyframe_delta_angle", p.keyframe_delta_angle, p.keyframe_delta_angle);
-    pnh.param("keyframe_delta_time", p.keyframe_delta_time, p.keyframe_delta_time);
-    pnh.param("constant_velocity_guess", p.constant_velocity_guess, p.constant_velocity_guess);
-    pnh.param("max_fitness", p.max_fitness, p.max_fitness);
-    pnh.param("max_correction_trans", p.max_correction_trans, p.max_correction_trans);
-    pnh.param("max_correction_angle", p.max_correction_angle, p.max_correction_angle);
-    pnh.param("min_points", p.min_points, p.min_points);
-    return p;
   }
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {

@@ -2,41 +2,6 @@
 
 namespace osm_graph_slam {
 
-void readParams(const ParamReader& r, LineMatcherParams& p) {
-  r.param("min_edge_angle_deg", p.min_edge_angle_deg);
-  r.param("edge_endpoint_tolerance", p.edge_endpoint_tolerance);
-  r.param("max_virtual_edge_distance", p.max_virtual_edge_distance);
-  r.param("edge_angle_tolerance_deg", p.edge_angle_tolerance_deg);
-  r.param("edge_length_slack", p.edge_length_slack);
-  r.param("max_translation", p.max_translation);
-  r.param("max_rotation_deg", p.max_rotation_deg);
-  r.param("refine_k_nearest", p.refine_k_nearest);
-  r.param("refine_rounds", p.refine_rounds);
-  r.param("least_squares_polish", p.least_squares_polish);
-  r.param("polish_iterations", p.polish_iterations);
-  r.param("weight_distance", p.weight_distance);
-  r.param("weight_coverage", p.weight_coverage);
-  r.param("weight_translation", p.weight_translation);
-  r.param("max_avg_distance", p.max_avg_distance);
-  r.param("max_translation_fitness", p.max_translation_fitness);
-  r.param("max_correspondence_distance", p.max_correspondence_distance);
-  r.param("max_correspondence_angle_deg", p.max_correspondence_angle_deg);
-  r.param("matched_distance", p.matched_distance);
-  r.param("min_fitness", p.min_fitness);
-  r.param("min_matched_segments", p.min_matched_segments);
-  r.param("two_dof_max_angle_deg", p.two_dof_max_angle_deg);
-  r.param("two_dof_along_scale", p.two_dof_along_scale);
-  r.param("edge_information_xy", p.edge_information_xy);
-  r.param("edge_information_theta", p.edge_information_theta);
-  r.param("line_information_xy", p.line_information_xy);
-  r.param("line_information_theta", p.line_information_theta);
-  r.param("overlap_max_rotation_deg", p.overlap_max_rotation_deg);
-  r.param("overlap_max_translation", p.overlap_max_translation);
-  r.param("min_overlap_area", p.min_overlap_area);
-  r.param("grid_cell", p.grid_cell);
-  r.param("brute_force", p.brute_force);
-}
-
 bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error) {
   bool ok = true;
   r.param("use_osm", p.use_osm);

@@ -1,0 +1,51 @@
+#include "osm_graph_slam/loop/params_io.h"
+
+#include "osm_graph_slam/registration/params_io.h"
+
+namespace osm_graph_slam {
+
+void readParams(const ParamReader& r, ScanContextParams& p) {
+  r.param("num_rings", p.num_rings);
+  r.param("num_sectors", p.num_sectors);
+  r.param("max_radius", p.max_radius);
+  r.param("min_radius", p.min_radius);
+  r.param("sensor_height", p.sensor_height);
+  r.param("max_height", p.max_height);
+  r.param("min_height", p.min_height);
+  r.param("sector_search_window", p.sector_search_window);
+}
+
+void readParams(const ParamReader& r, LoopDetectorParams& p) {
+  readParams(PrefixedParamReader(r, "scan_context"), p.scan_context);
+  r.param("min_accum_distance_gap", p.min_accum_distance_gap);
+  r.param("search_radius_base", p.search_radius_base);
+  r.param("search_radius_per_meter", p.search_radius_per_meter);
+  r.param("search_radius_max", p.search_radius_max);
+  r.param("ring_key_candidates", p.ring_key_candidates);
+  r.param("num_candidates", p.num_candidates);
+  r.param("max_descriptor_distance", p.max_descriptor_distance);
+  r.param("verify_odometry_nearest", p.verify_odometry_nearest);
+  r.param("voxel_size", p.voxel_size);
+  r.param("min_points", p.min_points);
+  r.param("coarse_voxel_size", p.coarse_voxel_size);
+  r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
+  readParams(PrefixedParamReader(r, "registration"), p.registration);
+  r.param("max_fitness", p.max_fitness);
+  r.param("overlap_distance", p.overlap_distance);
+  r.param("min_overlap", p.min_overlap);
+  r.param("seed_translation_from_odometry", p.seed_translation_from_odometry);
+  r.param("retry_zero_translation_seed", p.retry_zero_translation_seed);
+  r.param("check_odometry_consistency", p.check_odometry_consistency);
+  r.param("odometry_translation_tolerance_base", p.odometry_translation_tolerance_base);
+  r.param("odometry_translation_tolerance_per_meter", p.odometry_translation_tolerance_per_meter);
+  r.param("odometry_yaw_tolerance_base", p.odometry_yaw_tolerance_base);
+  r.param("odometry_yaw_tolerance_per_meter", p.odometry_yaw_tolerance_per_meter);
+  r.param("translation_stddev_per_rms", p.translation_stddev_per_rms);
+  r.param("rotation_stddev_per_rms", p.rotation_stddev_per_rms);
+  r.param("min_translation_stddev", p.min_translation_stddev);
+  r.param("max_translation_stddev", p.max_translation_stddev);
+  r.param("min_rotation_stddev", p.min_rotation_stddev);
+  r.param("max_rotation_stddev", p.max_rotation_stddev);
+}
+
+}  // namespace osm_graph_slam
