@@ -1,11 +1,22 @@
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 
+#include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
+#include "osm_graph_slam/lines/params_io.h"
+#include "osm_graph_slam/loop/params_io.h"
+#include "osm_graph_slam/odometry/params_io.h"
+#include "osm_graph_slam/osm/params_io.h"
 #include "osm_graph_slam/slam/params_io.h"
 
 namespace osm_graph_slam {
 
 bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string* error) {
+  readParams(PrefixedParamReader(r, "prefiltering"), p.prefilter);
+  readParams(PrefixedParamReader(r, "scan_matching"), p.tracker);
+  readParams(PrefixedParamReader(r, "line_extraction/wall"), p.wall);
+  readParams(PrefixedParamReader(r, "line_extraction/segments"), p.segments);
+  readParams(PrefixedParamReader(r, "loop_detection"), p.loop);
+  readParams(PrefixedParamReader(r, "osm_buffer"), p.osm);
   return readParams(PrefixedParamReader(r, "graph_backend"), p.backend, error);
 }
 

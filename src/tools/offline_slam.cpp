@@ -4,7 +4,8 @@
 // report.
 //
 //   offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR] [--osm FILE.osm|.pbf]
-//                [--config OVERRIDES.yaml] [--no-osm] [--no-loops] [--max-scans N] [--json]
+//                [--config OVERRIDES.yaml (default config/kitti.yaml)] [--no-osm] [--no-loops]
+//                [--max-scans N] [--json]
 //                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
 // With OXTS data the IMU's roll/pitch become attitude priors (unless --no-imu).
 #include <filesystem>
@@ -80,8 +81,11 @@ int main(int argc, char** argv) {
 
   SlamPipelineParams params;
   std::string error;
-  if (!loadPipelineParams(std::string(OGS_SOURCE_DIR) + "/config",
-                          args.count("config") ? args["config"] : "", params, &error)) {
+  // KITTI raw layout (real or simulated): base_link is the OXTS unit, as in launch/kitti.launch.
+  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
+  if (!loadPipelineParams(config_dir,
+                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
+                          params, &error)) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
   }
@@ -96,9 +100,6 @@ int main(int argc, char** argv) {
   }
   // base_link is the OXTS/IMU frame (as kitti2bag's tf_static): p_base = inv(T_velo_imu) p_velo.
   params.prefilter.sensor_to_base = drive.T_velo_imu.inverse();
-  // Wall points are cut at the LiDAR horizon (§3.2); the keyframe clouds are in base_link, so the
-  // horizon height is relative to the sensor's height in base_link.
-  params.wall.horizon_height += params.prefilter.sensor_to_base.translation().z();
 
   std::shared_ptr<OsmMapSource> source;
   if (params.backend.use_osm) {
