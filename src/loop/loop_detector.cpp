@@ -86,19 +86,16 @@ struct LoopDetector::Query {
   std::string problem;
 };
 
-LoopDetector::LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
-                           LogSink log_sink)
+LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
     : params_(params),
-      factory_(std::move(factory)),
       logger_(std::move(log_sink)),
       ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
       position_index_(std::make_unique<DynamicKdIndex>(3)) {
-  if (!factory_) throw std::invalid_argument("LoopDetector needs a registration factory");
-  fine_registration_ = factory_(params_.registration);
+  fine_registration_ = createRegistration(params_.registration);
   if (params_.coarse_max_correspondence_distance > 0.0) {
     RegistrationParams coarse = params_.registration;
     coarse.max_correspondence_distance = params_.coarse_max_correspondence_distance;
-    coarse_registration_ = factory_(coarse);
+    coarse_registration_ = createRegistration(coarse);
   }
 }
 

@@ -130,8 +130,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       }
     };
     try {
-      detector_ = std::make_unique<LoopDetector>(
-          params, [](const RegistrationParams& p) { return createRegistration(p); }, sink);
+      detector_ = std::make_unique<LoopDetector>(params, sink);
     } catch (const std::exception& e) {
       NODELET_ERROR("loop_detection: cannot create the detector: %s", e.what());
       return;

@@ -6,8 +6,6 @@
 //  2. Precision/recall and per-phase time on a simulated drive with revisits (ray-cast town
 //     with a repetitive facade street, drifting odometry).
 // Usage: loop_benchmark [--json] [--queries N] [--sizes 100,1000,5000]
-#include <pcl/registration/gicp.h>
-
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -27,43 +25,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-/// Registration back-end of this benchmark: pcl::GeneralizedIterativeClosestPoint behind the
-/// project's Registration interface (the project's createRegistration is not linked here yet).
-class PclGicp : public Registration {
- public:
-  explicit PclGicp(const RegistrationParams& p) : p_(p) {}
-  std::string name() const override { return "pcl_gicp"; }
-  void setTarget(const PointCloudConstPtr& t) override { target_ = t; }
-  RegistrationResult align(const PointCloudConstPtr& source,
-                           const Eigen::Isometry3d& guess) override {
-    RegistrationResult r;
-    if (!source || !target_ || source->size() < 20 || target_->size() < 20) return r;
-    pcl::GeneralizedIterativeClosestPoint<PointT, PointT> gicp;
-    gicp.setMaximumIterations(p_.max_iterations);
-    gicp.setMaxCorrespondenceDistance(p_.max_correspondence_distance);
-    gicp.setTransformationEpsilon(p_.transformation_epsilon);
-    gicp.setCorrespondenceRandomness(p_.k_correspondences);
-    gicp.setInputSource(source);
-    gicp.setInputTarget(target_);
-    PointCloud aligned;
-    gicp.align(aligned, guess.matrix().cast<float>());
-    r.converged = gicp.hasConverged();
-    r.transform = Eigen::Isometry3d(gicp.getFinalTransformation().cast<double>());
-    r.fitness = gicp.getFitnessScore(p_.max_correspondence_distance);
-    return r;
-  }
-
- private:
-  RegistrationParams p_;
-  PointCloudConstPtr target_;
-};
-
-RegistrationFactory factory() {
-  return [](const RegistrationParams& p) -> std::unique_ptr<Registration> {
-    return std::make_unique<PclGicp>(p);
-  };
 }
 
 Eigen::Isometry3d pose2d(double x, double y, double yaw) {
@@ -86,7 +47,7 @@ SizeResult benchmarkSize(int size, int queries, const std::vector<PointCloudCons
   params.voxel_size = 0.0;  // pool clouds are already downsampled and shared
   params.coarse_max_correspondence_distance = 0.0;
   params.check_odometry_consistency = false;
-  LoopDetector detector(params, factory(), [](LogLevel, const std::string&) {});
+  LoopDetector detector(params, [](LogLevel, const std::string&) {});
   // Lawnmower drive over 1000 m x 1000 m, keyframes every 2 m (lanes 20 m apart).
   SizeResult out;
   out.size = size;
@@ -163,7 +124,7 @@ DriveResult benchmarkDrive() {
   std::uniform_real_distribution<double> jitter(-0.05, 0.05);
   for (double x = 2.0; x <= 150.0; x += 4.0) route.emplace_back(x, 1.5, jitter(rng));
   LoopDetectorParams params;
-  LoopDetector detector(params, factory(), [](LogLevel, const std::string&) {});
+  LoopDetector detector(params, [](LogLevel, const std::string&) {});
   std::vector<Eigen::Isometry3d> truth;
   std::vector<double> accum;
   Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();

@@ -6,7 +6,6 @@
 #include <iostream>
 #include <random>
 
-#include "loop_test_registration.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/synthetic_world.h"
 
@@ -88,7 +87,7 @@ bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distanc
 TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
   const Drive& d = drive();
   LoopDetectorParams params;
-  LoopDetector detector(params, test::testRegistrationFactory());
+  LoopDetector detector(params);
   int revisits = 0, found = 0, false_loops = 0, inaccurate = 0, accepted = 0, missed = 0;
   int aliases_rejected = 0;
   double max_t = 0.0, max_r = 0.0;

@@ -10,7 +10,6 @@
 // keyframes.
 #include <Eigen/Geometry>
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -24,7 +23,6 @@
 namespace osm_graph_slam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
-using RegistrationFactory = std::function<std::unique_ptr<Registration>(const RegistrationParams&)>;
 
 struct LoopDetectorParams {
   ScanContextParams scan_context;
@@ -131,9 +129,9 @@ struct RankedCandidate {
 
 class LoopDetector {
  public:
-  /// factory creates the registration back-ends (production: createRegistration).
-  LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
-               LogSink log_sink = {});
+  /// Creates the registration back-ends with createRegistration(params.registration); throws
+  /// std::invalid_argument for an unknown registration method.
+  explicit LoopDetector(const LoopDetectorParams& params, LogSink log_sink = {});
   ~LoopDetector();
 
   /// Searches a loop for keyframe among the stored ones (odometry mode), then stores it.
@@ -164,19 +162,18 @@ class LoopDetector {
  private:
   struct Query;
   std::optional<DetectedLoop> verify(const Query& query, const std::vector<RankedCandidate>& ranked,
-                                    const std::optional<Eigen::Isometry3d>& odom_pose,
-                                    double accum_distance);
+                                     const std::optional<Eigen::Isometry3d>& odom_pose,
+                                     double accum_distance);
   std::optional<DetectedLoop> verifyCandidate(const Query& query, const RankedCandidate& candidate,
-                                             Eigen::Isometry3d guess,
-                                             const std::optional<Eigen::Isometry3d>& odom_pose,
-                                             double accum_distance);
+                                              Eigen::Isometry3d guess,
+                                              const std::optional<Eigen::Isometry3d>& odom_pose,
+                                              double accum_distance);
   Matrix6d informationFromFitness(double fitness) const;
   void addOdometryNearest(const ScanContext& query, size_t nearest,
                           std::vector<RankedCandidate>& ranked) const;
   size_t indexLimitForDistance(double accum_distance) const;
 
   LoopDetectorParams params_;
-  RegistrationFactory factory_;
   Logger logger_;
   std::vector<LoopDatabaseEntry> entries_;
   std::unique_ptr<class DynamicKdIndex> ring_key_index_;
