@@ -87,10 +87,6 @@ bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distanc
 TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
   const Drive& d = drive();
   LoopDetectorParams params;
-  if (getenv("LOOP_CMF")) params.coarse_max_fitness = atof(getenv("LOOP_CMF"));
-  if (getenv("LOOP_K")) params.num_candidates = atoi(getenv("LOOP_K"));
-  if (getenv("LOOP_VOX")) params.voxel_size = atof(getenv("LOOP_VOX"));
-  if (getenv("LOOP_KC")) params.registration.k_correspondences = atoi(getenv("LOOP_KC"));
   LoopDetector detector(params);
   int revisits = 0, found = 0, false_loops = 0, inaccurate = 0, accepted = 0, missed = 0;
   int aliases_rejected = 0;
@@ -106,23 +102,22 @@ TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
       const bool fits = (o.verdict == "odometry" && o.fitness <= params.max_fitness) ||
                         o.verdict == "coarse_odometry";
       if (fits && err > 5.0) ++aliases_rejected;
-      if (getenv("LOOP_DEBUG")) {
-        std::cout << "DBG " << i << " cand " << o.id << " desc " << o.descriptor_distance
-                  << " coarse " << o.coarse_fitness << " fine " << o.fitness << " overlap "
-                  << o.overlap << " err " << err << " " << o.verdict << " odomerr "
-                  << ((d.keyframes[o.id].odom_pose.inverse() * d.keyframes[i].odom_pose)
-                          .translation() -
-                      truth.translation())
-                         .norm()
-                  << " gap " << d.keyframes[i].accum_distance - d.keyframes[o.id].accum_distance
-                  << "\n";
-      }
     }
     if (!loop) {
       missed += revisit ? 1 : 0;
       if (revisit) {
         std::cout << "   revisit keyframe " << i << " not closed: " << detector.lastStats().reason
                   << "\n";
+        for (const auto& o : detector.lastStats().outcomes) {
+          const Eigen::Isometry3d truth = d.truth[o.id].inverse() * d.truth[i];
+          const Eigen::Isometry3d odom =
+              d.keyframes[o.id].odom_pose.inverse() * d.keyframes[i].odom_pose;
+          std::cout << "     candidate " << o.id << ": descriptor " << o.descriptor_distance
+                    << ", result " << (truth.inverse() * o.transform).translation().norm()
+                    << " m from the truth, odometry "
+                    << (truth.inverse() * odom).translation().norm()
+                    << " m from the truth, fitness " << o.fitness << " -> " << o.verdict << "\n";
+        }
       }
       continue;
     }

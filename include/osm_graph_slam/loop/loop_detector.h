@@ -44,7 +44,7 @@ struct LoopDetectorParams {
   // Phase 3: verification.
   double voxel_size = 0.6;         ///< [m] downsampling of the stored clouds (0 = none)
   int min_points = 200;            ///< keyframes with fewer points are stored without cloud
-  double coarse_voxel_size = 1.0;  ///< [m] coarse stage cloud resolution
+  double coarse_voxel_size = 1.5;  ///< [m] coarse stage cloud resolution
   double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
   /// [m^2] early reject: a coarse result with a larger fitness skips the fine stage (<= 0: off).
   double coarse_max_fitness = 0.0;
