@@ -90,7 +90,8 @@ LoopKeyframe revisitQuery(int size, int q, int target, const SizeWorkload& w) {
   LoopKeyframe kf;
   kf.id = size + q;
   kf.odom_pose = lawnmowerPose(target) * kRevisitOffset;
-  kf.accum_distance = size * 2.0 + 100.0;
+  // Back after a 200 m detour: the odometry tolerance (2 m + 1 % of the gap) is the drive's.
+  kf.accum_distance = target * 2.0 + 200.0;
   kf.cloud = w.revisit_clouds[target % w.pool.size()];
   return kf;
 }
