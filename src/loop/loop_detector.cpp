@@ -1,11 +1,11 @@
 #include "osm_graph_slam/loop/loop_detector.h"
 
 #include <pcl/filters/voxel_grid.h>
-#include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <nanoflann.hpp>
 #include <sstream>
 
 #include "osm_graph_slam/loop/dynamic_kd_index.h"
@@ -45,21 +45,38 @@ PointCloudPtr downsampleForLoop(const PointCloud& cloud, double leaf) {
   return out;
 }
 
+namespace {
+
+/// nanoflann view of a PCL cloud (x, y, z of PointT).
+struct CloudAdaptor {
+  const PointCloud* cloud = nullptr;
+  size_t kdtree_get_point_count() const { return cloud->size(); }
+  float kdtree_get_pt(size_t i, size_t dim) const { return cloud->points[i].data[dim]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+using CloudKdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>,
+                                        CloudAdaptor, 3, uint32_t>;
+
+}  // namespace
+
 double overlapRatio(const PointCloud& source, const PointCloud& target,
                     const Eigen::Isometry3d& transform, double max_distance) {
   if (source.empty() || target.empty()) return 0.0;
-  pcl::KdTreeFLANN<PointT> tree;
-  tree.setInputCloud(target.makeShared());
-  const Eigen::Matrix4f t = transform.matrix().cast<float>();
+  // nanoflann: measured ~3x faster than pcl::KdTreeFLANN here (build + one query per point).
+  CloudAdaptor adaptor{&target};
+  CloudKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  const Eigen::Affine3f t = transform.cast<float>();
   const float max_sq = static_cast<float>(max_distance * max_distance);
-  std::vector<int> index(1);
-  std::vector<float> dist_sq(1);
   size_t inliers = 0;
   for (const auto& p : source.points) {
-    PointT q = p;
-    q.getVector4fMap() = t * p.getVector4fMap();
-    q.data[3] = 1.f;
-    if (tree.nearestKSearch(q, 1, index, dist_sq) == 1 && dist_sq[0] <= max_sq) ++inliers;
+    const Eigen::Vector3f q = t * p.getVector3fMap();
+    uint32_t index = 0;
+    float dist_sq = 0.f;
+    if (tree.knnSearch(q.data(), 1, &index, &dist_sq) == 1 && dist_sq <= max_sq) ++inliers;
   }
   return static_cast<double>(inliers) / static_cast<double>(source.size());
 }
@@ -86,19 +103,16 @@ struct LoopDetector::Query {
   std::string problem;
 };
 
-LoopDetector::LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
-                           LogSink log_sink)
+LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
     : params_(params),
-      factory_(std::move(factory)),
       logger_(std::move(log_sink)),
       ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
       position_index_(std::make_unique<DynamicKdIndex>(3)) {
-  if (!factory_) throw std::invalid_argument("LoopDetector needs a registration factory");
-  fine_registration_ = factory_(params_.registration);
+  fine_registration_ = createRegistration(params_.registration);
   if (params_.coarse_max_correspondence_distance > 0.0) {
     RegistrationParams coarse = params_.registration;
     coarse.max_correspondence_distance = params_.coarse_max_correspondence_distance;
-    coarse_registration_ = factory_(coarse);
+    coarse_registration_ = createRegistration(coarse);
   }
 }
 
@@ -173,13 +187,18 @@ std::vector<RankedCandidate> LoopDetector::rankCandidates(const ScanContext& que
 
 void LoopDetector::addOdometryNearest(const ScanContext& query, size_t nearest,
                                       std::vector<RankedCandidate>& ranked) const {
-  for (const auto& c : ranked) {
-    if (c.index == nearest) return;
+  // Verified first: on a revisit it is the likeliest true match and the one with the most
+  // overlap, so verification usually stops after it (stop_at_first_accepted).
+  auto found = std::find_if(ranked.begin(), ranked.end(),
+                            [&](const RankedCandidate& c) { return c.index == nearest; });
+  if (found != ranked.end()) {
+    std::rotate(ranked.begin(), found, found + 1);
+    return;
   }
   RankedCandidate c;
   c.index = nearest;
   c.match = matchScanContexts(query, entries_[nearest].descriptor, params_.scan_context);
-  if (c.match.distance <= params_.max_descriptor_distance) ranked.push_back(c);
+  if (c.match.distance <= params_.max_descriptor_distance) ranked.insert(ranked.begin(), c);
 }
 
 Matrix6d LoopDetector::informationFromFitness(double fitness) const {
@@ -194,45 +213,73 @@ Matrix6d LoopDetector::informationFromFitness(double fitness) const {
   return info;
 }
 
+bool LoopDetector::consistentWithOdometry(const LoopDatabaseEntry& target,
+                                          const Eigen::Isometry3d& transform,
+                                          const Eigen::Isometry3d& odom_pose,
+                                          double accum_distance) const {
+  const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * odom_pose;
+  const double gap = std::max(0.0, accum_distance - target.accum_distance);
+  const double dt = (odom_relative.translation() - transform.translation()).norm();
+  const double dyaw = std::abs(wrapPi(yawOf(odom_relative) - yawOf(transform)));
+  const double t_tol = params_.odometry_translation_tolerance_base +
+                       params_.odometry_translation_tolerance_per_meter * gap;
+  const double yaw_tol =
+      params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
+  return dt <= t_tol && dyaw <= yaw_tol;
+}
+
 std::optional<DetectedLoop> LoopDetector::verifyCandidate(
     const Query& query, const RankedCandidate& candidate, Eigen::Isometry3d guess,
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const LoopDatabaseEntry& target = entries_[candidate.index];
+  const bool check_odometry = odom_pose && params_.check_odometry_consistency;
   ++stats_.verified;
-  if (coarse_registration_) {
-    coarse_registration_->setTarget(target.coarse_cloud);
-    const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
-    if (coarse.converged) guess = coarse.transform;
-  }
-  fine_registration_->setTarget(target.cloud);
-  const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
   CandidateOutcome outcome;
   outcome.id = target.id;
   outcome.descriptor_distance = candidate.match.distance;
-  outcome.fitness = fine.fitness;
-  outcome.transform = fine.transform;
   auto reject = [&](const char* verdict, int& counter) -> std::optional<DetectedLoop> {
     ++counter;
     outcome.verdict = verdict;
     stats_.outcomes.push_back(outcome);
     return std::nullopt;
   };
+  if (coarse_registration_) {
+    auto start = Clock::now();
+    coarse_registration_->setTarget(target.coarse_cloud);  // back-ends keep a repeated target
+    const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
+    stats_.coarse_ms += msSince(start);
+    outcome.coarse_fitness = coarse.fitness;
+    outcome.transform = coarse.transform;
+    // Early rejects: the fine stage moves the result by well under a metre, so a coarse result
+    // that fits badly or contradicts odometry cannot become an accepted loop.
+    if (params_.coarse_max_fitness > 0.0 &&
+        (!coarse.converged || !(coarse.fitness <= params_.coarse_max_fitness))) {
+      return reject("coarse_fitness", stats_.rejected_coarse);
+    }
+    if (check_odometry &&
+        !consistentWithOdometry(target, coarse.transform, *odom_pose, accum_distance)) {
+      return reject("coarse_odometry", stats_.rejected_coarse);
+    }
+    if (coarse.converged) guess = coarse.transform;
+  }
+  auto start = Clock::now();
+  ++stats_.fine_registrations;
+  fine_registration_->setTarget(target.cloud);
+  const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
+  stats_.fine_ms += msSince(start);
+  outcome.fitness = fine.fitness;
+  outcome.transform = fine.transform;
   if (!fine.converged || !(fine.fitness <= params_.max_fitness)) {
     return reject("fitness", stats_.rejected_fitness);
   }
+  start = Clock::now();
   outcome.overlap =
       overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
+  stats_.overlap_ms += msSince(start);
   if (outcome.overlap < params_.min_overlap) return reject("overlap", stats_.rejected_overlap);
-  if (odom_pose && params_.check_odometry_consistency) {
-    const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * (*odom_pose);
-    const double gap = std::max(0.0, accum_distance - target.accum_distance);
-    const double dt = (odom_relative.translation() - fine.transform.translation()).norm();
-    const double dyaw = std::abs(wrapPi(yawOf(odom_relative) - yawOf(fine.transform)));
-    const double t_tol = params_.odometry_translation_tolerance_base +
-                         params_.odometry_translation_tolerance_per_meter * gap;
-    const double yaw_tol =
-        params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
-    if (dt > t_tol || dyaw > yaw_tol) return reject("odometry", stats_.rejected_odometry);
+  if (check_odometry &&
+      !consistentWithOdometry(target, fine.transform, *odom_pose, accum_distance)) {
+    return reject("odometry", stats_.rejected_odometry);
   }
   outcome.verdict = "accepted";
   stats_.outcomes.push_back(outcome);
@@ -275,6 +322,7 @@ std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
       if (!best || loop->fitness < best->fitness) best = loop;
       break;
     }
+    if (best && params_.stop_at_first_accepted) break;
   }
   return best;
 }

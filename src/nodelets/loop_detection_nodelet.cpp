@@ -46,6 +46,7 @@ LoopDetectorParams readParams(const ros::NodeHandle& nh) {
   readInt(nh, "min_points", p.min_points);
   readParam(nh, "coarse_voxel_size", p.coarse_voxel_size);
   readParam(nh, "coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
+  readParam(nh, "coarse_max_fitness", p.coarse_max_fitness);
   auto& r = p.registration;
   readParam(nh, "registration/method", r.method);
   readInt(nh, "registration/num_threads", r.num_threads);
@@ -54,11 +55,16 @@ LoopDetectorParams readParams(const ros::NodeHandle& nh) {
   readParam(nh, "registration/transformation_epsilon", r.transformation_epsilon);
   readInt(nh, "registration/k_correspondences", r.k_correspondences);
   readParam(nh, "registration/ndt_resolution", r.ndt_resolution);
+  readParam(nh, "registration/ndt_step_size", r.ndt_step_size);
+  readParam(nh, "registration/gicp_covariance_epsilon", r.gicp_covariance_epsilon);
+  readParam(nh, "registration/vgicp_resolution", r.vgicp_resolution);
+  readInt(nh, "registration/min_correspondences", r.min_correspondences);
   readParam(nh, "max_fitness", p.max_fitness);
   readParam(nh, "overlap_distance", p.overlap_distance);
   readParam(nh, "min_overlap", p.min_overlap);
   readParam(nh, "seed_translation_from_odometry", p.seed_translation_from_odometry);
   readParam(nh, "retry_zero_translation_seed", p.retry_zero_translation_seed);
+  readParam(nh, "stop_at_first_accepted", p.stop_at_first_accepted);
   readParam(nh, "check_odometry_consistency", p.check_odometry_consistency);
   readParam(nh, "odometry_translation_tolerance_base", p.odometry_translation_tolerance_base);
   readParam(nh, "odometry_translation_tolerance_per_meter",
@@ -130,8 +136,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       }
     };
     try {
-      detector_ = std::make_unique<LoopDetector>(
-          params, [](const RegistrationParams& p) { return createRegistration(p); }, sink);
+      detector_ = std::make_unique<LoopDetector>(params, sink);
     } catch (const std::exception& e) {
       NODELET_ERROR("loop_detection: cannot create the detector: %s", e.what());
       return;

@@ -180,6 +180,8 @@ class FastGicp : public Registration {
   std::string name() const override { return voxelized_ ? "fast_vgicp" : "fast_gicp"; }
 
   void setTarget(const PointCloudConstPtr& target) override {
+    // The same cloud object again (e.g. loop verification from a second seed): keep everything.
+    if (target_ && target && target_->source == target) return;
     // A scan that becomes the new keyframe was just the source: reuse its tree and covariances.
     if (last_source_ && target && last_source_->source == target) {
       target_ = last_source_;
@@ -213,7 +215,10 @@ class FastGicp : public Registration {
           name() + ": target has fewer than " + std::to_string(minPoints()) + " valid points";
       return result;
     }
-    last_source_ = prepare(source, params_.k_correspondences, epsilon());
+    // Aligning the same cloud object again (several targets or seeds): reuse its preparation.
+    if (!last_source_ || !source || last_source_->source != source) {
+      last_source_ = prepare(source, params_.k_correspondences, epsilon());
+    }
     const PreparedCloud& src = *last_source_;
     if (src.points.size() < minPoints()) {
       result.message =

@@ -5,7 +5,6 @@
 
 #include <iostream>
 
-#include "loop_test_registration.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "test_data.h"
@@ -33,13 +32,14 @@ Eigen::Isometry3d chainedReference(const std::vector<PointCloudPtr>& scans) {
   RegistrationParams p;
   p.max_iterations = 100;
   p.transformation_epsilon = 1e-6;
-  test::PclGicpTestRegistration reg(p);
+  p.method = "pcl_gicp";  // independent back-end as reference
+  auto reg = createRegistration(p);
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // scan k in frame 0
   for (size_t k = 1; k < scans.size(); ++k) {
-    reg.setTarget(downsampleForLoop(*scans[k - 1], 0.2));
+    reg->setTarget(downsampleForLoop(*scans[k - 1], 0.2));
     Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
     guess.translation().x() = 0.74;
-    const auto r = reg.align(downsampleForLoop(*scans[k], 0.2), guess);
+    const auto r = reg->align(downsampleForLoop(*scans[k], 0.2), guess);
     EXPECT_TRUE(r.converged);
     pose = pose * r.transform;
   }
@@ -59,7 +59,7 @@ TEST(LoopRealScans, Frame5ClosesOnFrame0AndUnrelatedScanIsRejected) {
   LoopDetectorParams params;
   params.min_accum_distance_gap = 0.0;  // six consecutive frames: allow the short "loop"
   params.check_odometry_consistency = false;
-  LoopDetector detector(params, test::testRegistrationFactory());
+  LoopDetector detector(params);
   ASSERT_TRUE(detector.addKeyframe(keyframe(0, scans[0], 0.0)));
 
   auto loop = detector.relocalize(keyframe(5, scans[5], -1.0));
@@ -92,7 +92,7 @@ TEST(LoopRealScans, Frame5ClosesOnFrame0AndUnrelatedScanIsRejected) {
 }
 
 TEST(LoopRealScans, BadInputIsRejectedWithoutCrash) {
-  LoopDetector detector(LoopDetectorParams(), test::testRegistrationFactory());
+  LoopDetector detector((LoopDetectorParams()));
   EXPECT_FALSE(detector.addKeyframe(LoopKeyframe()));  // null cloud
   auto empty = std::make_shared<PointCloud>();
   EXPECT_FALSE(detector.addKeyframe(keyframe(1, empty, 0.0)));

@@ -10,7 +10,6 @@
 // keyframes.
 #include <Eigen/Geometry>
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -24,7 +23,6 @@
 namespace osm_graph_slam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
-using RegistrationFactory = std::function<std::unique_ptr<Registration>(const RegistrationParams&)>;
 
 struct LoopDetectorParams {
   ScanContextParams scan_context;
@@ -44,16 +42,20 @@ struct LoopDetectorParams {
   bool verify_odometry_nearest = true;
 
   // Phase 3: verification.
-  double voxel_size = 0.4;         ///< [m] downsampling of the stored clouds (0 = none)
+  double voxel_size = 0.6;         ///< [m] downsampling of the stored clouds (0 = none)
   int min_points = 200;            ///< keyframes with fewer points are stored without cloud
-  double coarse_voxel_size = 1.0;  ///< [m] coarse stage cloud resolution
+  double coarse_voxel_size = 1.5;  ///< [m] coarse stage cloud resolution
   double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
-  RegistrationParams registration;                  ///< fine stage back-end and settings
-  double max_fitness = 0.2;                         ///< [m^2] mean squared inlier distance
-  double overlap_distance = 0.5;  ///< [m] a source point is an inlier within this distance
-  double min_overlap = 0.5;       ///< inlier fraction of the query cloud
+  /// [m^2] early reject: a coarse result with a larger fitness skips the fine stage (<= 0: off).
+  double coarse_max_fitness = 0.0;
+  RegistrationParams registration;  ///< back-end (method) and fine stage settings
+  double max_fitness = 0.2;         ///< [m^2] mean squared inlier distance
+  double overlap_distance = 0.5;    ///< [m] a source point is an inlier within this distance
+  double min_overlap = 0.5;         ///< inlier fraction of the query cloud
   bool seed_translation_from_odometry = true;  ///< else the seed translation is zero
   bool retry_zero_translation_seed = true;     ///< second try with zero translation
+  /// Stop verifying at the first accepted candidate (candidates are verified best first).
+  bool stop_at_first_accepted = true;
   bool check_odometry_consistency = true;
   double odometry_translation_tolerance_base = 2.0;        ///< [m]
   double odometry_translation_tolerance_per_meter = 0.01;  ///< [m/m] of distance gap
@@ -91,10 +93,12 @@ struct DetectedLoop {
 struct CandidateOutcome {
   uint64_t id = 0;
   double descriptor_distance = 1.0;
-  double fitness = 0.0;
+  double coarse_fitness = -1.0;  ///< [m^2] (-1: no coarse stage)
+  double fitness = -1.0;         ///< [m^2] fine stage (-1: rejected before it)
   double overlap = 0.0;
-  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
-  std::string verdict;  ///< accepted | fitness | overlap | odometry
+  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  ///< of the last stage run
+  /// accepted | coarse_fitness | coarse_odometry | fitness | overlap | odometry
+  std::string verdict;
 };
 
 /// What happened to one query, for diagnostics and benchmarks.
@@ -104,9 +108,14 @@ struct LoopQueryStats {
   double candidates_ms = 0.0;
   double ranking_ms = 0.0;
   double verification_ms = 0.0;
+  double coarse_ms = 0.0;   ///< part of verification_ms
+  double fine_ms = 0.0;     ///< part of verification_ms
+  double overlap_ms = 0.0;  ///< part of verification_ms
   int phase1_candidates = 0;
   int phase2_candidates = 0;
-  int verified = 0;  ///< registrations run
+  int verified = 0;            ///< candidate/seed pairs verified
+  int fine_registrations = 0;  ///< of which reached the fine stage
+  int rejected_coarse = 0;     ///< early rejects after the coarse stage (fitness or odometry)
   int rejected_fitness = 0;
   int rejected_overlap = 0;
   int rejected_odometry = 0;
@@ -131,9 +140,9 @@ struct RankedCandidate {
 
 class LoopDetector {
  public:
-  /// factory creates the registration back-ends (production: createRegistration).
-  LoopDetector(const LoopDetectorParams& params, RegistrationFactory factory,
-               LogSink log_sink = {});
+  /// Creates the registration back-ends with createRegistration(params.registration); throws
+  /// std::invalid_argument for an unknown registration method.
+  explicit LoopDetector(const LoopDetectorParams& params, LogSink log_sink = {});
   ~LoopDetector();
 
   /// Searches a loop for keyframe among the stored ones (odometry mode), then stores it.
@@ -164,19 +173,20 @@ class LoopDetector {
  private:
   struct Query;
   std::optional<DetectedLoop> verify(const Query& query, const std::vector<RankedCandidate>& ranked,
-                                    const std::optional<Eigen::Isometry3d>& odom_pose,
-                                    double accum_distance);
+                                     const std::optional<Eigen::Isometry3d>& odom_pose,
+                                     double accum_distance);
   std::optional<DetectedLoop> verifyCandidate(const Query& query, const RankedCandidate& candidate,
-                                             Eigen::Isometry3d guess,
-                                             const std::optional<Eigen::Isometry3d>& odom_pose,
-                                             double accum_distance);
+                                              Eigen::Isometry3d guess,
+                                              const std::optional<Eigen::Isometry3d>& odom_pose,
+                                              double accum_distance);
   Matrix6d informationFromFitness(double fitness) const;
+  bool consistentWithOdometry(const LoopDatabaseEntry& target, const Eigen::Isometry3d& transform,
+                              const Eigen::Isometry3d& odom_pose, double accum_distance) const;
   void addOdometryNearest(const ScanContext& query, size_t nearest,
                           std::vector<RankedCandidate>& ranked) const;
   size_t indexLimitForDistance(double accum_distance) const;
 
   LoopDetectorParams params_;
-  RegistrationFactory factory_;
   Logger logger_;
   std::vector<LoopDatabaseEntry> entries_;
   std::unique_ptr<class DynamicKdIndex> ring_key_index_;

@@ -38,6 +38,9 @@ struct RegistrationParams {
   int min_correspondences = 20;
 };
 
+/// Back-ends may keep the preprocessing (KD-tree, covariances) of the cloud objects they were
+/// last given as source and target and reuse it when the same object (pointer) comes again, so
+/// a cloud must not be modified after it was passed in.
 class Registration {
  public:
   virtual ~Registration() = default;
