@@ -29,12 +29,14 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("min_points", p.min_points);
   r.param("coarse_voxel_size", p.coarse_voxel_size);
   r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
+  r.param("coarse_max_fitness", p.coarse_max_fitness);
   readParams(PrefixedParamReader(r, "registration"), p.registration);
   r.param("max_fitness", p.max_fitness);
   r.param("overlap_distance", p.overlap_distance);
   r.param("min_overlap", p.min_overlap);
   r.param("seed_translation_from_odometry", p.seed_translation_from_odometry);
   r.param("retry_zero_translation_seed", p.retry_zero_translation_seed);
+  r.param("stop_at_first_accepted", p.stop_at_first_accepted);
   r.param("check_odometry_consistency", p.check_odometry_consistency);
   r.param("odometry_translation_tolerance_base", p.odometry_translation_tolerance_base);
   r.param("odometry_translation_tolerance_per_meter", p.odometry_translation_tolerance_per_meter);

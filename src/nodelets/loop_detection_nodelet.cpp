@@ -10,75 +10,11 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include "osm_graph_slam/loop/loop_detector.h"
+#include "osm_graph_slam/loop/params_io.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 namespace {
-
-template <typename T>
-void readParam(const ros::NodeHandle& nh, const std::string& name, T& value) {
-  nh.param<T>(name, value, value);  // the struct default is the fallback
-}
-
-void readInt(const ros::NodeHandle& nh, const std::string& name, int& value) {
-  nh.param<int>(name, value, value);
-}
-
-LoopDetectorParams readParams(const ros::NodeHandle& nh) {
-  LoopDetectorParams p;
-  auto& sc = p.scan_context;
-  readInt(nh, "scan_context/num_rings", sc.num_rings);
-  readInt(nh, "scan_context/num_sectors", sc.num_sectors);
-  readParam(nh, "scan_context/max_radius", sc.max_radius);
-  readParam(nh, "scan_context/min_radius", sc.min_radius);
-  readParam(nh, "scan_context/sensor_height", sc.sensor_height);
-  readParam(nh, "scan_context/max_height", sc.max_height);
-  readParam(nh, "scan_context/min_height", sc.min_height);
-  readInt(nh, "scan_context/sector_search_window", sc.sector_search_window);
-  readParam(nh, "min_accum_distance_gap", p.min_accum_distance_gap);
-  readParam(nh, "search_radius_base", p.search_radius_base);
-  readParam(nh, "search_radius_per_meter", p.search_radius_per_meter);
-  readParam(nh, "search_radius_max", p.search_radius_max);
-  readInt(nh, "ring_key_candidates", p.ring_key_candidates);
-  readInt(nh, "num_candidates", p.num_candidates);
-  readParam(nh, "max_descriptor_distance", p.max_descriptor_distance);
-  readParam(nh, "verify_odometry_nearest", p.verify_odometry_nearest);
-  readParam(nh, "voxel_size", p.voxel_size);
-  readInt(nh, "min_points", p.min_points);
-  readParam(nh, "coarse_voxel_size", p.coarse_voxel_size);
-  readParam(nh, "coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
-  readParam(nh, "coarse_max_fitness", p.coarse_max_fitness);
-  auto& r = p.registration;
-  readParam(nh, "registration/method", r.method);
-  readInt(nh, "registration/num_threads", r.num_threads);
-  readInt(nh, "registration/max_iterations", r.max_iterations);
-  readParam(nh, "registration/max_correspondence_distance", r.max_correspondence_distance);
-  readParam(nh, "registration/transformation_epsilon", r.transformation_epsilon);
-  readInt(nh, "registration/k_correspondences", r.k_correspondences);
-  readParam(nh, "registration/ndt_resolution", r.ndt_resolution);
-  readParam(nh, "registration/ndt_step_size", r.ndt_step_size);
-  readParam(nh, "registration/gicp_covariance_epsilon", r.gicp_covariance_epsilon);
-  readParam(nh, "registration/vgicp_resolution", r.vgicp_resolution);
-  readInt(nh, "registration/min_correspondences", r.min_correspondences);
-  readParam(nh, "max_fitness", p.max_fitness);
-  readParam(nh, "overlap_distance", p.overlap_distance);
-  readParam(nh, "min_overlap", p.min_overlap);
-  readParam(nh, "seed_translation_from_odometry", p.seed_translation_from_odometry);
-  readParam(nh, "retry_zero_translation_seed", p.retry_zero_translation_seed);
-  readParam(nh, "stop_at_first_accepted", p.stop_at_first_accepted);
-  readParam(nh, "check_odometry_consistency", p.check_odometry_consistency);
-  readParam(nh, "odometry_translation_tolerance_base", p.odometry_translation_tolerance_base);
-  readParam(nh, "odometry_translation_tolerance_per_meter",
-            p.odometry_translation_tolerance_per_meter);
-  readParam(nh, "odometry_yaw_tolerance_base", p.odometry_yaw_tolerance_base);
-  readParam(nh, "odometry_yaw_tolerance_per_meter", p.odometry_yaw_tolerance_per_meter);
-  readParam(nh, "translation_stddev_per_rms", p.translation_stddev_per_rms);
-  readParam(nh, "rotation_stddev_per_rms", p.rotation_stddev_per_rms);
-  readParam(nh, "min_translation_stddev", p.min_translation_stddev);
-  readParam(nh, "max_translation_stddev", p.max_translation_stddev);
-  readParam(nh, "min_rotation_stddev", p.min_rotation_stddev);
-  readParam(nh, "max_rotation_stddev", p.max_rotation_stddev);
-  return p;
-}
 
 Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -110,7 +46,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    const LoopDetectorParams params = readParams(pnh);
+    LoopDetectorParams params;
+    readParams(RosParamReader(pnh), params);
     pnh.param<std::string>("mode", mode_, "odometry");
     if (mode_ != "odometry" && mode_ != "place_recognition") {
       NODELET_ERROR(

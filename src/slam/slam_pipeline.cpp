@@ -41,8 +41,7 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
   if (params.use_loops) {
     const std::shared_ptr<const Logger> log = logger_;
     loops_ = std::make_unique<LoopDetector>(
-        params.loop, [](const RegistrationParams& p) { return createRegistration(p); },
-        [log](LogLevel level, const std::string& msg) { log->log(level, msg); });
+        params.loop, [log](LogLevel level, const std::string& msg) { log->log(level, msg); });
   }
 }
 

@@ -143,11 +143,7 @@ std::vector<StageConfig> stages() {
 /// File values that differ from the code default and cannot be fixed on this branch (the struct
 /// is owned by another branch right now). KnownDisagreementsStillDisagree fails once one is
 /// fixed, so this list cannot go stale.
-const std::map<std::string, std::set<std::string>> kKnownDisagreements = {
-    // LoopDetectorParams::registration is a default RegistrationParams (epsilon 5e-4, k 10);
-    // the loop nodelet has always run with the file's tighter values.
-    {"loop_detection", {"registration/transformation_epsilon", "registration/k_correspondences"}},
-};
+const std::map<std::string, std::set<std::string>> kKnownDisagreements = {};
 
 std::string configPath(const std::string& name) {
   return test::sourceDir() + "/config/" + name + ".yaml";
