@@ -1,6 +1,7 @@
 #pragma once
 // A drive along a simulated street with known truth for back-end tests: buildings, true poses,
 // keyframe clouds (simulated LiDAR) and their wall segments from the production extractors.
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -98,8 +99,11 @@ struct StreetDrive {
     return t;
   }
 
+  /// Keyframes with segments (and clouds when kept), then the buildings. gravity: every keyframe
+  /// gets this IMU roll/pitch when given.
   void feed(GraphBackend& backend, const std::vector<Eigen::Isometry3d>& odom,
-            const std::vector<Building>& prior) const {
+            const std::vector<Building>& prior,
+            const std::optional<Eigen::Vector2d>& gravity = std::nullopt) const {
     backend.addBuildings(prior, Eigen::Vector2d::Zero(), 1000.0);
     for (size_t k = 0; k < odom.size(); ++k) {
       KeyframeInput kf;
@@ -108,6 +112,7 @@ struct StreetDrive {
       kf.odom_pose = odom[k];
       kf.odom_fitness = 0.05;
       if (k < clouds.size()) kf.cloud = clouds[k];
+      kf.gravity_roll_pitch = gravity;
       backend.addKeyframe(kf);
       backend.addLineSegments(k, segments[k]);
     }

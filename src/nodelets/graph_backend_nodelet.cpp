@@ -28,6 +28,7 @@
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_logging.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
@@ -65,22 +66,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     std::string error;
     if (!readParams(RosParamReader(pnh), params, &error))
       NODELET_ERROR("graph_backend: %s; using '%s'", error.c_str(), toString(params.mode));
-    auto logger = std::make_shared<Logger>([this](LogLevel level, const std::string& msg) {
-      switch (level) {
-        case LogLevel::kDebug:
-          NODELET_DEBUG("%s", msg.c_str());
-          break;
-        case LogLevel::kInfo:
-          NODELET_INFO("%s", msg.c_str());
-          break;
-        case LogLevel::kWarn:
-          NODELET_WARN("%s", msg.c_str());
-          break;
-        case LogLevel::kError:
-          NODELET_ERROR("%s", msg.c_str());
-          break;
-      }
-    });
+    auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
 
     pose_pub_ = nh.advertise<geometry_msgs::PoseStamped>("slam/pose", 10);

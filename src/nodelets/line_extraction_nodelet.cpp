@@ -8,6 +8,8 @@
 
 #include <pluginlib/class_list_macros.hpp>
 
+#include "osm_graph_slam/ros/nodelet_logging.h"
+
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/cloud/params_io.h"
@@ -23,16 +25,7 @@ class LineExtractionNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    logger_ = std::make_shared<Logger>([this](LogLevel level, const std::string& msg) {
-      if (level == LogLevel::kError)
-        NODELET_ERROR_STREAM(msg);
-      else if (level == LogLevel::kWarn)
-        NODELET_WARN_STREAM(msg);
-      else if (level == LogLevel::kInfo)
-        NODELET_INFO_STREAM(msg);
-      else
-        NODELET_DEBUG_STREAM(msg);
-    });
+    logger_ = std::make_shared<Logger>(nodeletLogSink(getName()));
     const RosParamReader reader(pnh);
     WallPointExtractorParams wp;
     readParams(PrefixedParamReader(reader, "wall"), wp);

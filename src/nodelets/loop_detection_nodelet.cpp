@@ -9,6 +9,8 @@
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "osm_graph_slam/ros/nodelet_logging.h"
+
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
@@ -56,22 +58,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
           mode_.c_str());
       mode_ = "odometry";
     }
-    LogSink sink = [this](LogLevel level, const std::string& msg) {
-      switch (level) {
-        case LogLevel::kDebug:
-          NODELET_DEBUG("%s", msg.c_str());
-          break;
-        case LogLevel::kInfo:
-          NODELET_INFO("%s", msg.c_str());
-          break;
-        case LogLevel::kWarn:
-          NODELET_WARN("%s", msg.c_str());
-          break;
-        case LogLevel::kError:
-          NODELET_ERROR("%s", msg.c_str());
-          break;
-      }
-    };
+    LogSink sink = nodeletLogSink(getName());
     try {
       detector_ = std::make_unique<LoopDetector>(params, sink);
     } catch (const std::exception& e) {

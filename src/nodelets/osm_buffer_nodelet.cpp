@@ -6,6 +6,8 @@
 #include <sensor_msgs/NavSatFix.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "osm_graph_slam/ros/nodelet_logging.h"
+
 #include <cmath>
 #include <memory>
 #include <mutex>
@@ -32,22 +34,7 @@ class OsmBufferNodelet : public nodelet::Nodelet {
     nh_ = getNodeHandle();
     pnh_ = getPrivateNodeHandle();
     readParams();
-    logger_ = std::make_shared<const Logger>([this](LogLevel level, const std::string& m) {
-      switch (level) {
-        case LogLevel::kDebug:
-          NODELET_DEBUG_STREAM(m);
-          break;
-        case LogLevel::kInfo:
-          NODELET_INFO_STREAM(m);
-          break;
-        case LogLevel::kWarn:
-          NODELET_WARN_STREAM(m);
-          break;
-        case LogLevel::kError:
-          NODELET_ERROR_STREAM(m);
-          break;
-      }
-    });
+    logger_ = std::make_shared<const Logger>(nodeletLogSink(getName()));
     if (!createSource()) return;
 
     buildings_pub_ = nh_.advertise<BuildingArray>("osm/buildings", 1, true);

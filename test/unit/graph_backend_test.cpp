@@ -178,17 +178,7 @@ TEST(GraphBackend, ImuAttitudeKeepsTheTrajectoryLevel) {
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   GraphBackend without_imu(params), with_imu(params);
   drive().feed(without_imu, dived, drive().truth);
-  for (size_t k = 0; k < dived.size(); ++k) {
-    KeyframeInput kf;
-    kf.id = k;
-    kf.stamp = 0.1 * k;
-    kf.odom_pose = dived[k];
-    kf.odom_fitness = 0.05;
-    kf.gravity_roll_pitch = Eigen::Vector2d::Zero();  // the drive is level
-    with_imu.addKeyframe(kf);
-    with_imu.addLineSegments(k, drive().segments[k]);
-  }
-  with_imu.addBuildings(drive().truth, Eigen::Vector2d::Zero(), 1000.0);
+  drive().feed(with_imu, dived, drive().truth, Eigen::Vector2d::Zero());  // the drive is level
   without_imu.update();
   with_imu.update();
   const double z_without = max_abs_z(without_imu.trajectory());
