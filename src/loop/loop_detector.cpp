@@ -357,16 +357,8 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
     stats_.reason = "no candidate within the descriptor distance";
     return std::nullopt;
   }
-  start = Clock::now();
-  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
-  query.coarse_cloud = coarse_registration_
-                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
-                           : query.cloud;
-  auto loop = verify(query, ranked, keyframe.odom_pose, keyframe.accum_distance);
-  stats_.verification_ms = msSince(start);
-  stats_.accepted = loop.has_value();
-  if (!loop) stats_.reason = "no candidate passed verification";
-  return loop;
+  return prepareAndVerify(query, ranked, keyframe.cloud, keyframe.odom_pose,
+                          keyframe.accum_distance);
 }
 
 std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyframe) {
@@ -395,12 +387,18 @@ std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyfram
     stats_.reason = "no keyframe within the descriptor distance";
     return std::nullopt;
   }
-  start = Clock::now();
-  query.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  return prepareAndVerify(query, ranked, keyframe.cloud, std::nullopt, 0.0);
+}
+
+std::optional<DetectedLoop> LoopDetector::prepareAndVerify(
+    Query& query, const std::vector<RankedCandidate>& ranked, const PointCloudConstPtr& cloud,
+    const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
+  const auto start = Clock::now();
+  query.cloud = storedCloud(cloud, params_.voxel_size);
   query.coarse_cloud = coarse_registration_
                            ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
                            : query.cloud;
-  auto loop = verify(query, ranked, std::nullopt, 0.0);
+  auto loop = verify(query, ranked, odom_pose, accum_distance);
   stats_.verification_ms = msSince(start);
   stats_.accepted = loop.has_value();
   if (!loop) stats_.reason = "no candidate passed verification";

@@ -172,6 +172,12 @@ class LoopDetector {
 
  private:
   struct Query;
+  /// Downsamples the query cloud, verifies the ranked candidates and records the stats.
+  std::optional<DetectedLoop> prepareAndVerify(Query& query,
+                                               const std::vector<RankedCandidate>& ranked,
+                                               const PointCloudConstPtr& cloud,
+                                               const std::optional<Eigen::Isometry3d>& odom_pose,
+                                               double accum_distance);
   std::optional<DetectedLoop> verify(const Query& query, const std::vector<RankedCandidate>& ranked,
                                      const std::optional<Eigen::Isometry3d>& odom_pose,
                                      double accum_distance);
