@@ -1,5 +1,7 @@
 #include "osm_graph_slam/io/kitti_raw.h"
 
+#include "osm_graph_slam/io/trajectory_io.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -199,7 +201,7 @@ bool writeKittiTimestamps(const std::string& path, const std::vector<StampNs>& s
                           std::string* error) {
   std::string text;
   for (StampNs s : stamps) text += formatKittiTimestamp(s) + "\n";
-  return writeTextFileAtomic(path, text, error);
+  return writeFileAtomically(path, text, error);
 }
 
 bool readOxtsFile(const std::string& path, OxtsRecord& record, std::string* error) {
@@ -230,7 +232,7 @@ bool writeOxtsFile(const std::string& path, const OxtsRecord& record, std::strin
     }
   }
   out << '\n';
-  return writeTextFileAtomic(path, out.str(), error);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 bool readKittiRigidCalib(const std::string& path, Eigen::Isometry3d& transform,
@@ -273,7 +275,7 @@ bool writeKittiRigidCalib(const std::string& path, const Eigen::Isometry3d& tran
   out << "\nT:";
   for (int r = 0; r < 3; ++r) out << ' ' << formatDouble(transform.translation()(r));
   out << '\n';
-  return writeTextFileAtomic(path, out.str(), error);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 bool readFloat32Records(const std::string& path, std::vector<float>& values, std::string* error) {
@@ -448,22 +450,7 @@ bool writeKittiPoses(const std::string& path, const std::vector<Eigen::Isometry3
                      std::string* error) {
   std::string text;
   for (const auto& T : poses) text += toRowMajor3x4(T) + "\n";
-  return writeTextFileAtomic(path, text, error);
-}
-
-bool writeTextFileAtomic(const std::string& path, const std::string& text, std::string* error) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return fail(error, "cannot write '" + tmp + "'");
-    out << text;
-    if (!out) return fail(error, "write error on '" + tmp + "'");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    return fail(error, "cannot rename '" + tmp + "' to '" + path + "'");
-  }
-  return true;
+  return writeFileAtomically(path, text, error);
 }
 
 }  // namespace osm_graph_slam

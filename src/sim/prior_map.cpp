@@ -1,5 +1,6 @@
 #include "osm_graph_slam/sim/prior_map.h"
 #include "osm_graph_slam/common/xml_escape.h"
+#include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 
 #include <algorithm>
@@ -171,7 +172,7 @@ bool writePriorOsm(const std::string& path, const std::vector<PriorBuilding>& pr
       << "\" maxlat=\"" << fmt("%.9f", max_lat) << "\" maxlon=\"" << fmt("%.9f", max_lon)
       << "\"/>\n"
       << nodes.str() << ways.str() << "</osm>\n";
-  return writeTextFileAtomic(path, out.str(), error);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 bool writePriorOffsetsCsv(const std::string& path, const std::vector<PriorBuilding>& prior,
@@ -187,7 +188,7 @@ bool writePriorOffsetsCsv(const std::string& path, const std::vector<PriorBuildi
         << fmt("%.6f", b.dtheta * 180.0 / M_PI) << ',' << fmt("%.4f", b.centroid.x()) << ','
         << fmt("%.4f", b.centroid.y()) << '\n';
   }
-  return writeTextFileAtomic(path, out.str(), error);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 bool writeBuildingsGeoJson(const std::string& path, const Scene& scene, const EnuConverter& enu,
@@ -218,7 +219,7 @@ bool writeBuildingsGeoJson(const std::string& path, const Scene& scene, const En
         << (i + 1 < buildings.size() ? ",\n" : "\n");
   }
   out << "]}\n";
-  return writeTextFileAtomic(path, out.str(), error);
+  return writeFileAtomically(path, out.str(), error);
 }
 
 }  // namespace osm_graph_slam::sim

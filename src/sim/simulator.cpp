@@ -1,4 +1,5 @@
 #include "osm_graph_slam/sim/simulator.h"
+#include "osm_graph_slam/io/trajectory_io.h"
 
 #include <array>
 #include <chrono>
@@ -235,7 +236,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
             writeKittiTimestamps(odir + "/timestamps.txt", stamps, error) &&
             writeKittiPoses((gt_dir / "poses_velo.txt").string(), velo_poses, error) &&
             writeKittiPoses((gt_dir / "poses_imu.txt").string(), imu_poses, error) &&
-            writeTextFileAtomic((gt_dir / "times.txt").string(), times.str(), error);
+            writeFileAtomically((gt_dir / "times.txt").string(), times.str(), error);
   if (!ok) return false;
 
   const std::vector<PriorBuilding> prior = [&] {
@@ -306,7 +307,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
        << ", \"phantom\": " << stats.prior_phantom << "},\n"
        << "  \"ground_truth\": \"ground_truth/poses_velo.txt: velo_link in the ENU frame above, "
           "KITTI 3x4 rows; poses_imu.txt: base_link (OXTS)\"\n}\n";
-  return writeTextFileAtomic((fs::path(out_dir) / "sim_info.json").string(), info.str(), error);
+  return writeFileAtomically((fs::path(out_dir) / "sim_info.json").string(), info.str(), error);
 }
 
 }  // namespace osm_graph_slam::sim

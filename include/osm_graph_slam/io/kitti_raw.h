@@ -94,8 +94,6 @@ bool readKittiPoses(const std::string& path, std::vector<Eigen::Isometry3d>& pos
 bool writeKittiPoses(const std::string& path, const std::vector<Eigen::Isometry3d>& poses,
                      std::string* error = nullptr);
 
-/// Writes text atomically (temporary file, then rename).
-bool writeTextFileAtomic(const std::string& path, const std::string& text,
-                         std::string* error = nullptr);
+// Text files are written with writeFileAtomically (io/trajectory_io.h).
 
 }  // namespace osm_graph_slam
