@@ -13,7 +13,13 @@
 namespace osm_graph_slam {
 
 struct KeyframeTrackerParams {
-  RegistrationParams registration;
+  /// Scan-to-keyframe matching uses 2 m correspondences (measured on a simulated drive: with 1 m
+  /// the tracker lost 20° of heading in a 20°/s U-turn, ATE over 720 scans 1.6 m -> 0.13 m).
+  RegistrationParams registration = [] {
+    RegistrationParams r;
+    r.max_correspondence_distance = 2.0;
+    return r;
+  }();
   double keyframe_delta_trans = 2.0;    ///< [m] new keyframe after this translation
   double keyframe_delta_angle = 0.26;   ///< [rad] ... or this rotation
   double keyframe_delta_time = 2.0;     ///< [s] ... or this time
