@@ -14,13 +14,6 @@
 
 namespace osm_graph_slam::test {
 
-inline Eigen::Isometry3d se3(const Pose2& p) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::AngleAxisd(p.theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  T.translation() = Eigen::Vector3d(p.x, p.y, 0.0);
-  return T;
-}
-
 inline Building toBuilding(int64_t id, const Polygon2& outline) {
   Building b;
   b.id = id;
@@ -69,11 +62,11 @@ struct StreetDrive {
 
   /// Odometry with a yaw bias and a scale error per step (drift), starting at the truth.
   std::vector<Eigen::Isometry3d> odometry(double yaw_bias_per_step, double scale) const {
-    std::vector<Eigen::Isometry3d> odom = {se3(true_poses[0])};
+    std::vector<Eigen::Isometry3d> odom = {isometryFromPlanar(true_poses[0])};
     for (size_t k = 1; k < true_poses.size(); ++k) {
       Pose2 step = true_poses[k - 1].inverse() * true_poses[k];
       step = Pose2(step.x * scale, step.y * scale, step.theta + yaw_bias_per_step);
-      odom.push_back(odom.back() * se3(step));
+      odom.push_back(odom.back() * isometryFromPlanar(step));
     }
     return odom;
   }
@@ -95,7 +88,8 @@ struct StreetDrive {
 
   Trajectory trueTrajectory() const {
     Trajectory t;
-    for (size_t k = 0; k < true_poses.size(); ++k) t.push_back({0.1 * k, se3(true_poses[k])});
+    for (size_t k = 0; k < true_poses.size(); ++k)
+      t.push_back({0.1 * k, isometryFromPlanar(true_poses[k])});
     return t;
   }
 

@@ -21,12 +21,6 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-Eigen::Isometry3d yawRotation(double yaw) {
-  Eigen::Isometry3d r = Eigen::Isometry3d::Identity();
-  r.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return r;
-}
-
 RobustKernel loopKernel(const GraphBackendParams& p) {
   if (p.loop_kernel == "huber") return RobustKernel::huber(p.loop_kernel_width);
   if (p.loop_kernel == "cauchy") return RobustKernel::cauchy(p.loop_kernel_width);
@@ -84,7 +78,8 @@ Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
 Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
                                    std::optional<double> yaw) {
   const double odom_yaw = planarPose(first_odom_pose).theta;
-  Eigen::Isometry3d first = yawRotation(yaw ? *yaw - odom_yaw : 0.0) * first_odom_pose;
+  Eigen::Isometry3d first =
+      isometryFromPlanar(Pose2(0.0, 0.0, yaw ? *yaw - odom_yaw : 0.0)) * first_odom_pose;
   first.translation().setZero();
   return first * first_odom_pose.inverse();
 }
@@ -584,7 +579,7 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
 
 void GraphBackend::rotateTrajectory(double dyaw) {
   State& s = *state_;
-  const Eigen::Isometry3d rot = yawRotation(dyaw);
+  const Eigen::Isometry3d rot = isometryFromPlanar(Pose2(0.0, 0.0, dyaw));
   for (auto& [id, kf] : s.keyframes) {
     kf.map_pose = rot * kf.map_pose;
     s.graph.setVertexSE3(static_cast<int>(id), kf.map_pose);

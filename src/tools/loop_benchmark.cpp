@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/synthetic_world.h"
 
@@ -26,13 +27,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-Eigen::Isometry3d pose2d(double x, double y, double yaw) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.translation() << x, y, 0.0;
-  t.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).matrix();
-  return t;
 }
 
 struct SizeResult {
@@ -61,10 +55,10 @@ Eigen::Isometry3d lawnmowerPose(int i) {
   const int per_lane = static_cast<int>(width / spacing);
   const int l = i / per_lane, k = i % per_lane;
   const double x = (l % 2 == 0) ? k * spacing : width - k * spacing;
-  return pose2d(x, l * lane, l % 2 == 0 ? 0.0 : M_PI);
+  return isometryFromPlanar(Pose2(x, l * lane, l % 2 == 0 ? 0.0 : M_PI));
 }
 
-const Eigen::Isometry3d kRevisitOffset = pose2d(1.0, 0.5, 0.2);
+const Eigen::Isometry3d kRevisitOffset = isometryFromPlanar(Pose2(1.0, 0.5, 0.2));
 
 std::unique_ptr<LoopDetector> buildDatabase(int size, const SizeWorkload& w,
                                             const std::string& method, double* insert_ms) {
@@ -196,13 +190,13 @@ Drive makeDrive() {
   Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
   double s = 0.0;
   for (size_t i = 0; i < route.size(); ++i) {
-    d.truth.push_back(pose2d(route[i].x(), route[i].y(), route[i].z()));
+    d.truth.push_back(isometryFromPlanar(Pose2(route[i].x(), route[i].y(), route[i].z())));
     if (i > 0) {
       Eigen::Isometry3d step = d.truth[i - 1].inverse() * d.truth[i];
       const double len = step.translation().norm();
       s += len;
       step.translation() *= 1.005;
-      odom = odom * step * pose2d(0, 0, 0.0000524 * len);
+      odom = odom * step * isometryFromPlanar(Pose2(0, 0, 0.0000524 * len));
     } else {
       odom = d.truth[0];
     }
@@ -349,7 +343,8 @@ int main(int argc, char** argv) {
   const auto places = loopTownRoute(200.0, 120.0, 0.0, 5.0, 0.0, 0.0);
   SizeWorkload w;
   for (size_t i = 0; i < places.size(); ++i) {
-    const Eigen::Isometry3d at = pose2d(places[i].x(), places[i].y(), places[i].z());
+    const Eigen::Isometry3d at =
+        isometryFromPlanar(Pose2(places[i].x(), places[i].y(), places[i].z()));
     const Eigen::Isometry3d again = at * kRevisitOffset;
     w.pool_poses.push_back(at);
     w.pool.push_back(

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <random>
 
+#include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/synthetic_world.h"
 
@@ -13,13 +14,6 @@ namespace osm_graph_slam {
 namespace {
 
 constexpr double kFacadePeriod = 14.0;
-
-Eigen::Isometry3d pose2d(double x, double y, double yaw) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.translation() << x, y, 0.0;
-  t.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).matrix();
-  return t;
-}
 
 struct Drive {
   std::vector<Eigen::Isometry3d> truth;
@@ -40,13 +34,14 @@ const Drive& drive() {
     Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
     double accum = 0.0;
     for (size_t i = 0; i < route.size(); ++i) {
-      const Eigen::Isometry3d truth = pose2d(route[i].x(), route[i].y(), route[i].z());
+      const Eigen::Isometry3d truth =
+          isometryFromPlanar(Pose2(route[i].x(), route[i].y(), route[i].z()));
       if (i > 0) {
         Eigen::Isometry3d step = out.truth.back().inverse() * truth;
         const double length = step.translation().norm();
         accum += length;
         step.translation() *= 1.005;
-        step = step * pose2d(0, 0, 0.0000524 * length);
+        step = step * isometryFromPlanar(Pose2(0, 0, 0.0000524 * length));
         odom = odom * step;
       } else {
         odom = truth;

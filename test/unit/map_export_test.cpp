@@ -34,7 +34,8 @@ struct ExportFixture : ::testing::Test {
     LoopClosureInput loop;
     loop.from_id = 11;
     loop.to_id = 2;
-    loop.relative_pose = test::se3(drive_->true_poses[2].inverse() * drive_->true_poses[11]);
+    loop.relative_pose =
+        isometryFromPlanar(drive_->true_poses[2].inverse() * drive_->true_poses[11]);
     backend_->addLoopClosure(loop);
     backend_->update();
   }
