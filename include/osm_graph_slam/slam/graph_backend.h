@@ -50,7 +50,7 @@ struct BackendUpdateReport {
   size_t building_edges = 0, buildings_added = 0;
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   bool heading_initialized_now = false;
-  OptimizationResult phase1, phase2, overlap;
+  OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
   double total_ms = 0.0;
 };
@@ -65,7 +65,7 @@ struct KeyframeState {
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
   bool has_global_prior = false;
-  bool has_attitude = false;  ///< an IMU roll/pitch prior was added
+  bool has_attitude = false;  ///< a roll/pitch prior (IMU, or odometry's) was added
 };
 
 /// A building as the back-end knows it: the OSM prior and the current estimate.
@@ -134,6 +134,11 @@ class GraphBackend {
   void flushBuildings(BackendUpdateReport& report);
   void processOsmPriors(BackendUpdateReport& report);
   bool keyframeCovered(const Eigen::Vector2d& position) const;
+  void addGlobalPrior(KeyframeState& kf, const LineMatchResult& global);
+  void addOdometryAttitudePrior(KeyframeState& kf, int level);
+  std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
+  void readRobotPoses();
+  void readBuildingPoses();
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
   void optimizeTwoPhase(BackendUpdateReport& report);
   void resolveOverlaps(BackendUpdateReport& report);
