@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/eval/slam_evaluation.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/information.h"
@@ -269,6 +270,8 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     kf.stamp = in.stamp;
     kf.odom_pose = in.odom_pose;
     kf.accum_distance = in.accum_distance;
+    kf.odom_fitness = in.odom_fitness;
+    kf.gravity_roll_pitch = in.gravity_roll_pitch;
     kf.cloud = in.cloud;
     const int vid = static_cast<int>(in.id);
     if (s.keyframes.empty()) {
@@ -716,6 +719,7 @@ std::vector<Building> GraphBackend::correctedBuildings() const {
   std::vector<Building> out;
   for (const auto& [id, b] : state_->buildings) {
     Building c = b.corrected();
+    c.tags[kObservationsTag] = std::to_string(b.observations);
     if (state_->origin) {
       c.outline_geo.clear();
       for (const auto& v : c.outline_enu) c.outline_geo.push_back(state_->origin->toGeoPoint(v));

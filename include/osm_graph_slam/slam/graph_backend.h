@@ -61,6 +61,8 @@ struct KeyframeState {
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
+  double odom_fitness = -1.0;
+  std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
   PointCloudConstPtr cloud;
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
