@@ -207,12 +207,6 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
         writeKittiPoses(write.path("trajectory_kitti.txt"), trajectory, false, &error), error);
   write("trajectory_tum.txt",
         writeTumTrajectory(write.path("trajectory_tum.txt"), trajectory, &error), error);
-  {
-    std::ostringstream h;  // the first keyframe's map heading: replays start from it
-    h << std::setprecision(17) << planarPose(keyframes.front().map_pose).theta << '\n';
-    write("initial_heading.txt",
-          writeFileAtomically(write.path("initial_heading.txt"), h.str(), &error), error);
-  }
   const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
   write("graph.g2o", g2o.ok, g2o.message);
 
@@ -280,6 +274,12 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     o << std::setprecision(12) << origin->originLat() << ' ' << origin->originLon() << ' '
       << origin->originAlt() << '\n';
     write("origin.txt", writeFileAtomically(write.path("origin.txt"), o.str(), &error), error);
+  }
+  {
+    std::ostringstream h;  // the first keyframe's map heading: replays start from it
+    h << std::setprecision(17) << planarPose(keyframes.front().map_pose).theta << '\n';
+    write("initial_heading.txt",
+          writeFileAtomically(write.path("initial_heading.txt"), h.str(), &error), error);
   }
   const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
   write("graph.g2o", g2o.ok, g2o.message);
