@@ -491,13 +491,19 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
         for (size_t w : visibleWalls(outlines[i], observed_from.translation(),
                                      params_.osm_query_radius, occluders))
           seen.push_back(walls[w]);
-        if (static_cast<int>(seen.size()) < params_.local_min_visible_walls) continue;
+        if (static_cast<int>(seen.size()) < params_.local_min_visible_walls) {
+          ++report.local_unseen;
+          continue;
+        }
         walls.swap(seen);
       }
+      ++report.local_attempts;
       const LineMatchResult local = matcher_.matchLocal(walls, kf_map, b->pose);
       if (!local.success || local.fitness < params_.local_min_fitness ||
-          local.matched_segments < params_.local_min_matched)
+          local.matched_segments < params_.local_min_matched) {
+        ++report.local_rejected;
         continue;
+      }
       const Pose2 z = observed_from.inverse() * local.transform;
       const Eigen::Matrix3d info =
           rotateInformation(localInformation(local), local.transform.theta);

@@ -48,6 +48,8 @@ struct BackendUpdateReport {
   size_t keyframes_added = 0, loops_added = 0, loops_rejected = 0;
   size_t global_priors = 0, global_rejected = 0;
   size_t building_edges = 0, buildings_added = 0;
+  /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
+  size_t local_attempts = 0, local_unseen = 0, local_rejected = 0;
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   bool heading_initialized_now = false;
   OptimizationResult phase1, phase2, joint, overlap;
