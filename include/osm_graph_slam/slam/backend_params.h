@@ -77,6 +77,9 @@ struct GraphBackendParams {
   /// Robust kernel of robot<->building edges (a wall matched to the neighbour's wall).
   std::string building_edge_kernel = "cauchy";  ///< none | huber | cauchy
   double building_edge_kernel_width = 2.0;
+  /// After phase 2, robot<->building edges whose error against the building's estimate exceeds
+  /// this chi2 (3 DOF; 9 = 97 %) are removed for good (0: keep every edge).
+  double building_edge_gate_chi2 = 9.0;
   /// Robot↔building edge standard deviations for the best possible local match (same scaling).
   double local_edge_std_xy = 0.1;           ///< [m]
   double local_edge_std_theta = 0.01;       ///< [rad]
