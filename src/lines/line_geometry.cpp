@@ -139,10 +139,16 @@ double polygonOverlapArea(const Polygon2& a, const Polygon2& b) {
   using Point = bg::model::d2::point_xy<double>;
   using Poly = bg::model::polygon<Point>;
   if (a.size() < 3 || b.size() < 3) return 0.0;
-  auto toBoost = [](const Polygon2& in) {
+  // boost.geometry returned a whole building as the intersection of two outlines sharing a
+  // nearly collinear wall (full-precision coordinates 1 cm apart); coordinates snapped to 0.1 mm
+  // around a local origin avoid those near-degenerate configurations.
+  const Eigen::Vector2d origin = a.front();
+  auto toBoost = [&](const Polygon2& in) {
     Poly out;
-    for (const auto& v : in) bg::append(out.outer(), Point(v.x(), v.y()));
-    bg::append(out.outer(), Point(in.front().x(), in.front().y()));
+    auto snap = [](double v) { return std::round(v * 1e4) * 1e-4; };
+    for (const auto& v : in)
+      bg::append(out.outer(), Point(snap(v.x() - origin.x()), snap(v.y() - origin.y())));
+    bg::append(out.outer(), out.outer().front());
     bg::correct(out);
     return out;
   };

@@ -10,6 +10,8 @@
 #include <map>
 
 #include "osm_graph_slam/common/param_reader.h"
+#include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
@@ -118,6 +120,10 @@ int main(int argc, char** argv) {
             writeKittiPoses(out + "/trajectory_kitti.txt", backend.trajectory(), false) &&
             writeTumTrajectory(out + "/odometry_tum.txt", backend.odomTrajectory());
   const auto buildings = backend.correctedBuildings();
+  for (const auto& [i, j] : findOverlappingBuildings(buildings, params.backend.overlap_min_area))
+    std::cout << "overlap: buildings " << buildings[i].id << " and " << buildings[j].id << ", "
+              << polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu)
+              << " m^2\n";
   if (!buildings.empty())
     ok = ok && writeBuildingsGeoJson(out + "/buildings_corrected.geojson", buildings, &error);
   size_t edges = 0, observed = 0;

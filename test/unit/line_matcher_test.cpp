@@ -181,6 +181,23 @@ TEST(VisibleWalls, FacingUnoccludedWallsOnly) {
   EXPECT_TRUE(visibleWalls(a, {5, -10}, 100.0, {&a, &b, &c}).empty());
 }
 
+// Two buildings of the simulated Karlsruhe drive sharing a wall, as read back from GeoJSON:
+// boost.geometry's intersection alone returned one whole building (220 m^2) for them.
+TEST(PolygonOverlap, TouchingBuildingsDoNotOverlap) {
+  const Polygon2 a = {{-118.34479627607119, 13.429472674978856},
+                      {-101.12949882441407, 23.535092796713883},
+                      {-95.482831089536873, 13.980826028947297},
+                      {-112.60495233825137, 3.9445509819267301}};
+  const Polygon2 b = {{-135.56518150873984, 3.3419278088962994},
+                      {-118.35206691004072, 13.441487787374236},
+                      {-112.60508643715573, 3.9444714364989957},
+                      {-129.99436405116714, -6.2541881347561024}};
+  EXPECT_LT(polygonOverlapArea(a, b), 0.05);
+  const Polygon2 c = transformPolygon(a, Pose2(-1.0, 0.0, 0.0));  // pushed 1 m into b
+  EXPECT_GT(polygonOverlapArea(c, b), 1.0);
+  EXPECT_LT(polygonOverlapArea(c, b), 20.0);
+}
+
 TEST(LineMatcherOverlap, PushesOutAlongTheShallowestPenetration) {
   const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
   const Polygon2 a_local = {{0, 0}, {10, 0}, {10, 8}, {0, 8}};
