@@ -140,6 +140,14 @@ struct GraphBackend::State {
   std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
   int next_building_vertex = kBuildingVertexBase;
   std::vector<int> overlap_edges;
+  struct BuildingEdge {
+    int edge_id;
+    uint64_t keyframe;
+    int64_t building;
+    Pose2 z;
+    Eigen::Matrix3d information;
+  };
+  std::vector<BuildingEdge> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
   bool dirty = false;
   double latest_stamp = 0.0;
@@ -509,9 +517,11 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
           rotateInformation(localInformation(local), local.transform.theta);
       // Joint optimisation moves this robot through planar edges: keep its roll and pitch.
       if (params_.joint_optimization && !kf.has_attitude) addOdometryAttitudePrior(kf, 1);
-      s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
-                            EdgeOptions{1, kernelNamed(params_.building_edge_kernel,
-                                                       params_.building_edge_kernel_width)});
+      const int edge = s.graph.addEdgeSE3SE2(
+          static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
+          EdgeOptions{
+              1, kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
+      s.building_edges.push_back({edge, id, b->prior.id, z, info});
       ++b->observations;
       ++report.building_edges;
       s.dirty = true;
@@ -560,6 +570,10 @@ void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
   const std::vector<int> unfix = fixRobots();
   report.phase2 = s.graph.optimize(1, options);
   readBuildingPoses();
+  if (params_.building_edge_gate_chi2 > 0.0 && gateBuildingEdges(report) > 0) {
+    report.phase2 = s.graph.optimize(1, options);
+    readBuildingPoses();
+  }
   if (params_.joint_optimization) {
     // Phase 3 (level 1): everything together, from phase 2's buildings.
     for (int vid : unfix) s.graph.setFixed(vid, false);
@@ -571,6 +585,33 @@ void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
   if (params_.resolve_overlaps) resolveOverlaps(report);
   for (int vid : unfix) s.graph.setFixed(vid, false);
   updateMapToOdom();
+}
+
+size_t GraphBackend::gateBuildingEdges(BackendUpdateReport& report) {
+  // Robot<->building edges that disagree with the building as all its other observations place
+  // it (after phase 2) are wrong associations: removed before they bend the trajectory.
+  State& s = *state_;
+  size_t removed = 0;
+  std::vector<State::BuildingEdge> keep;
+  keep.reserve(s.building_edges.size());
+  for (const auto& e : s.building_edges) {
+    auto kf = s.keyframes.find(e.keyframe);
+    auto b = s.buildings.find(e.building);
+    if (kf == s.keyframes.end() || b == s.buildings.end()) continue;
+    const Pose2 predicted = planarPose(kf->second.map_pose) * e.z;
+    const Pose2 d = predicted.inverse() * b->second.pose;
+    const Eigen::Vector3d err(d.x, d.y, wrapAngle(d.theta));
+    if (err.dot(e.information * err) <= params_.building_edge_gate_chi2) {
+      keep.push_back(e);
+      continue;
+    }
+    s.graph.removeEdge(e.edge_id);
+    if (b->second.observations > 0) --b->second.observations;
+    ++removed;
+  }
+  s.building_edges.swap(keep);
+  report.building_edges_gated += removed;
+  return removed;
 }
 
 std::vector<int> GraphBackend::fixRobots() {

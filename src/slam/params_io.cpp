@@ -36,6 +36,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("local_min_visible_walls", p.local_min_visible_walls);
   r.param("building_edge_kernel", p.building_edge_kernel);
   r.param("building_edge_kernel_width", p.building_edge_kernel_width);
+  r.param("building_edge_gate_chi2", p.building_edge_gate_chi2);
   r.param("local_edge_std_xy", p.local_edge_std_xy);
   r.param("local_edge_std_theta", p.local_edge_std_theta);
   r.param("building_prior_std_xy", p.building_prior_std_xy);

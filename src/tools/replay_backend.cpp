@@ -127,8 +127,9 @@ int main(int argc, char** argv) {
   }
   std::cout << "replayed " << dump.keyframes.size() << " keyframes, " << dump.loops.size()
             << " loops, " << dump.buildings.size() << " buildings in " << ms << " ms; " << edges
-            << " robot-building edges on " << observed
-            << " buildings; last update: " << last.overlap_edges << " overlap edges, "
+            << " robot-building edges on " << observed << " buildings (local matches "
+            << last.local_attempts << ", rejected " << last.local_rejected << ", no visible wall "
+            << last.local_unseen << "); last update: " << last.overlap_edges << " overlap edges, "
             << last.overlaps_remaining << " overlaps left, chi2 " << last.phase1.final_chi2 << " / "
             << last.joint.final_chi2 << "\n";
   if (!ok) {

@@ -211,7 +211,7 @@ TEST(LineMatcherOverlap, ChoosesTheMinimalOfSeveralSeparatingMoves) {
   EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
 }
 
-TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinSixtyDegrees) {
+TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinTheRotationBound) {
   const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
   const Polygon2 a_local = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
   const Pose2 guess(11.0, 1.0, 8.0 * kDeg);
@@ -219,7 +219,8 @@ TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinSixtyDegrees) {
   const LineMatchResult r = LineMatcher().removeOverlap(a_local, guess, b);
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
-  EXPECT_LE(std::abs(wrapAngle(r.transform.theta - guess.theta)), 60.0 * kDeg + 1e-9);
+  EXPECT_LE(std::abs(wrapAngle(r.transform.theta - guess.theta)),
+            LineMatcherParams().overlap_max_rotation_deg * kDeg + 1e-9);
   EXPECT_LT(r.translation, 2.0);  // a local fix, not a jump across the block
 }
 

@@ -62,8 +62,13 @@ struct GraphBackendParams {
   /// OSM map itself is registered: a prior from misplaced buildings is only as good as they are.
   double global_prior_std_xy = 0.5;    ///< [m]
   double global_prior_std_yaw = 0.02;  ///< [rad]
-  double local_min_fitness = -20.0;    ///< local matches below this add no building edge
-  int local_min_matched = 2;
+  /// Local matches below this add no building edge. A correct match often leaves some visible
+  /// walls unmatched (parked cars, trees, range): -50 as the matcher's own limit.
+  double local_min_fitness = -50.0;
+  /// One matched wall is enough: a lone facade still fixes the building across the street (the
+  /// edge then constrains only that direction, §3.3.5); with 2, two thirds of the correct
+  /// matches on the simulated Karlsruhe drive were thrown away.
+  int local_min_matched = 1;
   /// Local matching aligns only the walls the keyframe can see (facing it, within
   /// osm_query_radius, not hidden behind other buildings): unseen walls otherwise count as
   /// unmatched and push the fitness of every correct match far below local_min_fitness.
@@ -72,6 +77,9 @@ struct GraphBackendParams {
   /// Robust kernel of robot<->building edges (a wall matched to the neighbour's wall).
   std::string building_edge_kernel = "cauchy";  ///< none | huber | cauchy
   double building_edge_kernel_width = 2.0;
+  /// After phase 2, robot<->building edges whose error against the building's estimate exceeds
+  /// this chi2 (3 DOF; 9 = 97 %) are removed for good (0: keep every edge).
+  double building_edge_gate_chi2 = 9.0;
   /// Robot↔building edge standard deviations for the best possible local match (same scaling).
   double local_edge_std_xy = 0.1;           ///< [m]
   double local_edge_std_theta = 0.01;       ///< [rad]

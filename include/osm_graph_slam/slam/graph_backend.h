@@ -50,6 +50,7 @@ struct BackendUpdateReport {
   size_t building_edges = 0, buildings_added = 0;
   /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
   size_t local_attempts = 0, local_unseen = 0, local_rejected = 0;
+  size_t building_edges_gated = 0;  ///< removed by the consistency gate
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   bool heading_initialized_now = false;
   OptimizationResult phase1, phase2, joint, overlap;
@@ -141,6 +142,7 @@ class GraphBackend {
   void addGlobalPrior(KeyframeState& kf, const LineMatchResult& global);
   void addOdometryAttitudePrior(KeyframeState& kf, int level);
   std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
+  size_t gateBuildingEdges(BackendUpdateReport& report);
   void readRobotPoses();
   void readBuildingPoses();
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
