@@ -5,8 +5,8 @@
 //
 // The drive: simulate_urban through the Karlsruhe extract of ../shared/data (the procedural city
 // when it is absent), HDL-64E with motion distortion and KITTI's intrinsic calibration errors
-// (a perfect simulated sensor gives odometry almost no drift), cut after N scans, then kitti2bag. The
-// raw KITTI folder is deleted once the bag exists; only drive.bag, prior.osm,
+// (a perfect simulated sensor gives odometry almost no drift), cut after N scans, then kitti2bag.
+// The raw KITTI folder is deleted once the bag exists; only drive.bag, prior.osm,
 // buildings_true.geojson and sim_info.json stay in the cache.
 #include <fcntl.h>
 #include <sys/file.h>
