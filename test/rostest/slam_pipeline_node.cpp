@@ -220,8 +220,7 @@ bool generateDrive(std::string* error) {
             << P->sim_stats.route_length_m << " m, " << P->sim_stats.buildings
             << " buildings, prior: " << P->sim_stats.prior_perturbed << " perturbed, "
             << P->sim_stats.prior_removed << " removed, " << P->sim_stats.prior_phantom
-            << " phantoms; generation + bag " << P->generation_seconds << " s"
-            << std::endl;  // flushed before the server forks
+            << " phantoms; generation + bag " << P->generation_seconds << " s" << std::endl;  // flushed before the server forks
   return true;
 }
 
