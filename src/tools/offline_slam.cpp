@@ -1,16 +1,20 @@
-// offline_slam: the SLAM pipeline on a KITTI raw drive folder, without a ROS master, as fast as
-// the CPU allows. Writes what save_map writes, the odometry-only keyframe trajectory, the OXTS
-// ground truth of the keyframes (KITTI raw's GPS/INS, the simulator's true poses) and a timing
-// report.
+// offline_slam: the SLAM pipeline on a KITTI raw drive folder or a bag (as kitti2bag writes it),
+// without a ROS master, as fast as the CPU allows. Writes what save_map writes, the
+// odometry-only keyframe trajectory, the ground truth of the keyframes (KITTI raw's GPS/INS, the
+// simulator's true poses; the bag's ground_truth topic) and a timing report.
 //
-//   offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR] [--osm FILE.osm|.pbf]
-//                [--config OVERRIDES.yaml (default config/kitti.yaml)] [--no-osm] [--no-loops]
-//                [--max-scans N] [--json]
+//   offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag) --output DIR
+//                [--osm FILE.osm|.pbf | --overpass URL] [--no-osm] [--no-loops]
+//                [--config OVERRIDES.yaml (default config/kitti.yaml)] [--max-scans N] [--json]
 //                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
-// With OXTS data the IMU's roll/pitch become attitude priors (unless --no-imu).
+//                [--cloud-topic velodyne_points] [--gps-topic gps/fix] [--imu-topic imu/data]
+//                [--ground-truth-topic ground_truth] [--base-frame base_link]
+// The first GPS fix is the map origin; the first IMU orientation (OXTS record) the initial
+// heading, and the IMU's roll/pitch at each keyframe an attitude prior (unless --no-imu).
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "osm_graph_slam/io/kitti_bin.h"
@@ -19,6 +23,7 @@
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_map_source.h"
+#include "osm_graph_slam/ros/bag_drive_reader.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/slam_pipeline.h"
@@ -30,12 +35,36 @@ namespace {
 
 int usage(const std::string& why) {
   std::cerr << "offline_slam: " << why << "\n"
-            << "usage: offline_slam --kitti-raw DRIVE_DIR --output DIR [--calib-dir DIR]\n"
-               "       [--osm FILE] [--config OVERRIDES.yaml] [--no-osm] [--no-loops]\n"
-               "       [--max-scans N] [--initial-heading imu|global_matching] [--no-imu]\n"
-               "       [--dump DIR] [--json]\n";
+            << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)\n"
+               "       --output DIR [--osm FILE | --overpass URL] [--config OVERRIDES.yaml]\n"
+               "       [--no-osm] [--no-loops] [--max-scans N]\n"
+               "       [--initial-heading imu|global_matching] [--no-imu] [--dump DIR] [--json]\n"
+               "       [--cloud-topic T] [--gps-topic T] [--imu-topic T]\n"
+               "       [--ground-truth-topic T] [--base-frame F]   (bag topics and frame)\n";
   return 2;
 }
+
+/// One scan with what the GPS/INS said at its time.
+struct DriveScan {
+  double stamp = 0.0;
+  PointCloudPtr cloud;  ///< null: unreadable (error says why), the scan is skipped
+  std::string error;
+  std::optional<Eigen::Vector2d> roll_pitch;  ///< base_link in ENU
+  std::optional<Eigen::Isometry3d> truth;     ///< base_link in ENU at the first fix
+};
+
+/// A drive: origin, initial heading, sensor mounting and the scans in order.
+class DriveSource {
+ public:
+  virtual ~DriveSource() = default;
+  virtual size_t size() const = 0;
+  /// The next scan; false at the end.
+  virtual bool next(DriveScan& scan) = 0;
+
+  double lat = 0, lon = 0, alt = 0;
+  std::optional<double> initial_yaw;  ///< ENU yaw of base_link at the first scan
+  Eigen::Isometry3d sensor_to_base = Eigen::Isometry3d::Identity();
+};
 
 Eigen::Isometry3d oxtsPose(const OxtsRecord& r, const EnuConverter& enu) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -47,12 +76,105 @@ Eigen::Isometry3d oxtsPose(const OxtsRecord& r, const EnuConverter& enu) {
   return pose;
 }
 
+/// KITTI raw folder: velodyne_points/*.bin with the OXTS record of the same index.
+class KittiRawSource : public DriveSource {
+ public:
+  bool open(const std::string& dir, const std::string& calib_dir, std::string* error) {
+    if (!openKittiRawDrive(dir, calib_dir, drive_, error)) return false;
+    OxtsRecord first;
+    if (drive_.oxts_files.empty() || !readOxtsFile(drive_.oxts_files.front(), first, error)) {
+      if (error) *error = "no usable first GPS fix: " + *error;
+      return false;
+    }
+    lat = first.lat;
+    lon = first.lon;
+    alt = first.alt;
+    initial_yaw = first.yaw;
+    enu_.emplace(first.lat, first.lon, first.alt);
+    // base_link is the OXTS/IMU frame (as kitti2bag's tf_static): p_base = inv(T_velo_imu) p_velo.
+    sensor_to_base = drive_.T_velo_imu.inverse();
+    return true;
+  }
+  size_t size() const override { return drive_.scan_files.size(); }
+  bool next(DriveScan& scan) override {
+    if (index_ >= size()) return false;
+    const size_t i = index_++;
+    scan = DriveScan();
+    scan.stamp = static_cast<double>(drive_.scan_stamps[i]) * 1e-9;
+    auto cloud = std::make_shared<PointCloud>();
+    if (readKittiBin(drive_.scan_files[i], *cloud, &scan.error)) scan.cloud = cloud;
+    OxtsRecord r;
+    if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
+      scan.truth = oxtsPose(r, *enu_);
+      scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
+    }
+    return true;
+  }
+
+ private:
+  KittiRawDrive drive_;
+  std::optional<EnuConverter> enu_;
+  size_t index_ = 0;
+};
+
+/// A bag as kitti2bag writes it; the IMU and ground truth nearest to each cloud's stamp.
+class BagSource : public DriveSource {
+ public:
+  bool open(const std::string& path, const BagDriveTopics& topics, std::string* error) {
+    if (!reader_.open(path, topics, error)) return false;
+    const std::optional<BagFix> fix = reader_.firstFix();
+    if (!fix) {
+      if (error) *error = "bag '" + path + "' has no valid fix on '" + topics.gps + "'";
+      return false;
+    }
+    lat = fix->lat;
+    lon = fix->lon;
+    alt = fix->alt;
+    if (const auto q = reader_.firstOrientation()) initial_yaw = yawOf(*q);
+    // The sensor mounting from tf_static: base_link -> the first cloud's frame.
+    pending_ = reader_.nextCloud();
+    const std::string frame = pending_ ? pending_->frame_id : std::string();
+    const auto base_T_sensor = reader_.baseToFrame(frame);
+    if (!base_T_sensor) {
+      if (error)
+        *error = "no static transform " + topics.base_frame + " -> '" + frame + "' on '" +
+                 topics.tf_static + "' in '" + path + "'";
+      return false;
+    }
+    sensor_to_base = *base_T_sensor;
+    return true;
+  }
+  size_t size() const override { return reader_.numClouds(); }
+  bool next(DriveScan& scan) override {
+    std::optional<BagCloud> c = pending_ ? std::move(pending_) : reader_.nextCloud();
+    pending_.reset();
+    if (!c) return false;
+    scan = DriveScan();
+    scan.stamp = static_cast<double>(c->stamp_ns) * 1e-9;
+    scan.cloud = c->cloud;
+    scan.error = c->error;
+    if (const auto q = reader_.orientationAt(c->stamp_ns)) scan.roll_pitch = rollPitchOf(*q);
+    scan.truth = reader_.groundTruthAt(c->stamp_ns);
+    return true;
+  }
+
+ private:
+  BagDriveReader reader_;
+  std::optional<BagCloud> pending_;
+};
+
 void progress(size_t done, size_t total) {
   if (total == 0 || (done % 10 != 0 && done != total)) return;
   const int width = 40;
   const int filled = static_cast<int>(width * done / total);
   std::cerr << "\r[" << std::string(filled, '#') << std::string(width - filled, ' ') << "] " << done
             << "/" << total << (done == total ? "\n" : "") << std::flush;
+}
+
+std::string argOr(const std::map<std::string, std::string>& args, const std::string& key,
+                  const std::string& fallback) {
+  const auto it = args.find(key);
+  return it == args.end() ? fallback : it->second;
 }
 
 }  // namespace
@@ -76,77 +198,94 @@ int main(int argc, char** argv) {
       return usage("unexpected argument '" + a + "'");
     }
   }
-  if (!args.count("kitti-raw") || !args.count("output"))
-    return usage("--kitti-raw and --output are required");
+  if (args.count("kitti-raw") == args.count("bag"))
+    return usage("exactly one of --kitti-raw and --bag is required");
+  if (!args.count("output")) return usage("--output is required");
+  if (args.count("osm") && args.count("overpass"))
+    return usage("--osm and --overpass exclude each other");
 
   SlamPipelineParams params;
   std::string error;
   // KITTI raw layout (real or simulated): base_link is the OXTS unit, as in launch/kitti.launch.
   const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
-  if (!loadPipelineParams(config_dir,
-                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
-                          params, &error)) {
+  if (!loadPipelineParams(config_dir, argOr(args, "config", config_dir + "/kitti.yaml"), params,
+                          &error)) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
   }
   params.use_loops = params.use_loops && use_loops;
   params.backend.use_osm = params.backend.use_osm && use_osm;
 
-  KittiRawDrive drive;
-  if (!openKittiRawDrive(args["kitti-raw"], args.count("calib-dir") ? args["calib-dir"] : "", drive,
-                         &error)) {
-    std::cerr << "offline_slam: " << error << "\n";
-    return 1;
+  std::unique_ptr<DriveSource> drive;
+  if (args.count("kitti-raw")) {
+    auto kitti = std::make_unique<KittiRawSource>();
+    if (!kitti->open(args["kitti-raw"], argOr(args, "calib-dir", ""), &error)) {
+      std::cerr << "offline_slam: " << error << "\n";
+      return 1;
+    }
+    drive = std::move(kitti);
+  } else {
+    BagDriveTopics topics;
+    topics.cloud = argOr(args, "cloud-topic", topics.cloud);
+    topics.gps = argOr(args, "gps-topic", topics.gps);
+    topics.imu = argOr(args, "imu-topic", topics.imu);
+    topics.ground_truth = argOr(args, "ground-truth-topic", topics.ground_truth);
+    topics.base_frame = argOr(args, "base-frame", topics.base_frame);
+    auto bag = std::make_unique<BagSource>();
+    if (!bag->open(args["bag"], topics, &error)) {
+      std::cerr << "offline_slam: " << error << "\n";
+      return 1;
+    }
+    drive = std::move(bag);
   }
-  // base_link is the OXTS/IMU frame (as kitti2bag's tf_static): p_base = inv(T_velo_imu) p_velo.
-  params.prefilter.sensor_to_base = drive.T_velo_imu.inverse();
+  params.prefilter.sensor_to_base = drive->sensor_to_base;
 
   std::shared_ptr<OsmMapSource> source;
   if (params.backend.use_osm) {
-    if (!args.count("osm")) return usage("--osm FILE is required unless --no-osm");
-    auto file = std::make_shared<FileMapSource>(args["osm"]);
-    if (!file->loaded()) {
-      std::cerr << "offline_slam: " << file->loadError() << "\n";
+    if (args.count("overpass")) {
+      OverpassParams overpass;
+      overpass.endpoint = args["overpass"];
+      source = std::make_shared<OverpassMapSource>(overpass);
+    } else if (args.count("osm")) {
+      auto file = std::make_shared<FileMapSource>(args["osm"]);
+      if (!file->loaded()) {
+        std::cerr << "offline_slam: " << file->loadError() << "\n";
+        return 1;
+      }
+      source = file;
+    } else {
+      return usage("--osm FILE or --overpass URL is required unless --no-osm");
+    }
+  }
+  // The initial heading from the first IMU orientation (the thesis' initial_orient), unless
+  // global matching with unbounded rotation is asked for.
+  const std::string heading = argOr(args, "initial-heading", "imu");
+  if (heading == "imu") {
+    if (!drive->initial_yaw) {
+      std::cerr << "offline_slam: no IMU orientation for the initial heading; use "
+                   "--initial-heading global_matching\n";
       return 1;
     }
-    source = file;
-  }
-  OxtsRecord first;
-  if (drive.oxts_files.empty() || !readOxtsFile(drive.oxts_files.front(), first, &error)) {
-    std::cerr << "offline_slam: no usable first GPS fix: " << error << "\n";
-    return 1;
-  }
-  // The initial heading from the IMU of the first OXTS record (the thesis' initial_orient),
-  // unless global matching with unbounded rotation is asked for.
-  const std::string heading = args.count("initial-heading") ? args["initial-heading"] : "imu";
-  if (heading == "imu") {
     params.backend.initial_yaw_known = true;
-    params.backend.initial_yaw = first.yaw;
+    params.backend.initial_yaw = *drive->initial_yaw;
   } else if (heading != "global_matching") {
     return usage("--initial-heading takes imu or global_matching");
   }
   SlamPipeline pipeline(params, source);
+  pipeline.setOrigin(drive->lat, drive->lon, drive->alt);
 
-  pipeline.setOrigin(first.lat, first.lon, first.alt);
-  const EnuConverter enu(first.lat, first.lon, first.alt);
-
-  size_t n = drive.scan_files.size();
+  size_t n = drive->size();
   if (args.count("max-scans")) n = std::min<size_t>(n, std::stoul(args["max-scans"]));
   std::map<double, Eigen::Isometry3d> truth_by_stamp;
-  for (size_t i = 0; i < n; ++i) {
-    auto cloud = std::make_shared<PointCloud>();
-    if (!readKittiBin(drive.scan_files[i], *cloud, &error)) {
-      std::cerr << "\noffline_slam: " << error << " (scan skipped)\n";
+  DriveScan scan;
+  for (size_t i = 0; i < n && drive->next(scan); ++i) {
+    if (!scan.cloud) {
+      std::cerr << "\noffline_slam: " << scan.error << " (scan skipped)\n";
       continue;
     }
-    const double stamp = static_cast<double>(drive.scan_stamps[i]) * 1e-9;
-    OxtsRecord r;
-    std::optional<Eigen::Vector2d> attitude;
-    if (i < drive.oxts_files.size() && readOxtsFile(drive.oxts_files[i], r)) {
-      truth_by_stamp[stamp] = oxtsPose(r, enu);
-      if (use_imu) attitude = Eigen::Vector2d(r.roll, r.pitch);
-    }
-    pipeline.processScan(stamp, cloud, attitude);
+    if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
+    pipeline.processScan(scan.stamp, scan.cloud,
+                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>());
     progress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();
