@@ -299,9 +299,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   void publishTf(const ros::WallTimerEvent&) {
     if (backend_->numKeyframes() == 0) return;
+    // Stamped with the current time, as map -> odom corrects odometry from now on; the latest
+    // keyframe's stamp republished at 20 Hz made tf2 warn TF_REPEATED_DATA thousands of times.
+    // A clock standing still (paused bag) publishes nothing new.
     geometry_msgs::TransformStamped tf;
-    const ros::Time last = lastStamp();
-    tf.header.stamp = last.isZero() ? ros::Time::now() : last;
+    const ros::Time now = ros::Time::now();
+    tf.header.stamp = now.isZero() ? lastStamp() : now;
+    if (tf.header.stamp <= last_tf_stamp_) return;
+    last_tf_stamp_ = tf.header.stamp;
     tf.header.frame_id = map_frame_;
     tf.child_frame_id = odom_frame_;
     tf.transform = toTransformMsg(cachedMapToOdom());
@@ -340,6 +345,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Time last_stamp_;
   std::map<uint64_t, ros::Time> keyframe_stamps_;
 
+  ros::Time last_tf_stamp_;  ///< stamp of the last map -> odom broadcast
   std::thread worker_;
   std::mutex wake_mutex_;
   std::condition_variable wake_;
