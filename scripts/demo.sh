@@ -113,7 +113,11 @@ trap 'echo "[demo] interrupted" >&2; exit 130' INT TERM
 start_bg() {  # start_bg NAME LOG COMMAND...: in its own process group, so cleanup stops its children
   local name=$1 log=$2
   shift 2
-  setsid "$@" >"$log" 2>&1 &
+  # Background jobs of a script start with SIGINT ignored; roslaunch needs it to shut down cleanly.
+  (
+    trap - INT QUIT
+    exec setsid "$@"
+  ) >"$log" 2>&1 &
   PIDS+=($!)
   NAMES+=("$name")
   disown $!  # no "Terminated" job reports at cleanup
@@ -144,7 +148,9 @@ run_step() {  # run_step NAME LOG COMMAND...: timed, output to LOG, clear failur
   local name=$1 log=$2 t0
   shift 2
   t0=$(now)
-  "$@" >"$log" 2>&1 || fail_step "$name" "$log" "'$(basename "$1")' exited with status $?"
+  "$@" >"$log" 2>&1
+  local status=$?
+  [ "$status" = 0 ] || fail_step "$name" "$log" "$(basename "$1") exited with status $status"
   record_step "$name" "$t0"
 }
 
@@ -244,8 +250,11 @@ ros_run() {  # ros_run LABEL USE_OSM DEST: roslaunch, rosbag play, wait, save_ma
   launch_pid=${PIDS[-1]}
   # The monitor waits for every nodelet, then counts what the pipeline publishes.
   # (own process group, stopped by cleanup on failure; not disowned: waited for below)
-  setsid python3 "$ROOT/scripts/demo_ros.py" monitor "$BAG" --ready-file "$ready" \
-    --bag-done-file "$bag_done" --report "$report" > >(tee "$monitor_log") 2>&1 &
+  (
+    trap - INT QUIT
+    exec setsid python3 "$ROOT/scripts/demo_ros.py" monitor "$BAG" --ready-file "$ready" \
+      --bag-done-file "$bag_done" --report "$report"
+  ) > >(tee "$monitor_log") 2>&1 &
   monitor_pid=$!
   PIDS+=("$monitor_pid")
   NAMES+=("monitor ($label)")
@@ -361,6 +370,7 @@ cat <<MSG
   baseline (no OSM)       slam_no_osm/
   evaluation              evaluation.txt, evaluation.json
   plots                   $(cd "$OUT" && ls plots/*.png 2>/dev/null | tr '\n' ' ')
-  simulated drive         sim/ (KITTI raw layout, buildings_true.geojson, prior.osm)$([ "$OFFLINE" = 0 ] && echo ", drive.bag")
+  simulated drive         ${SIM#"$OUT"/}/ (KITTI raw layout, buildings_true.geojson, prior.osm)$([ "$OFFLINE" = 0 ] && echo "; drive.bag")
+  ground truth            ${EVAL_GT#"$OUT"/}
   logs, step times        logs/, step_times.csv
 MSG
