@@ -154,11 +154,30 @@ run_step() {  # run_step NAME LOG COMMAND...: timed, output to LOG, clear failur
   record_step "$name" "$t0"
 }
 
+# The output folder is replaced: only one this script made (marker file), or a new/empty one.
+LOGS=""
+if [ "$FRONTEND" = 0 ]; then
+  MARKER=.osm_graph_slam_demo
+  if [ -e "$OUT" ]; then
+    if [ -f "$OUT/$MARKER" ]; then
+      rm -rf "$OUT"
+    elif [ -n "$(ls -A "$OUT" 2>/dev/null)" ]; then
+      die "--out $OUT exists and was not written by demo.sh; give a new or empty folder"
+    fi
+  fi
+  mkdir -p "$OUT/logs" || die "cannot create $OUT"
+  touch "$OUT/$MARKER"
+  LOGS="$OUT/logs"
+  SIM="$OUT/sim"
+fi
+
 # --- 1. install and build -------------------------------------------------------------------------
 T0=$(now)
 if [ "$BUILD" = 1 ]; then
-  echo "[demo] 1. install + build (scripts/setup.sh; OGS_JOBS=${OGS_JOBS:-$(nproc)})"
-  "$ROOT/scripts/setup.sh" || die "step 'install + build' failed (scripts/setup.sh output above)"
+  SETUP_LOG="${LOGS:-$(mktemp -d)}/setup.log"
+  echo "[demo] 1. install + build (scripts/setup.sh; OGS_JOBS=${OGS_JOBS:-$(nproc)}; log: $SETUP_LOG)"
+  "$ROOT/scripts/setup.sh" 2>&1 | tee "$SETUP_LOG"
+  [ "${PIPESTATUS[0]}" = 0 ] || die "step 'install + build' failed (scripts/setup.sh; log: $SETUP_LOG)"
   record_step "install + build" "$T0"
 fi
 BIN="$WS/devel/lib/osm_graph_slam"
@@ -172,20 +191,6 @@ if [ "$FRONTEND" = 1 ]; then
   [ -f "$DATA/kitti00/000094.bin" ] && "$BIN/registration_benchmark" --data "$DATA/kitti00" --runs 3
   exit 0
 fi
-
-# The output folder is replaced: only one this script made (marker file), or a new/empty one.
-MARKER=.osm_graph_slam_demo
-if [ -e "$OUT" ]; then
-  if [ -f "$OUT/$MARKER" ]; then
-    rm -rf "$OUT"
-  elif [ -n "$(ls -A "$OUT" 2>/dev/null)" ]; then
-    die "--out $OUT exists and was not written by demo.sh; give a new or empty folder"
-  fi
-fi
-mkdir -p "$OUT/logs" || die "cannot create $OUT"
-touch "$OUT/$MARKER"
-LOGS="$OUT/logs"
-SIM="$OUT/sim"
 
 # --- 2. simulate ------------------------------------------------------------------------------------
 if [ -n "$SIM_DIR" ]; then
