@@ -341,7 +341,11 @@ cleanup  # roscore and the Overpass test server are no longer needed
 
 # --- 6. evaluate -------------------------------------------------------------------------------------
 echo "[demo] 6. evaluate_slam + scripts/plot_evaluation.py"
-EVAL_ARGS=(--estimate "$OUT/slam_osm/trajectory_tum.txt" --ground-truth "$EVAL_GT"
+# The SLAM map frame is ENU at the first GPS fix (the first OXTS record); the buildings are
+# projected into that frame too so that the plots overlay them on the trajectories.
+ORIGIN=$(awk 'NR == 1 { printf "%.9f,%.9f", $1, $2 }' "$DRIVE/oxts/data/0000000000.txt" 2>/dev/null)
+[ -n "$ORIGIN" ] || die "step 'evaluate': no first OXTS record in $DRIVE/oxts/data"
+EVAL_ARGS=(--estimate "$OUT/slam_osm/trajectory_tum.txt" --ground-truth "$EVAL_GT" --origin "$ORIGIN"
   --baseline "$OUT/slam_no_osm/trajectory_tum.txt" --baseline-label odom+loops
   --buildings-true "$SIM/buildings_true.geojson" --buildings-prior "$PRIOR"
   --buildings-corrected "$OUT/slam_osm/buildings_corrected.geojson")
