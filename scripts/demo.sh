@@ -213,6 +213,8 @@ if [ "$OFFLINE" = 0 ]; then
   echo "[demo] 3. kitti2bag -> $BAG"
   run_step "kitti2bag" "$LOGS/kitti2bag.log" "$BIN/kitti2bag" "$DRIVE" "$BAG"
   tr '\r' '\n' <"$LOGS/kitti2bag.log" | grep "^kitti2bag: wrote" | sed 's/^/[demo]   /'
+else
+  echo "[demo] 3. (--offline: no bag)"
 fi
 
 # --- 4. SLAM with the OSM prior (and the baseline through ROS with --baseline ros) -----------------
@@ -263,15 +265,17 @@ ros_run() {  # ros_run LABEL USE_OSM DEST: roslaunch, rosbag play, wait, save_ma
   monitor_pid=$!
   PIDS+=("$monitor_pid")
   NAMES+=("monitor ($label)")
-  while [ ! -f "$ready" ]; do
+  local error
+  while true; do
+    # A nodelet that cannot start (unreadable OSM file, bad parameter, crash) says so in the log.
+    error=$(grep -a -m 1 -E "\[(ERROR|FATAL)\]|process has died|RLException" "$launch_log" | sed 's/\x1b\[[0-9;]*m//g')
+    [ -z "$error" ] || fail_step "roslaunch ($label)" "$launch_log" "$error"
+    [ -f "$ready" ] && break
     kill -0 "$launch_pid" 2>/dev/null || fail_step "roslaunch ($label)" "$launch_log" "roslaunch exited"
     kill -0 "$monitor_pid" 2>/dev/null ||
       fail_step "roslaunch ($label)" "$launch_log" "the nodelets did not come up ($(tail -n 1 "$monitor_log"))"
     sleep 0.5
   done
-  if grep -q -E "Failed to load nodelet|\[ERROR\]" "$launch_log"; then
-    fail_step "roslaunch ($label)" "$launch_log" "a nodelet reported an error at start-up"
-  fi
   record_step "roslaunch $label (nodelets up)" "$t0"
 
   t0=$(now)
