@@ -270,7 +270,7 @@ def main():
                      help="[s] after the bag ended for the pipeline to finish")
     mon.add_argument("--settle", type=float, default=5.0,
                      help="[s] without new statuses, segments or loops = idle")
-    mon.add_argument("--print-period", type=float, default=15.0)
+    mon.add_argument("--print-period", type=float, default=30.0)
     args = parser.parse_args()
     if args.cmd == "ground-truth":
         ground_truth(args.bag, args.out)
