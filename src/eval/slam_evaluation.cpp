@@ -1,7 +1,9 @@
 #include "osm_graph_slam/eval/slam_evaluation.h"
 
 #include <cstdio>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 namespace osm_graph_slam {
@@ -42,6 +44,28 @@ BuildingSetEvaluation evaluateSet(const std::vector<Building>& set,
   return out;
 }
 
+/// Buildings of `set` whose (id, part) is in `reference`.
+std::vector<Building> sameIds(const std::vector<Building>& set,
+                              const std::vector<Building>& reference) {
+  std::set<std::pair<int64_t, int>> ids;
+  for (const auto& b : reference) ids.insert({b.id, b.part});
+  std::vector<Building> out;
+  for (const auto& b : set)
+    if (ids.count({b.id, b.part})) out.push_back(b);
+  return out;
+}
+
+/// Buildings of `set` whose id is among the observed corrected buildings.
+std::vector<Building> observedSubset(const std::vector<Building>& set,
+                                     const std::vector<Building>& corrected) {
+  std::vector<Building> observed;
+  for (const auto& b : corrected) {
+    auto it = b.tags.find(kObservationsTag);
+    if (it != b.tags.end() && std::atoi(it->second.c_str()) > 0) observed.push_back(b);
+  }
+  return sameIds(set, observed);
+}
+
 std::string fmt(const char* format, double a, double b) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), format, a, b);
@@ -78,10 +102,20 @@ SlamEvaluation evaluateSlam(const SlamEvaluationInput& input) {
       out.ate_change_vs_baseline = out.slam.ate.mean / out.baseline->ate.mean - 1.0;
   }
   if (!input.buildings_true.empty()) {
+    // The prior on the buildings the run had (the same ids as the corrected set), if given.
     if (!input.buildings_prior.empty())
-      out.prior = evaluateSet(input.buildings_prior, input.buildings_true);
+      out.prior = evaluateSet(input.buildings_corrected.empty()
+                                  ? input.buildings_prior
+                                  : sameIds(input.buildings_prior, input.buildings_corrected),
+                              input.buildings_true);
     if (!input.buildings_corrected.empty())
       out.corrected = evaluateSet(input.buildings_corrected, input.buildings_true);
+    const auto seen = observedSubset(input.buildings_corrected, input.buildings_corrected);
+    if (!seen.empty()) {
+      out.corrected_observed = evaluateSet(seen, input.buildings_true);
+      const auto seen_prior = observedSubset(input.buildings_prior, input.buildings_corrected);
+      if (!seen_prior.empty()) out.prior_observed = evaluateSet(seen_prior, input.buildings_true);
+    }
   }
   return out;
 }
@@ -93,6 +127,9 @@ std::string evaluationToJson(const SlamEvaluation& e) {
     doc["ate_change_vs_" + e.baseline_label] = *e.ate_change_vs_baseline;
   if (e.prior) doc["buildings_prior"] = buildingsJson(*e.prior);
   if (e.corrected) doc["buildings_corrected"] = buildingsJson(*e.corrected);
+  if (e.prior_observed) doc["buildings_prior_observed"] = buildingsJson(*e.prior_observed);
+  if (e.corrected_observed)
+    doc["buildings_corrected_observed"] = buildingsJson(*e.corrected_observed);
   return doc.dump(2);
 }
 
@@ -110,8 +147,10 @@ std::string evaluationToTable(const SlamEvaluation& e) {
   }
   if (e.prior || e.corrected) {
     os << "\nbuildings   matched  corner[m]  max[m]  heading[deg]  overlaps\n";
-    if (e.prior) buildingRow(os, "prior (OSM)", *e.prior);
+    if (e.prior) buildingRow(os, "prior (OSM)", *e.prior);  // same ids as corrected
     if (e.corrected) buildingRow(os, "corrected", *e.corrected);
+    if (e.prior_observed) buildingRow(os, "prior, seen", *e.prior_observed);
+    if (e.corrected_observed) buildingRow(os, "corr., seen", *e.corrected_observed);
   }
   return os.str();
 }

@@ -174,4 +174,75 @@ Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T) {
   return out;
 }
 
+namespace {
+
+double signedArea(const Polygon2& p) {
+  double a = 0.0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    const Eigen::Vector2d& u = p[i];
+    const Eigen::Vector2d& v = p[(i + 1) % p.size()];
+    a += u.x() * v.y() - v.x() * u.y();
+  }
+  return 0.5 * a;
+}
+
+double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
+
+/// True if the open segments p0-p1 and q0-q1 cross (touching endpoints do not count).
+bool segmentsCross(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1, const Eigen::Vector2d& q0,
+                   const Eigen::Vector2d& q1) {
+  const Eigen::Vector2d r = p1 - p0, s = q1 - q0;
+  const double denom = cross2(r, s);
+  if (std::abs(denom) < 1e-12) return false;  // parallel: a grazing ray is not blocked
+  const double t = cross2(q0 - p0, s) / denom, u = cross2(q0 - p0, r) / denom;
+  constexpr double eps = 1e-6;
+  return t > eps && t < 1.0 - eps && u > eps && u < 1.0 - eps;
+}
+
+bool rayBlocked(const Eigen::Vector2d& from, const Eigen::Vector2d& to, const Polygon2& polygon,
+                size_t skip_edge) {
+  const size_t n = polygon.size();
+  for (size_t i = 0; i < n; ++i) {
+    if (i == skip_edge) continue;
+    if (segmentsCross(from, to, polygon[i], polygon[(i + 1) % n])) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+std::vector<size_t> visibleWalls(const Polygon2& outline, const Eigen::Vector2d& viewpoint,
+                                 double max_range, const std::vector<const Polygon2*>& occluders) {
+  std::vector<size_t> visible;
+  const size_t n = outline.size();
+  if (n < 3) return visible;
+  const double orientation = signedArea(outline) >= 0.0 ? 1.0 : -1.0;  // CCW: outside is right
+  size_t index = 0;  // polygonSegments' numbering (degenerate edges skipped)
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d& a = outline[i];
+    const Eigen::Vector2d& b = outline[(i + 1) % n];
+    if ((b - a).norm() <= 1e-9) continue;
+    const size_t wall = index++;
+    const Eigen::Vector2d d = b - a;
+    const Eigen::Vector2d outward = orientation * Eigen::Vector2d(d.y(), -d.x());
+    if (outward.dot(viewpoint - a) <= 0.0) continue;  // seen from inside: faces away
+    if (pointSegmentDistance(viewpoint, LineSegment2(a, b)) > max_range) continue;
+    for (double f : {0.1, 0.5, 0.9}) {
+      const Eigen::Vector2d sample = a + f * d;
+      bool blocked = rayBlocked(viewpoint, sample, outline, i);
+      for (const Polygon2* o : occluders) {
+        if (blocked) break;
+        if (o != &outline) blocked = rayBlocked(viewpoint, sample, *o, o->size());
+      }
+      if (!blocked) {
+        visible.push_back(wall);
+        break;
+      }
+    }
+  }
+  return visible;
+}
+
 }  // namespace osm_graph_slam

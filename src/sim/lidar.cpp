@@ -56,11 +56,21 @@ SimulatedScan simulateScan(const World& world, const LidarModel& model, const Se
   std::vector<Eigen::Vector3f> local(rays);
   std::vector<SimLabel> label(rays, SimLabel::kNone);
   std::vector<int32_t> object(rays, -1);
-  std::vector<double> sin_el(beams), cos_el(beams);
+  // Nominal beam directions (used to compute points) and the true ones (used to cast rays);
+  // per-beam calibration errors are fixed for the sensor, i.e. drawn from the run seed only.
+  std::vector<double> sin_el(beams), cos_el(beams), sin_true(beams), cos_true(beams);
+  std::vector<double> range_offset(beams, 0.0);
   for (int b = 0; b < beams; ++b) {
+    SimRng calib(hashCombine(seed, 0xCA1B0000ULL + uint64_t(b)));
     const double el = model.elevations_deg[b] * M_PI / 180.0;
+    const double el_true =
+        el + (model.elevation_bias_deg + model.beam_elevation_sigma_deg * calib.gaussian()) * M_PI /
+                 180.0;
+    range_offset[b] = model.beam_range_offset_sigma * calib.gaussian();
     sin_el[b] = std::sin(el);
     cos_el[b] = std::cos(el);
+    sin_true[b] = std::sin(el_true);
+    cos_true[b] = std::cos(el_true);
   }
   const Eigen::Isometry3d pose_at_stamp = pose(stamp);
   const Eigen::Isometry3d stamp_inv = pose_at_stamp.inverse();
@@ -81,13 +91,15 @@ SimulatedScan simulateScan(const World& world, const LidarModel& model, const Se
             SimRng rng(hashCombine(scan_seed, i));
             if (rng.bernoulli(model.dropout_probability)) continue;
             const Eigen::Vector3d dir_s(cos_el[b] * ca, cos_el[b] * sa, sin_el[b]);
-            const Eigen::Vector3d dir_w = T.linear() * dir_s;
+            const Eigen::Vector3d dir_w =
+                T.linear() * Eigen::Vector3d(cos_true[b] * ca, cos_true[b] * sa, sin_true[b]);
             RayHit hit;
             if (!world.castRay(T.translation(), dir_w, model.max_range, moving, hit)) continue;
             const double signal =
                 hit.reflectivity * hit.cos_incidence * (400.0 / (hit.range * hit.range));
             if (signal < model.detection_threshold) continue;
-            const double noisy = hit.range + model.range_noise_sigma * rng.gaussian();
+            const double noisy =
+                hit.range + range_offset[b] + model.range_noise_sigma * rng.gaussian();
             if (noisy < model.min_range || noisy > model.max_range) continue;
             const Eigen::Vector3d p_col = dir_s * noisy;
             local[i] = (to_stamp * p_col).cast<float>();

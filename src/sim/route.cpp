@@ -299,7 +299,8 @@ Trajectory Trajectory::fromRoute(const Route& route, const RouteParams& params) 
   std::vector<double> v(m);
   for (size_t i = 0; i < m; ++i) {
     const double k = std::abs(s[i].curvature);
-    v[i] = k > 1e-9 ? std::min(params.cruise_speed, std::sqrt(params.max_lateral_accel / k))
+    v[i] = k > 1e-9 ? std::min({params.cruise_speed, std::sqrt(params.max_lateral_accel / k),
+                                params.max_yaw_rate / k})
                     : params.cruise_speed;
   }
   for (size_t i = 1; i < m; ++i) {

@@ -288,6 +288,11 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
        << ", \"alt\": " << fmt("%.3f", enu_->originAlt()) << "},\n"
        << "  \"sensor\": \"" << params_.lidar.name << "\",\n"
        << "  \"motion_distortion\": " << (params_.motion_distortion ? "true" : "false") << ",\n"
+       << "  \"calibration_error\": {\"elevation_bias_deg\": "
+       << fmt("%.3f", params_.lidar.elevation_bias_deg)
+       << ", \"beam_elevation_sigma_deg\": " << fmt("%.3f", params_.lidar.beam_elevation_sigma_deg)
+       << ", \"beam_range_offset_sigma_m\": " << fmt("%.3f", params_.lidar.beam_range_offset_sigma)
+       << "},\n"
        << "  \"drive_dir\": \"" << fs::relative(drive, out_dir).string() << "\",\n"
        << "  \"scans\": " << n << ",\n"
        << "  \"route_length_m\": " << fmt("%.2f", stats.route_length_m) << ",\n"

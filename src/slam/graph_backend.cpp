@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/eval/slam_evaluation.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/information.h"
@@ -21,9 +22,9 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-RobustKernel loopKernel(const GraphBackendParams& p) {
-  if (p.loop_kernel == "huber") return RobustKernel::huber(p.loop_kernel_width);
-  if (p.loop_kernel == "cauchy") return RobustKernel::cauchy(p.loop_kernel_width);
+RobustKernel kernelNamed(const std::string& name, double width) {
+  if (name == "huber") return RobustKernel::huber(width);
+  if (name == "cauchy") return RobustKernel::cauchy(width);
   return RobustKernel::none();
 }
 
@@ -139,6 +140,14 @@ struct GraphBackend::State {
   std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
   int next_building_vertex = kBuildingVertexBase;
   std::vector<int> overlap_edges;
+  struct BuildingEdge {
+    int edge_id;
+    uint64_t keyframe;
+    int64_t building;
+    Pose2 z;
+    Eigen::Matrix3d information;
+  };
+  std::vector<BuildingEdge> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
   bool dirty = false;
   double latest_stamp = 0.0;
@@ -269,6 +278,8 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     kf.stamp = in.stamp;
     kf.odom_pose = in.odom_pose;
     kf.accum_distance = in.accum_distance;
+    kf.odom_fitness = in.odom_fitness;
+    kf.gravity_roll_pitch = in.gravity_roll_pitch;
     kf.cloud = in.cloud;
     const int vid = static_cast<int>(in.id);
     if (s.keyframes.empty()) {
@@ -348,7 +359,8 @@ void GraphBackend::flushLoops(BackendUpdateReport& report) {
       continue;
     }
     s.graph.addEdgeSE3(static_cast<int>(loop.to_id), static_cast<int>(loop.from_id),
-                       loop.relative_pose, loop.information, EdgeOptions{0, loopKernel(params_)});
+                       loop.relative_pose, loop.information,
+                       EdgeOptions{0, kernelNamed(params_.loop_kernel, params_.loop_kernel_width)});
     s.loops.push_back(loop);
     ++report.loops_added;
     s.dirty = true;
@@ -419,12 +431,18 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
     }
     if (nearby.empty()) continue;
 
-    // Global matching (§3.4): keyframe segments against every nearby building.
+    // Global matching (§3.4): keyframe segments against every nearby building. Needed for the
+    // initial heading, for robot priors (prior and rigid modes, or use_global_priors) and for
+    // rigid mode's single transform.
     const bool unbounded = !s.heading_initialized;
-    const LineMatchResult global =
-        matcher_.matchGlobal(kf.segments, map_segments, robot, unbounded);
-    const bool accepted = global.success && global.fitness >= params_.global_min_fitness &&
-                          global.matched_segments >= params_.global_min_matched;
+    const bool robot_priors = params_.mode != OsmMode::kNonRigid || params_.use_global_priors;
+    LineMatchResult global;
+    bool accepted = false;
+    if (unbounded || robot_priors) {
+      global = matcher_.matchGlobal(kf.segments, map_segments, robot, unbounded);
+      accepted = global.success && global.fitness >= params_.global_min_fitness &&
+                 global.matched_segments >= params_.global_min_matched;
+    }
     if (unbounded) {
       if (!accepted) continue;  // heading still unknown: try the next keyframe
       // Rotate the whole trajectory about the origin so that this keyframe gets the heading.
@@ -439,24 +457,12 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
       continue;
     }
     Pose2 observed_from = robot;
-    if (accepted) {
-      const Eigen::Matrix3d info =
-          scaledInformation(global.information, params_.global_prior_std_xy,
-                            params_.global_prior_std_yaw, params_.matcher);
-      s.graph.addPriorSE3XY(static_cast<int>(id), global.transform.translation(),
-                            info.topLeftCorner<2, 2>(), EdgeOptions{0, {}});
-      s.graph.addPriorSE3Yaw(static_cast<int>(id), global.transform.theta, info(2, 2),
-                             EdgeOptions{0, {}});
-      kf.has_global_prior = true;
-      if (!kf.has_attitude) {
-        const Eigen::Vector2d rp = rollPitch(kf.map_pose);
-        s.graph.addPriorSE3(static_cast<int>(id), attitudeMeasurement(kf.map_pose, rp.x(), rp.y()),
-                            attitudeInformation(params_.odometry_attitude_std), EdgeOptions{0, {}});
-      }
+    if (robot_priors && accepted) {
+      addGlobalPrior(kf, global);
       observed_from = global.transform;
       ++report.global_priors;
       s.dirty = true;
-    } else {
+    } else if (robot_priors) {
       ++report.global_rejected;
     }
     if (params_.mode == OsmMode::kPrior) continue;
@@ -480,22 +486,67 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
     std::vector<LineSegment2> kf_map;
     kf_map.reserve(kf.segments.size());
     for (const auto& seg : kf.segments) kf_map.push_back(seg.transformed(observed_from));
-    for (BuildingState* b : nearby) {
-      const LineMatchResult local =
-          matcher_.matchLocal(polygonSegments(b->local_outline), kf_map, b->pose);
+    std::vector<Polygon2> outlines;  // current estimates: what hides the walls behind them
+    for (const BuildingState* b : nearby)
+      outlines.push_back(transformPolygon(b->local_outline, b->pose));
+    std::vector<const Polygon2*> occluders;
+    for (const Polygon2& o : outlines) occluders.push_back(&o);
+    for (size_t i = 0; i < nearby.size(); ++i) {
+      BuildingState* b = nearby[i];
+      std::vector<LineSegment2> walls = polygonSegments(b->local_outline);
+      if (params_.local_visible_walls_only) {
+        std::vector<LineSegment2> seen;
+        for (size_t w : visibleWalls(outlines[i], observed_from.translation(),
+                                     params_.osm_query_radius, occluders))
+          seen.push_back(walls[w]);
+        if (static_cast<int>(seen.size()) < params_.local_min_visible_walls) {
+          ++report.local_unseen;
+          continue;
+        }
+        walls.swap(seen);
+      }
+      ++report.local_attempts;
+      const LineMatchResult local = matcher_.matchLocal(walls, kf_map, b->pose);
       if (!local.success || local.fitness < params_.local_min_fitness ||
-          local.matched_segments < params_.local_min_matched)
+          local.matched_segments < params_.local_min_matched) {
+        ++report.local_rejected;
         continue;
+      }
       const Pose2 z = observed_from.inverse() * local.transform;
       const Eigen::Matrix3d info =
           rotateInformation(localInformation(local), local.transform.theta);
-      s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
-                            EdgeOptions{1, {}});
+      // Joint optimisation moves this robot through planar edges: keep its roll and pitch.
+      if (params_.joint_optimization && !kf.has_attitude) addOdometryAttitudePrior(kf, 1);
+      const int edge = s.graph.addEdgeSE3SE2(
+          static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
+          EdgeOptions{
+              1, kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
+      s.building_edges.push_back({edge, id, b->prior.id, z, info});
       ++b->observations;
       ++report.building_edges;
       s.dirty = true;
     }
   }
+}
+
+void GraphBackend::addGlobalPrior(KeyframeState& kf, const LineMatchResult& global) {
+  State& s = *state_;
+  const int vid = static_cast<int>(kf.id);
+  const Eigen::Matrix3d info = scaledInformation(global.information, params_.global_prior_std_xy,
+                                                 params_.global_prior_std_yaw, params_.matcher);
+  s.graph.addPriorSE3XY(vid, global.transform.translation(), info.topLeftCorner<2, 2>(),
+                        EdgeOptions{0, {}});
+  s.graph.addPriorSE3Yaw(vid, global.transform.theta, info(2, 2), EdgeOptions{0, {}});
+  kf.has_global_prior = true;
+  if (!kf.has_attitude) addOdometryAttitudePrior(kf, 0);
+}
+
+void GraphBackend::addOdometryAttitudePrior(KeyframeState& kf, int level) {
+  const Eigen::Vector2d rp = rollPitch(kf.map_pose);
+  state_->graph.addPriorSE3(
+      static_cast<int>(kf.id), attitudeMeasurement(kf.map_pose, rp.x(), rp.y()),
+      attitudeInformation(params_.odometry_attitude_std), EdgeOptions{level, {}});
+  kf.has_attitude = true;
 }
 
 void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
@@ -505,30 +556,85 @@ void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
   report.phase1 = s.graph.optimize(0, options);
   report.optimized = true;
-  for (auto& [id, kf] : s.keyframes)
-    if (auto pose = s.graph.vertexSE3(static_cast<int>(id))) kf.map_pose = *pose;
+  readRobotPoses();
 
-  // Phase 2 (level 1): robot vertices fixed, buildings move to satisfy their constraints.
   bool have_buildings = false;
   for (const auto& [bid, b] : s.buildings) have_buildings |= b.vertex_id >= 0;
-  if (have_buildings && params_.mode != OsmMode::kPrior) {
-    std::vector<int> unfix;
-    for (const auto& [id, kf] : s.keyframes) {
-      const int vid = static_cast<int>(id);
-      if (!s.graph.isFixed(vid)) {
-        s.graph.setFixed(vid, true);
-        unfix.push_back(vid);
-      }
-    }
-    for (int edge : s.overlap_edges) s.graph.removeEdge(edge);  // re-derived below
-    s.overlap_edges.clear();
-    report.phase2 = s.graph.optimize(1, options);
-    for (auto& [bid, b] : s.buildings)
-      if (auto pose = s.graph.vertexSE2(b.vertex_id)) b.pose = *pose;
-    if (params_.resolve_overlaps) resolveOverlaps(report);
-    for (int vid : unfix) s.graph.setFixed(vid, false);
+  if (!have_buildings || params_.mode == OsmMode::kPrior) {
+    updateMapToOdom();
+    return;
   }
+  // Phase 2 (level 1): robot vertices fixed, buildings move to satisfy their constraints.
+  for (int edge : s.overlap_edges) s.graph.removeEdge(edge);  // re-derived below
+  s.overlap_edges.clear();
+  const std::vector<int> unfix = fixRobots();
+  report.phase2 = s.graph.optimize(1, options);
+  readBuildingPoses();
+  if (params_.building_edge_gate_chi2 > 0.0 && gateBuildingEdges(report) > 0) {
+    report.phase2 = s.graph.optimize(1, options);
+    readBuildingPoses();
+  }
+  if (params_.joint_optimization) {
+    // Phase 3 (level 1): everything together, from phase 2's buildings.
+    for (int vid : unfix) s.graph.setFixed(vid, false);
+    report.joint = s.graph.optimize(1, options);
+    readRobotPoses();
+    readBuildingPoses();
+    fixRobots();
+  }
+  if (params_.resolve_overlaps) resolveOverlaps(report);
+  for (int vid : unfix) s.graph.setFixed(vid, false);
   updateMapToOdom();
+}
+
+size_t GraphBackend::gateBuildingEdges(BackendUpdateReport& report) {
+  // Robot<->building edges that disagree with the building as all its other observations place
+  // it (after phase 2) are wrong associations: removed before they bend the trajectory.
+  State& s = *state_;
+  size_t removed = 0;
+  std::vector<State::BuildingEdge> keep;
+  keep.reserve(s.building_edges.size());
+  for (const auto& e : s.building_edges) {
+    auto kf = s.keyframes.find(e.keyframe);
+    auto b = s.buildings.find(e.building);
+    if (kf == s.keyframes.end() || b == s.buildings.end()) continue;
+    const Pose2 predicted = planarPose(kf->second.map_pose) * e.z;
+    const Pose2 d = predicted.inverse() * b->second.pose;
+    const Eigen::Vector3d err(d.x, d.y, wrapAngle(d.theta));
+    if (err.dot(e.information * err) <= params_.building_edge_gate_chi2) {
+      keep.push_back(e);
+      continue;
+    }
+    s.graph.removeEdge(e.edge_id);
+    if (b->second.observations > 0) --b->second.observations;
+    ++removed;
+  }
+  s.building_edges.swap(keep);
+  report.building_edges_gated += removed;
+  return removed;
+}
+
+std::vector<int> GraphBackend::fixRobots() {
+  State& s = *state_;
+  std::vector<int> fixed_now;
+  for (const auto& [id, kf] : s.keyframes) {
+    const int vid = static_cast<int>(id);
+    if (!s.graph.isFixed(vid)) {
+      s.graph.setFixed(vid, true);
+      fixed_now.push_back(vid);
+    }
+  }
+  return fixed_now;
+}
+
+void GraphBackend::readRobotPoses() {
+  for (auto& [id, kf] : state_->keyframes)
+    if (auto pose = state_->graph.vertexSE3(static_cast<int>(id))) kf.map_pose = *pose;
+}
+
+void GraphBackend::readBuildingPoses() {
+  for (auto& [bid, b] : state_->buildings)
+    if (auto pose = state_->graph.vertexSE2(b.vertex_id)) b.pose = *pose;
 }
 
 void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
@@ -660,6 +766,7 @@ std::vector<Building> GraphBackend::correctedBuildings() const {
   std::vector<Building> out;
   for (const auto& [id, b] : state_->buildings) {
     Building c = b.corrected();
+    c.tags[kObservationsTag] = std::to_string(b.observations);
     if (state_->origin) {
       c.outline_geo.clear();
       for (const auto& v : c.outline_enu) c.outline_geo.push_back(state_->origin->toGeoPoint(v));

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -232,11 +233,15 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   std::string error;
 
   std::ostringstream kf_csv, seg_csv;
-  kf_csv << std::setprecision(17) << "# id stamp accum_distance odom_pose(3x4 row-major)\n";
+  kf_csv << std::setprecision(17)
+         << "# id stamp accum_distance odom_pose(3x4 row-major) odom_fitness imu_roll imu_pitch"
+            " (nan: unknown)\n";
   seg_csv << std::setprecision(12) << "# keyframe_id x1 y1 x2 y2 support\n";
   for (const auto& kf : keyframes) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const Eigen::Vector2d rp = kf.gravity_roll_pitch.value_or(Eigen::Vector2d(nan, nan));
     kf_csv << kf.id << ' ' << kf.stamp << ' ' << kf.accum_distance << ' ' << poseRow(kf.odom_pose)
-           << '\n';
+           << ' ' << kf.odom_fitness << ' ' << rp.x() << ' ' << rp.y() << '\n';
     for (const auto& s : kf.segments)
       seg_csv << kf.id << ' ' << s.start.x() << ' ' << s.start.y() << ' ' << s.end.x() << ' '
               << s.end.y() << ' ' << s.support << '\n';
@@ -269,6 +274,12 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     o << std::setprecision(12) << origin->originLat() << ' ' << origin->originLon() << ' '
       << origin->originAlt() << '\n';
     write("origin.txt", writeFileAtomically(write.path("origin.txt"), o.str(), &error), error);
+  }
+  {
+    std::ostringstream h;  // the first keyframe's map heading: replays start from it
+    h << std::setprecision(17) << planarPose(keyframes.front().map_pose).theta << '\n';
+    write("initial_heading.txt",
+          writeFileAtomically(write.path("initial_heading.txt"), h.str(), &error), error);
   }
   const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
   write("graph.g2o", g2o.ok, g2o.message);

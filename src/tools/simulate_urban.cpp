@@ -27,7 +27,10 @@ void usage() {
                "  --blocks NX,NY          procedural city size in blocks (default 7,6)\n"
                "  --prior-translation-sigma M (1.0)  --prior-rotation-sigma-deg D (2.0)\n"
                "  --prior-removal F (0.05)  --prior-phantom F (0.03)\n"
-               "  --dropout P (0.02)  --range-noise M (0.02)\n");
+               "  --dropout P (0.02)  --range-noise M (0.02)\n"
+               "  --elevation-bias-deg D (0)  --beam-elevation-sigma-deg D (0)\n"
+               "  --beam-range-offset-sigma M (0)   intrinsic calibration errors\n"
+               "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n");
 }
 
 }  // namespace
@@ -90,7 +93,17 @@ int main(int argc, char** argv) {
       p.lidar.dropout_probability = std::atof(next().c_str());
     else if (a == "--range-noise")
       p.lidar.range_noise_sigma = std::atof(next().c_str());
-    else {
+    else if (a == "--elevation-bias-deg")
+      p.lidar.elevation_bias_deg = std::atof(next().c_str());
+    else if (a == "--beam-elevation-sigma-deg")
+      p.lidar.beam_elevation_sigma_deg = std::atof(next().c_str());
+    else if (a == "--beam-range-offset-sigma")
+      p.lidar.beam_range_offset_sigma = std::atof(next().c_str());
+    else if (a == "--kitti-calibration-error") {
+      p.lidar.elevation_bias_deg = 0.22;
+      p.lidar.beam_elevation_sigma_deg = 0.1;
+      p.lidar.beam_range_offset_sigma = 0.02;
+    } else {
       usage();
       return 2;
     }

@@ -160,6 +160,27 @@ TEST(LineMatcherSynthetic, SingleVisibleWallSetsTwoDofFlag) {
   EXPECT_LT(r.information(0, 0), 1e-2 * r.information(1, 1));
 }
 
+// A row of two touching buildings seen from the street (y < 0): the street facades are visible,
+// the back walls face away, the shared wall is hidden, the far side wall of each is visible only
+// from its own side.
+TEST(VisibleWalls, FacingUnoccludedWallsOnly) {
+  const Polygon2 a = {
+      {0, 0}, {10, 0}, {10, 8}, {0, 8}};  // CCW; walls 0 south, 1 east, 2 north, 3 west
+  const Polygon2 b = {
+      {10, 8}, {20, 8}, {20, 0}, {10, 0}};  // CW; walls 0 north, 1 east, 2 south, 3 west
+  const std::vector<const Polygon2*> both = {&a, &b};
+  EXPECT_EQ(visibleWalls(a, {-5, -10}, 100.0, both), (std::vector<size_t>{0, 3}));
+  EXPECT_EQ(visibleWalls(b, {-5, -10}, 100.0, both), (std::vector<size_t>{2}));  // east faces away
+  EXPECT_EQ(visibleWalls(a, {25, -10}, 100.0, both),
+            (std::vector<size_t>{0}));  // shared wall hidden
+  EXPECT_EQ(visibleWalls(b, {25, -10}, 100.0, both), (std::vector<size_t>{1, 2}));
+  EXPECT_TRUE(visibleWalls(a, {5, -200}, 100.0, both).empty());  // out of range
+  EXPECT_TRUE(visibleWalls(a, {5, 4}, 100.0, both).empty());     // inside: every wall faces away
+  // A third building in front hides a's whole facade.
+  const Polygon2 c = {{-2, -6}, {12, -6}, {12, -3}, {-2, -3}};
+  EXPECT_TRUE(visibleWalls(a, {5, -10}, 100.0, {&a, &b, &c}).empty());
+}
+
 TEST(LineMatcherOverlap, PushesOutAlongTheShallowestPenetration) {
   const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
   const Polygon2 a_local = {{0, 0}, {10, 0}, {10, 8}, {0, 8}};
@@ -190,7 +211,7 @@ TEST(LineMatcherOverlap, ChoosesTheMinimalOfSeveralSeparatingMoves) {
   EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
 }
 
-TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinSixtyDegrees) {
+TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinTheRotationBound) {
   const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
   const Polygon2 a_local = {{0, 0}, {8, 0}, {8, 8}, {0, 8}};
   const Pose2 guess(11.0, 1.0, 8.0 * kDeg);
@@ -198,7 +219,8 @@ TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinSixtyDegrees) {
   const LineMatchResult r = LineMatcher().removeOverlap(a_local, guess, b);
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
-  EXPECT_LE(std::abs(wrapAngle(r.transform.theta - guess.theta)), 60.0 * kDeg + 1e-9);
+  EXPECT_LE(std::abs(wrapAngle(r.transform.theta - guess.theta)),
+            LineMatcherParams().overlap_max_rotation_deg * kDeg + 1e-9);
   EXPECT_LT(r.translation, 2.0);  // a local fix, not a jump across the block
 }
 

@@ -29,9 +29,15 @@ struct SlamEvaluation {
   std::optional<TrajectoryErrors> baseline;
   std::string baseline_label;
   std::optional<BuildingSetEvaluation> prior, corrected;
+  /// The same two restricted to the buildings SLAM observed (corrected buildings tagged with
+  /// kObservationsTag > 0): the ones it could correct, compared on the same ids.
+  std::optional<BuildingSetEvaluation> prior_observed, corrected_observed;
   /// Relative ATE change of SLAM against the baseline (negative = better), when both exist.
   std::optional<double> ate_change_vs_baseline;
 };
+
+/// Tag the back-end puts on each corrected building: its number of robot<->building edges.
+inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
 
 SlamEvaluation evaluateSlam(const SlamEvaluationInput& input);
 std::string evaluationToJson(const SlamEvaluation& evaluation);

@@ -57,4 +57,11 @@ double polygonOverlapArea(const Polygon2& a, const Polygon2& b);
 
 Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T);
 
+/// Indices (as in polygonSegments) of the walls of a building outline that a sensor at
+/// `viewpoint` can see: the wall faces it (the viewpoint is on its outer side), some of it lies
+/// within max_range, and at least one of three points along it is not hidden behind another
+/// wall of the outline or of the occluders. Shared walls of touching buildings are hidden.
+std::vector<size_t> visibleWalls(const Polygon2& outline, const Eigen::Vector2d& viewpoint,
+                                 double max_range, const std::vector<const Polygon2*>& occluders);
+
 }  // namespace osm_graph_slam

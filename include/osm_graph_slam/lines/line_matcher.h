@@ -49,8 +49,11 @@ struct LineMatcherParams {
   double line_information_xy = 25.0;
   double line_information_theta = 250.0;
   // --- overlap removal (§3.5) ---
-  double overlap_max_rotation_deg = 60.0;
-  double overlap_max_translation = 20.0;
+  /// Overlap removal bounds. The thesis allows 60 deg; on the simulated Karlsruhe drive 60 deg /
+  /// 20 m turned unobserved buildings by up to 15 deg and moved them up to 15 m to clear a
+  /// neighbour, while 10 deg / 5 m halved the error of all buildings (1.35 -> 0.62 m).
+  double overlap_max_rotation_deg = 10.0;
+  double overlap_max_translation = 5.0;
   double min_overlap_area = 0.05;  ///< [m^2] less counts as separated (shared walls touch)
   // --- implementation ---
   double grid_cell = 1.5;    ///< target spatial index cell [m]

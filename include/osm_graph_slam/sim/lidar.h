@@ -26,6 +26,14 @@ struct LidarModel {
   /// this (grazing far ground, dark far surfaces), which brings an HDL-64E to ~120k points.
   double detection_threshold = 0.005;
   double mount_height = 1.73;  ///< above the ground [m] (sets calib / trajectory)
+  /// Intrinsic calibration errors: rays leave at elevation + bias + a fixed per-beam error, and
+  /// measure range + a fixed per-beam offset, but points are computed from the nominal angles
+  /// (what a driver with the factory calibration does). Real HDL-64E calibrations are off by
+  /// about this much; KITTI's is known for a ~0.22 deg elevation bias (Deschaud, IMLS-SLAM 2018)
+  /// that makes scan matching drift. All zero: a perfect sensor.
+  double elevation_bias_deg = 0.0;
+  double beam_elevation_sigma_deg = 0.0;
+  double beam_range_offset_sigma = 0.0;  ///< [m]
 
   /// Velodyne HDL-64E: 64 beams, +2.0 deg ... -24.8 deg (upper block 1/3 deg, lower 1/2 deg
   /// spacing), 0.1728 deg azimuth step (2083 columns at 10 Hz).

@@ -26,9 +26,13 @@ struct RouteParams {
   double length = 1500.0;          ///< [m] (approximate: the route returns to its start)
   double cruise_speed = 8.0;       ///< [m/s]
   double max_lateral_accel = 2.5;  ///< [m/s^2]
-  double max_accel = 1.2;          ///< [m/s^2]
-  double max_decel = 2.0;          ///< [m/s^2]
-  double corner_radius = 10.0;     ///< preferred fillet radius at polyline vertices [m]
+  /// [rad/s] (40 deg/s): OSM road polylines bend sharply between close vertices, and the
+  /// lateral-acceleration limit alone allowed 120 deg/s on those tiny fillets, beyond any car
+  /// (and, with motion distortion, a 12 deg smear within one sweep).
+  double max_yaw_rate = 0.7;
+  double max_accel = 1.2;       ///< [m/s^2]
+  double max_decel = 2.0;       ///< [m/s^2]
+  double corner_radius = 10.0;  ///< preferred fillet radius at polyline vertices [m]
 };
 
 struct Route {

@@ -44,9 +44,16 @@ struct GraphBackendParams {
   bool initial_yaw_known = false;
   double initial_yaw = 0.0;  ///< [rad] ENU yaw of the first keyframe when known
   // --- OSM priors ---
-  double osm_query_radius = 35.0;     ///< buildings within this of a keyframe are matched [m]
-  double osm_max_wait = 10.0;         ///< [s] a keyframe waits this long for its buildings
-  int min_keyframe_segments = 3;      ///< fewer segments: no OSM matching for that keyframe
+  double osm_query_radius = 35.0;  ///< buildings within this of a keyframe are matched [m]
+  double osm_max_wait = 10.0;      ///< [s] a keyframe waits this long for its buildings
+  int min_keyframe_segments = 3;   ///< fewer segments: no OSM matching for that keyframe
+  /// Global-matching priors on robot poses in non_rigid mode (prior and rigid modes always add
+  /// them: they are how those modes use the map). One best alignment of every nearby building
+  /// is biased when the buildings are misplaced independently, and the same misplaced buildings
+  /// then pull every keyframe that sees them; non_rigid mode with joint_optimization gets the
+  /// map's absolute information from the building priors instead (each building counted once).
+  /// Global matching still sets the initial heading when it is unknown.
+  bool use_global_priors = false;
   double global_min_fitness = -20.0;  ///< global matches below this add no prior
   int global_min_matched = 3;
   /// Standard deviations of a global-matching prior on a robot pose for the best possible match
@@ -55,8 +62,24 @@ struct GraphBackendParams {
   /// OSM map itself is registered: a prior from misplaced buildings is only as good as they are.
   double global_prior_std_xy = 0.5;    ///< [m]
   double global_prior_std_yaw = 0.02;  ///< [rad]
-  double local_min_fitness = -20.0;    ///< local matches below this add no building edge
-  int local_min_matched = 2;
+  /// Local matches below this add no building edge. A correct match often leaves some visible
+  /// walls unmatched (parked cars, trees, range): -50 as the matcher's own limit.
+  double local_min_fitness = -50.0;
+  /// One matched wall is enough: a lone facade still fixes the building across the street (the
+  /// edge then constrains only that direction, §3.3.5); with 2, two thirds of the correct
+  /// matches on the simulated Karlsruhe drive were thrown away.
+  int local_min_matched = 1;
+  /// Local matching aligns only the walls the keyframe can see (facing it, within
+  /// osm_query_radius, not hidden behind other buildings): unseen walls otherwise count as
+  /// unmatched and push the fitness of every correct match far below local_min_fitness.
+  bool local_visible_walls_only = true;
+  int local_min_visible_walls = 1;
+  /// Robust kernel of robot<->building edges (a wall matched to the neighbour's wall).
+  std::string building_edge_kernel = "cauchy";  ///< none | huber | cauchy
+  double building_edge_kernel_width = 2.0;
+  /// After phase 2, robot<->building edges whose error against the building's estimate exceeds
+  /// this chi2 (3 DOF; 9 = 97 %) are removed for good (0: keep every edge).
+  double building_edge_gate_chi2 = 9.0;
   /// Robot↔building edge standard deviations for the best possible local match (same scaling).
   double local_edge_std_xy = 0.1;           ///< [m]
   double local_edge_std_theta = 0.01;       ///< [rad]
@@ -64,6 +87,9 @@ struct GraphBackendParams {
   double building_prior_std_theta = 0.035;  ///< [rad] (2 deg)
   // --- optimisation ---
   OptimizerOptions optimizer;  ///< every optimize() call (phase 1, phase 2, overlaps)
+  /// Phase 3: robots and buildings together (levels 0-1, first keyframe fixed), so that the
+  /// building priors correct the trajectory's drift; false = the thesis' two phases only.
+  bool joint_optimization = true;
   bool resolve_overlaps = true;
   int overlap_max_iterations = 5;
   double overlap_information = 1e6;  ///< hard building↔building constraints (§3.5)

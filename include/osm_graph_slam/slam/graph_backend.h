@@ -48,9 +48,12 @@ struct BackendUpdateReport {
   size_t keyframes_added = 0, loops_added = 0, loops_rejected = 0;
   size_t global_priors = 0, global_rejected = 0;
   size_t building_edges = 0, buildings_added = 0;
+  /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
+  size_t local_attempts = 0, local_unseen = 0, local_rejected = 0;
+  size_t building_edges_gated = 0;  ///< removed by the consistency gate
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   bool heading_initialized_now = false;
-  OptimizationResult phase1, phase2, overlap;
+  OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
   double total_ms = 0.0;
 };
@@ -61,11 +64,13 @@ struct KeyframeState {
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
+  double odom_fitness = -1.0;
+  std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
   PointCloudConstPtr cloud;
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
   bool has_global_prior = false;
-  bool has_attitude = false;  ///< an IMU roll/pitch prior was added
+  bool has_attitude = false;  ///< a roll/pitch prior (IMU, or odometry's) was added
 };
 
 /// A building as the back-end knows it: the OSM prior and the current estimate.
@@ -134,6 +139,12 @@ class GraphBackend {
   void flushBuildings(BackendUpdateReport& report);
   void processOsmPriors(BackendUpdateReport& report);
   bool keyframeCovered(const Eigen::Vector2d& position) const;
+  void addGlobalPrior(KeyframeState& kf, const LineMatchResult& global);
+  void addOdometryAttitudePrior(KeyframeState& kf, int level);
+  std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
+  size_t gateBuildingEdges(BackendUpdateReport& report);
+  void readRobotPoses();
+  void readBuildingPoses();
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
   void optimizeTwoPhase(BackendUpdateReport& report);
   void resolveOverlaps(BackendUpdateReport& report);
