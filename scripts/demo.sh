@@ -7,7 +7,7 @@
 #
 #   scripts/demo.sh [--osm FILE] [--length M] [--out DIR] [--rate R] [--rviz]
 #                   [--osm-source file|overpass] [--baseline offline|ros] [--offline]
-#                   [--sim-dir DIR] [--skip-build] [--frontend]
+#                   [--sim-args "OPTIONS"] [--sim-dir DIR] [--skip-build] [--frontend]
 #   --osm FILE     OSM extract to drive through (e.g. ../shared/data/osm/2011_09_26_drive_0005_sync.osm);
 #                  default: the simulator's procedural city
 #   --length M     route length [m] (default: the simulator's 1500)
@@ -20,6 +20,7 @@
 #   --baseline     offline (default): odometry + loops with offline_slam --no-osm (fast);
 #                  ros: a second ROS run with use_osm:=false
 #   --offline      no ROS master at all: offline_slam for both runs (the bag is not written)
+#   --sim-args S   more simulate_urban options, e.g. "--kitti-calibration-error --seed 2"
 #   --sim-dir DIR  use this earlier simulate_urban output instead of simulating again
 #                  (e.g. DIR/sim of an earlier run copied elsewhere; --osm/--length are then ignored)
 #   --skip-build   do not run scripts/setup.sh (the workspace is built already)
@@ -43,8 +44,9 @@ OFFLINE=0
 BUILD=1
 FRONTEND=0
 SIM_DIR=""
+SIM_ARGS=""
 usage() {
-  sed -n 8,27p "$0" | sed 's/^# \{0,1\}//' >&2
+  sed -n 8,28p "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2
 }
 while [ $# -gt 0 ]; do
@@ -58,6 +60,7 @@ while [ $# -gt 0 ]; do
     --baseline) BASELINE="$2"; shift 2 ;;
     --offline) OFFLINE=1; shift ;;
     --sim-dir) SIM_DIR="$2"; shift 2 ;;
+    --sim-args) SIM_ARGS="$2"; shift 2 ;;
     --skip-build) BUILD=0; shift ;;
     --frontend) FRONTEND=1; shift ;;
     -h | --help) usage ;;
@@ -197,9 +200,11 @@ if [ -n "$SIM_DIR" ]; then
   echo "[demo] 2. using the simulated drive in $SIM_DIR"
   SIM="$SIM_DIR"
 else
-  echo "[demo] 2. simulate_urban: ${LENGTH:-the default 1500} m through ${OSM:-the procedural city} -> $SIM"
+  echo "[demo] 2. simulate_urban: ${LENGTH:-the default 1500} m through ${OSM:-the procedural city}" \
+    "${SIM_ARGS:+($SIM_ARGS) }-> $SIM"
+  read -r -a EXTRA_SIM_ARGS <<<"$SIM_ARGS"
   run_step "simulate" "$LOGS/simulate_urban.log" \
-    "$BIN/simulate_urban" --out "$SIM" ${LENGTH:+--length "$LENGTH"} ${OSM:+--osm "$OSM"}
+    "$BIN/simulate_urban" --out "$SIM" ${LENGTH:+--length "$LENGTH"} ${OSM:+--osm "$OSM"} "${EXTRA_SIM_ARGS[@]}"
   tr '\r' '\n' <"$LOGS/simulate_urban.log" |
     grep -E "^simulate_urban: [0-9]+ buildings|^prior:|^scans_per_s" | sed 's/^/[demo]   /'
 fi
