@@ -20,7 +20,9 @@
 #   --baseline     offline (default): odometry + loops with offline_slam --no-osm (fast);
 #                  ros: a second ROS run with use_osm:=false
 #   --offline      no ROS master at all: offline_slam for both runs (the bag is not written)
-#   --sim-args S   more simulate_urban options, e.g. "--kitti-calibration-error --seed 2"
+#   --sim-args S   simulate_urban sensor options (default "--motion-distortion
+#                  --kitti-calibration-error": a real sensor's skew and calibration, without which
+#                  the simulated odometry hardly drifts; "" = the perfect sensor), e.g. "--seed 2"
 #   --sim-dir DIR  use this earlier simulate_urban output instead of simulating again
 #                  (e.g. DIR/sim of an earlier run copied elsewhere; --osm/--length are then ignored)
 #   --skip-build   do not run scripts/setup.sh (the workspace is built already)
@@ -44,7 +46,7 @@ OFFLINE=0
 BUILD=1
 FRONTEND=0
 SIM_DIR=""
-SIM_ARGS=""
+SIM_ARGS="--motion-distortion --kitti-calibration-error"
 usage() {
   sed -n 8,28p "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2
