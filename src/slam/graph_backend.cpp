@@ -293,9 +293,13 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
       kf.map_pose = prev.map_pose * delta;
       s.graph.addVertexSE3(vid, kf.map_pose);
-      s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta,
-                         odometryInformation(in.odom_fitness, params_.odometry),
-                         EdgeOptions{0, {}});
+      const Matrix6d info = odometryInformation(in.odom_fitness, params_.odometry);
+      s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta, info, EdgeOptions{0, {}});
+      // Levels >= 1 (the joint phase) see the odometry joint_odometry_weight times stiffer: the
+      // buildings then correct the drift smoothly instead of kinking single keyframes.
+      if (params_.joint_odometry_weight > 1.0)
+        s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta,
+                           (params_.joint_odometry_weight - 1.0) * info, EdgeOptions{1, {}});
     }
     if (in.gravity_roll_pitch) {
       kf.has_attitude = true;

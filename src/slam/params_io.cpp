@@ -42,6 +42,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("building_prior_std_xy", p.building_prior_std_xy);
   r.param("building_prior_std_theta", p.building_prior_std_theta);
   r.param("joint_optimization", p.joint_optimization);
+  r.param("joint_odometry_weight", p.joint_odometry_weight);
   r.param("resolve_overlaps", p.resolve_overlaps);
   r.param("overlap_max_iterations", p.overlap_max_iterations);
   r.param("overlap_information", p.overlap_information);

@@ -95,6 +95,8 @@ struct GraphBackendParams {
   /// Phase 3: robots and buildings together (levels 0-1, first keyframe fixed), so that the
   /// building priors correct the trajectory's drift; false = the thesis' two phases only.
   bool joint_optimization = true;
+  /// Odometry information in the joint phase relative to phase 1 (1: the same).
+  double joint_odometry_weight = 1.0;
   bool resolve_overlaps = true;
   int overlap_max_iterations = 15;
   double overlap_information = 1e6;  ///< hard building↔building constraints (§3.5)
