@@ -5,7 +5,7 @@
 // save_map through the service, the targets (baseline: offline_slam --no-osm on the
 // same bag) and equivalence with offline_slam --bag --overpass on the same bag and server.
 //
-// The launch file's osm_buffer is loaded with a placeholder URL (the server's port is only known
+// The launch file's osm_buffer is loaded with a stand-in URL (the server's port is only known
 // at run time): this node unloads it and loads the same nodelet type as /osm_buffer_regression
 // with a copy of /osm_buffer's parameters and the server's URL, before the replay starts.
 #include <gtest/gtest.h>
@@ -68,7 +68,7 @@ bool waitFor(const std::function<bool()>& done, double seconds) {
   return done();
 }
 
-/// Swaps the launch file's osm_buffer (placeholder URL) for one pointed at the test server.
+/// Swaps the launch file's osm_buffer (stand-in URL) for one pointed at the test server.
 bool reloadOsmBuffer(const std::string& url, std::string* error) {
   const std::string manager = managerName();
   if (!ros::service::waitForService(manager + "/load_nodelet", ros::Duration(60.0))) {
