@@ -231,7 +231,7 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
   flushBuildings(report);
   if (params_.use_osm) processOsmPriors(report);
   if (state_->dirty || force_optimize) {
-    optimizeTwoPhase(report);
+    optimizePhases(report);
     state_->dirty = false;
   }
   report.total_ms = msSince(t0);
@@ -553,7 +553,7 @@ void GraphBackend::addOdometryAttitudePrior(KeyframeState& kf, int level) {
   kf.has_attitude = true;
 }
 
-void GraphBackend::optimizeTwoPhase(BackendUpdateReport& report) {
+void GraphBackend::optimizePhases(BackendUpdateReport& report) {
   State& s = *state_;
   const OptimizerOptions& options = params_.optimizer;
 

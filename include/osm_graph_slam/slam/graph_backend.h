@@ -146,7 +146,7 @@ class GraphBackend {
   void readRobotPoses();
   void readBuildingPoses();
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
-  void optimizeTwoPhase(BackendUpdateReport& report);
+  void optimizePhases(BackendUpdateReport& report);
   void resolveOverlaps(BackendUpdateReport& report);
   void updateMapToOdom();
   void rotateTrajectory(double dyaw);
