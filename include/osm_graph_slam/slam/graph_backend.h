@@ -2,7 +2,7 @@
 // The SLAM back-end core (OSM thesis §3.3.5-3.5, ART-SLAM §3.1.8 and §5.1.5-5.1.6), shared by the
 // graph_backend nodelet and the offline runner. Inputs are queued from any thread and never
 // dropped while an optimisation runs; update() moves them into the pose graph, adds the OSM
-// prior constraints and runs the two-phase optimisation plus overlap resolution.
+// prior constraints and runs the phased optimisation (doc/backend.md) plus overlap resolution.
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <deque>
