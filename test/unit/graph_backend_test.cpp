@@ -32,6 +32,14 @@ double ate(const GraphBackend& backend) {
   return evaluateTrajectory(backend.trajectory(), drive().trueTrajectory()).ate.mean;
 }
 
+/// ATE of the odometry alone (keyframes 0.1 s apart, as the drive feeds them).
+template <typename Poses>
+double odometryAte(const Poses& odom) {
+  Trajectory t;
+  for (size_t k = 0; k < odom.size(); ++k) t.push_back({0.1 * k, odom[k]});
+  return evaluateTrajectory(t, drive().trueTrajectory()).ate.mean;
+}
+
 }  // namespace
 
 TEST(GraphBackend, SimulatedKeyframesHaveWallSegments) {
@@ -50,9 +58,7 @@ TEST(GraphBackend, PriorModeCorrectsDriftingOdometryWithAnExactMap) {
   EXPECT_GT(r.global_priors, drive().true_poses.size() * 2 / 3);
   EXPECT_EQ(r.building_edges, 0u);  // buildings are fixed in prior mode
 
-  Trajectory odom_traj;
-  for (size_t k = 0; k < odom.size(); ++k) odom_traj.push_back({0.1 * k, odom[k]});
-  const double odom_ate = evaluateTrajectory(odom_traj, drive().trueTrajectory()).ate.mean;
+  const double odom_ate = odometryAte(odom);
   EXPECT_GT(odom_ate, 0.8);
   EXPECT_LT(ate(backend), 0.10) << "odometry-only ATE " << odom_ate;
   std::cout << "prior mode: odometry ATE " << odom_ate << " m, SLAM ATE " << ate(backend) << " m\n";
@@ -87,9 +93,7 @@ TEST(GraphBackend, NonRigidModeCorrectsEachBuilding) {
 TEST(GraphBackend, JointOptimizationCorrectsDriftAndBuildings) {
   const auto odom = drive().odometry(0.002, 1.005);
   const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 9);
-  Trajectory odom_traj;
-  for (size_t k = 0; k < odom.size(); ++k) odom_traj.push_back({0.1 * k, odom[k]});
-  const double odom_ate = evaluateTrajectory(odom_traj, drive().trueTrajectory()).ate.mean;
+  const double odom_ate = odometryAte(odom);
 
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   GraphBackendParams two_phase = params;
@@ -106,9 +110,9 @@ TEST(GraphBackend, JointOptimizationCorrectsDriftAndBuildings) {
   const BuildingErrors after = evaluateBuildings(joint.correctedBuildings(), drive().truth);
   const BuildingErrors after_phases = evaluateBuildings(phases.correctedBuildings(), drive().truth);
   std::cout << "joint: odometry ATE " << odom_ate << " m, two phases " << ate(phases)
-            << " m, joint " << ate(joint) << " m; buildings " << before.mean_corner_error
-            << " -> " << after_phases.mean_corner_error << " (two phases) / "
-            << after.mean_corner_error << " m (joint)\n";
+            << " m, joint " << ate(joint) << " m; buildings " << before.mean_corner_error << " -> "
+            << after_phases.mean_corner_error << " (two phases) / " << after.mean_corner_error
+            << " m (joint)\n";
   EXPECT_GT(odom_ate, 0.5);
   EXPECT_LT(ate(joint), 0.5 * odom_ate);
   EXPECT_LT(after.mean_corner_error, 0.5 * before.mean_corner_error);
