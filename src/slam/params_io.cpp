@@ -15,6 +15,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_max_std_xyz", p.odometry.max_std_xyz);
   r.param("odometry_min_std_rot", p.odometry.min_std_rot);
   r.param("odometry_max_std_rot", p.odometry.max_std_rot);
+  r.param("odometry_min_std_yaw", p.odometry.min_std_yaw);
+  r.param("odometry_max_std_yaw", p.odometry.max_std_yaw);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
   r.param("imu_attitude_std", p.imu_attitude_std);
   r.param("odometry_attitude_std", p.odometry_attitude_std);

@@ -156,8 +156,9 @@ TEST(LineMatcherSynthetic, SingleVisibleWallSetsTwoDofFlag) {
   EXPECT_NEAR(std::abs(r.constrained_normal.y()), 1.0, 0.01);  // the wall's normal
   EXPECT_NEAR(r.transform.y, truth.y, 0.05);                   // across the wall: recovered
   EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
-  // Along the wall nothing is observed: information there is (almost) zero.
-  EXPECT_LT(r.information(0, 0), 1e-2 * r.information(1, 1));
+  // Along the wall nothing is observed: information there is (almost) zero. Hundreds of such
+  // edges on one building add up, so "almost" must be tiny (1e-3 slid buildings by metres).
+  EXPECT_LT(r.information(0, 0), 1e-5 * r.information(1, 1));
 }
 
 // A row of two touching buildings seen from the street (y < 0): the street facades are visible,

@@ -43,8 +43,11 @@ struct LineMatcherParams {
   double min_fitness = -50.0;
   int min_matched_segments = 1;
   double two_dof_max_angle_deg = 15.0;  ///< matched walls all within this: only 2 DOF
-  double two_dof_along_scale = 1e-3;    ///< information kept along the unconstrained direction
-  double edge_information_xy = 100.0;   ///< §3.3.5: edge-based constraints weigh more
+  /// Information kept along the unconstrained direction. Tiny on purpose: a building seen only
+  /// through one facade gets hundreds of such edges, and 1e-3 of each slid it along the street by
+  /// up to 2.6 m (measured: observed buildings 0.52 -> 0.26 m mean error with 1e-6).
+  double two_dof_along_scale = 1e-6;
+  double edge_information_xy = 100.0;  ///< §3.3.5: edge-based constraints weigh more
   double edge_information_theta = 1000.0;
   double line_information_xy = 25.0;
   double line_information_theta = 250.0;
