@@ -378,6 +378,9 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     batches.swap(pending_->buildings);
   }
+  // Without OSM (the baseline) buildings are neither matched nor saved: save_map would otherwise
+  // write the uncorrected prior as if it were a result.
+  if (!params_.use_osm) return;
   State& s = *state_;
   for (auto& batch : batches) {
     s.coverage.emplace_back(batch.center, batch.radius);

@@ -96,6 +96,21 @@ TEST(GraphBackend, PriorModeCorrectsDriftingOdometryWithAnExactMap) {
   EXPECT_LT(b.max_corner_error, 1e-9);
 }
 
+TEST(GraphBackend, WithoutOsmBuildingsAreIgnoredAndNotSaved) {
+  const auto odom = drive().odometry(0.002, 1.005);
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.use_osm = false;
+  GraphBackend backend(params);
+  drive().feed(backend, odom, drive().truth);
+  const BackendUpdateReport r = backend.update();
+  EXPECT_EQ(r.keyframes_added, drive().true_poses.size());
+  EXPECT_EQ(r.buildings_added, 0u);
+  EXPECT_EQ(r.building_edges, 0u);
+  // save_map writes correctedBuildings(): the baseline must not present the prior as a result.
+  EXPECT_TRUE(backend.correctedBuildings().empty());
+  EXPECT_NEAR(ate(backend), odometryAte(odom), 1e-6);  // odometry only, nothing to correct it
+}
+
 TEST(GraphBackend, NonRigidModeCorrectsEachBuilding) {
   const auto odom = drive().odometry(0.0005, 1.001);
   const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 5);
