@@ -26,6 +26,7 @@
 
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
+#include <ros/node_handle.h>
 
 #include "osm_graph_slam/eval/slam_evaluation.h"
 #include "osm_graph_slam/graph/g2o_io.h"
@@ -98,6 +99,16 @@ class FileLock {
  private:
   int fd_;
 };
+
+/// The drive both regression tests share, from the test node's private parameters.
+inline DriveOptions driveOptionsFromParams(const ros::NodeHandle& pnh) {
+  DriveOptions o;
+  o.scans = pnh.param("scans", o.scans);
+  o.length = pnh.param("route_length", o.length);
+  o.osm = pnh.param("osm", test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
+  o.cache_dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/slam_regression_data");
+  return o;
+}
 
 /// The drive from the cache, or generated into it (under the lock). The cache key holds the
 /// options and the simulator/kitti2bag binaries and extract (size and mtime): a rebuilt tool

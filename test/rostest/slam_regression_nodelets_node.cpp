@@ -191,11 +191,7 @@ class SlamRegressionNodelets : public ::testing::Test {
   }
   static std::string setUp() {
     ros::NodeHandle pnh("~"), nh;
-    DriveOptions o;
-    o.scans = pnh.param("scans", o.scans);
-    o.length = pnh.param("route_length", o.length);
-    o.osm = pnh.param("osm", test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
-    o.cache_dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/slam_regression_data");
+    const DriveOptions o = driveOptionsFromParams(pnh);
     R->drive = prepareDrive(o);
     if (!R->drive.error.empty()) return R->drive.error;
     R->out = R->drive.dir / "runs" / "nodelets";

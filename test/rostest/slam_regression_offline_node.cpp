@@ -32,12 +32,7 @@ class SlamRegressionOffline : public ::testing::Test {
   static void SetUpTestSuite() {
     R = new Runs;
     ros::NodeHandle pnh("~");
-    DriveOptions o;
-    o.scans = pnh.param("scans", o.scans);
-    o.length = pnh.param("route_length", o.length);
-    o.osm = pnh.param("osm", test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
-    o.cache_dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/slam_regression_data");
-    R->drive = prepareDrive(o);
+    R->drive = prepareDrive(driveOptionsFromParams(pnh));
     if (!R->drive.error.empty()) return;
     // The last run's outputs stay in the cache for inspection (overwritten by the next run).
     const fs::path out = R->drive.dir / "runs" / "offline";
