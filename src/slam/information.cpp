@@ -4,14 +4,35 @@
 
 namespace osm_graph_slam {
 
-Matrix6d odometryInformation(double fitness, const InformationParams& p) {
+namespace {
+
+/// Translation information with deviation std_along along `motion` and std_across across it.
+Eigen::Matrix3d anisotropicInformation(const Eigen::Vector3d& motion, double std_along,
+                                       double std_across) {
+  const double along = 1.0 / (std_along * std_along);
+  const double across = 1.0 / (std_across * std_across);
+  const Eigen::Vector3d u = motion.normalized();
+  // along·uuᵀ + across·(I − uuᵀ): no need for an explicit orthonormal basis.
+  return across * Eigen::Matrix3d::Identity() + (along - across) * u * u.transpose();
+}
+
+constexpr double kMinAnisotropicMotion = 0.05;  // [m] below: direction of motion is noise
+
+}  // namespace
+
+Matrix6d odometryInformation(double fitness, const InformationParams& p,
+                             const Eigen::Vector3d& motion) {
   const double w =
       fitness < 0.0 ? 0.5 : std::clamp(fitness / std::max(p.max_fitness, 1e-9), 0.0, 1.0);
   const double std_xyz = p.min_std_xyz + w * (p.max_std_xyz - p.min_std_xyz);
   const double std_rot = p.min_std_rot + w * (p.max_std_rot - p.min_std_rot);
   const double std_yaw = p.min_std_yaw + w * (p.max_std_yaw - p.min_std_yaw);
   Matrix6d info = Matrix6d::Zero();
-  info.diagonal().head<3>().setConstant(1.0 / (std_xyz * std_xyz));
+  if (p.lateral_std_ratio != 1.0 && motion.norm() >= kMinAnisotropicMotion)
+    info.topLeftCorner<3, 3>() =
+        anisotropicInformation(motion, std_xyz, p.lateral_std_ratio * std_xyz);
+  else
+    info.diagonal().head<3>().setConstant(1.0 / (std_xyz * std_xyz));
   info(3, 3) = info(4, 4) = 1.0 / (std_rot * std_rot);
   info(5, 5) = 1.0 / (std_yaw * std_yaw);
   return info;

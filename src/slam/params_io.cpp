@@ -18,6 +18,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_min_std_yaw", p.odometry.min_std_yaw);
   r.param("odometry_max_std_yaw", p.odometry.max_std_yaw);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
+  r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
   r.param("imu_attitude_std", p.imu_attitude_std);
   r.param("odometry_attitude_std", p.odometry_attitude_std);
   r.param("loop_kernel", p.loop_kernel);
@@ -49,6 +50,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("overlap_max_iterations", p.overlap_max_iterations);
   r.param("overlap_information", p.overlap_information);
   r.param("overlap_min_area", p.overlap_min_area);
+  r.param("overlap_clearance", p.overlap_clearance);
   readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
   if (!readParams(PrefixedParamReader(r, "graph_optimizer"), p.optimizer, error)) ok = false;
   return ok;

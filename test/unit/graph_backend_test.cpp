@@ -71,6 +71,30 @@ TEST(OdometryInformation, YawHasItsOwnDeviationsScaledByFitness) {
   EXPECT_TRUE((best - Matrix6d(best.diagonal().asDiagonal())).isZero());
 }
 
+TEST(OdometryInformation, TranslationAcrossTheMotionIsTighterByTheLateralRatio) {
+  InformationParams p;
+  p.min_std_xyz = 0.02;
+  p.lateral_std_ratio = 0.25;
+  const Eigen::Vector3d forward(1.0, 1.0, 0.0);  // diagonal: not just a scaled diagonal matrix
+  const Matrix6d info = odometryInformation(0.0, p, 2.0 * forward);
+  const Eigen::Matrix3d t = info.topLeftCorner<3, 3>();
+  const Eigen::Vector3d along = forward.normalized(), side(-along.y(), along.x(), 0.0);
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(along.dot(t * along), 1.0 / (0.02 * 0.02), 1e-6);
+  EXPECT_NEAR(side.dot(t * side), 1.0 / (0.005 * 0.005), 1e-6);
+  EXPECT_NEAR(up.dot(t * up), 1.0 / (0.005 * 0.005), 1e-6);
+  EXPECT_NEAR(along.dot(t * side), 0.0, 1e-6);
+  EXPECT_TRUE(t.isApprox(t.transpose()));
+  // Rotation blocks are unchanged; tiny motions have no direction and stay isotropic.
+  EXPECT_TRUE(
+      (info.bottomRightCorner<3, 3>() == odometryInformation(0.0, p).bottomRightCorner<3, 3>()));
+  const Matrix6d still = odometryInformation(0.0, p, Eigen::Vector3d(0.01, 0.0, 0.0));
+  EXPECT_DOUBLE_EQ(still(0, 0), 1.0 / (0.02 * 0.02));
+  EXPECT_DOUBLE_EQ(still(1, 1), 1.0 / (0.02 * 0.02));
+  p.lateral_std_ratio = 1.0;
+  EXPECT_EQ(odometryInformation(0.0, p, 2.0 * forward), odometryInformation(0.0, p));
+}
+
 TEST(GraphBackend, SimulatedKeyframesHaveWallSegments) {
   for (const auto& segs : drive().segments) EXPECT_GE(segs.size(), 4u);
 }
@@ -237,6 +261,39 @@ TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
     if (fixed[i].id == prior[3].id || fixed[i].id == prior[4].id) continue;
     EXPECT_LT(moved, 1e-4) << "building " << fixed[i].id << " is not involved";
   }
+}
+
+/// Priors with buildings 3 and 5 pushed along the street into building 4 from both sides.
+std::vector<Building> squeezedPrior() {
+  std::vector<Building> prior = drive().truth;
+  auto minX = [](const Building& b) {
+    double m = 1e9;
+    for (const auto& v : b.outline_enu) m = std::min(m, v.x());
+    return m;
+  };
+  auto maxX = [](const Building& b) {
+    double m = -1e9;
+    for (const auto& v : b.outline_enu) m = std::max(m, v.x());
+    return m;
+  };
+  const double push3 = minX(prior[4]) - maxX(prior[3]) + 0.5;
+  const double push5 = maxX(prior[4]) - minX(prior[5]) - 0.5;
+  prior[3] = toBuilding(prior[3].id, transformPolygon(prior[3].outline_enu, Pose2(push3, 0, 0)));
+  prior[5] = toBuilding(prior[5].id, transformPolygon(prior[5].outline_enu, Pose2(push5, 0, 0)));
+  return prior;
+}
+
+TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
+  const std::vector<Building> prior = squeezedPrior();
+  ASSERT_EQ(findOverlappingBuildings(prior).size(), 2u);
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  ASSERT_GT(params.overlap_clearance, 0.0);
+  GraphBackend backend(params);
+  drive().feed(backend, drive().odometry(0.0, 1.0), prior);
+  const BackendUpdateReport r = backend.update();
+  EXPECT_EQ(r.overlaps_remaining, 0u);
+  EXPECT_TRUE(findOverlappingBuildings(backend.correctedBuildings(), 0.0).empty())
+      << "separated buildings keep a clearance, not a compromise overlap";
 }
 
 TEST(GraphBackend, ImuAttitudeKeepsTheTrajectoryLevel) {

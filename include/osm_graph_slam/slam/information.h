@@ -8,6 +8,9 @@ namespace osm_graph_slam {
 /// Diagonal 6×6 information (x y z, then rotation) whose standard deviations grow linearly from
 /// the minimum to the maximum as fitness goes from 0 to max_fitness; a negative (unknown)
 /// fitness uses the middle of the range. Standard deviations are squared into variances.
-Matrix6d odometryInformation(double fitness, const InformationParams& params);
+/// `motion` is the edge's translation in its frame: across it the translation deviation is
+/// lateral_std_ratio times the deviation along it (isotropic for motions under 5 cm).
+Matrix6d odometryInformation(double fitness, const InformationParams& params,
+                             const Eigen::Vector3d& motion = Eigen::Vector3d::Zero());
 
 }  // namespace osm_graph_slam
