@@ -46,6 +46,18 @@ double odometryAte(const Poses& odom) {
   return evaluateTrajectory(t, drive().trueTrajectory()).ate.mean;
 }
 
+/// Extent of an outline along the street (the drive's x axis).
+double outlineMinX(const Building& b) {
+  double m = 1e9;
+  for (const auto& v : b.outline_enu) m = std::min(m, v.x());
+  return m;
+}
+double outlineMaxX(const Building& b) {
+  double m = -1e9;
+  for (const auto& v : b.outline_enu) m = std::max(m, v.x());
+  return m;
+}
+
 }  // namespace
 
 TEST(OdometryInformation, YawHasItsOwnDeviationsScaledByFitness) {
@@ -232,11 +244,8 @@ TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
   const auto odom = drive().odometry(0.0, 1.0);
   std::vector<Building> prior = drive().truth;
   // Push building 3 along the street into its neighbour 4 by 2 m.
-  double max3 = -1e9, min4 = 1e9;
-  for (const auto& v : prior[3].outline_enu) max3 = std::max(max3, v.x());
-  for (const auto& v : prior[4].outline_enu) min4 = std::min(min4, v.x());
-  prior[3] = toBuilding(prior[3].id,
-                        transformPolygon(prior[3].outline_enu, Pose2(min4 - max3 + 2.0, 0.0, 0.0)));
+  const double push = outlineMinX(prior[4]) - outlineMaxX(prior[3]) + 2.0;
+  prior[3] = toBuilding(prior[3].id, transformPolygon(prior[3].outline_enu, Pose2(push, 0, 0)));
   ASSERT_EQ(findOverlappingBuildings(prior).size(), 1u);
 
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
@@ -263,25 +272,19 @@ TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
   }
 }
 
+namespace {
+
 /// Priors with buildings 3 and 5 pushed along the street into building 4 from both sides.
 std::vector<Building> squeezedPrior() {
   std::vector<Building> prior = drive().truth;
-  auto minX = [](const Building& b) {
-    double m = 1e9;
-    for (const auto& v : b.outline_enu) m = std::min(m, v.x());
-    return m;
-  };
-  auto maxX = [](const Building& b) {
-    double m = -1e9;
-    for (const auto& v : b.outline_enu) m = std::max(m, v.x());
-    return m;
-  };
-  const double push3 = minX(prior[4]) - maxX(prior[3]) + 0.5;
-  const double push5 = maxX(prior[4]) - minX(prior[5]) - 0.5;
+  const double push3 = outlineMinX(prior[4]) - outlineMaxX(prior[3]) + 0.5;
+  const double push5 = outlineMaxX(prior[4]) - outlineMinX(prior[5]) - 0.5;
   prior[3] = toBuilding(prior[3].id, transformPolygon(prior[3].outline_enu, Pose2(push3, 0, 0)));
   prior[5] = toBuilding(prior[5].id, transformPolygon(prior[5].outline_enu, Pose2(push5, 0, 0)));
   return prior;
 }
+
+}  // namespace
 
 TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
   const std::vector<Building> prior = squeezedPrior();
