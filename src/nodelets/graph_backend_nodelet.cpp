@@ -65,7 +65,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     GraphBackendParams params;
     std::string error;
     if (!readParams(RosParamReader(pnh), params, &error))
-      NODELET_ERROR("graph_backend: %s; using '%s'", error.c_str(), toString(params.mode));
+      NODELET_ERROR("graph_backend: %s; keeping its default", error.c_str());
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
 

@@ -1,6 +1,23 @@
 #include "osm_graph_slam/slam/params_io.h"
 
 namespace osm_graph_slam {
+namespace {
+
+/// Reads a robust-kernel name. A misspelt one is an error and keeps the default; kernelNamed()
+/// would otherwise silently turn it into no kernel at all.
+bool readKernelName(const ParamReader& r, const std::string& key, std::string& field,
+                    std::string* error) {
+  std::string name = field;
+  r.param(key, name);
+  if (name == "none" || name == "huber" || name == "cauchy") {
+    field = name;
+    return true;
+  }
+  if (error) *error = "unknown " + key + " '" + name + "' (none | huber | cauchy)";
+  return false;
+}
+
+}  // namespace
 
 bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error) {
   bool ok = true;
@@ -21,7 +38,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
   r.param("imu_attitude_std", p.imu_attitude_std);
   r.param("odometry_attitude_std", p.odometry_attitude_std);
-  r.param("loop_kernel", p.loop_kernel);
+  if (!readKernelName(r, "loop_kernel", p.loop_kernel, error)) ok = false;
   r.param("loop_kernel_width", p.loop_kernel_width);
   r.param("initial_yaw_known", p.initial_yaw_known);
   r.param("initial_yaw", p.initial_yaw);
@@ -37,7 +54,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("local_min_matched", p.local_min_matched);
   r.param("local_visible_walls_only", p.local_visible_walls_only);
   r.param("local_min_visible_walls", p.local_min_visible_walls);
-  r.param("building_edge_kernel", p.building_edge_kernel);
+  if (!readKernelName(r, "building_edge_kernel", p.building_edge_kernel, error)) ok = false;
   r.param("building_edge_kernel_width", p.building_edge_kernel_width);
   r.param("building_edge_gate_chi2", p.building_edge_gate_chi2);
   r.param("local_edge_std_xy", p.local_edge_std_xy);

@@ -333,3 +333,26 @@ TEST(ConfigConsistency, OverrideFilesOnlySetKnownKeys) {
   }
   EXPECT_GT(checked, 0);
 }
+
+TEST(ConfigConsistency, MisspeltValuesAreErrorsNotSilentDefaults) {
+  struct Case {
+    const char* yaml;
+    const char* expected;  ///< part of the error message
+  };
+  for (const Case& c : {Case{"loop_kernel: cauchi\n", "loop_kernel 'cauchi'"},
+                        Case{"building_edge_kernel: Huber\n", "building_edge_kernel 'Huber'"},
+                        Case{"mode: nonrigid\n", "mode 'nonrigid'"}}) {
+    GraphBackendParams p;
+    std::string error;
+    EXPECT_FALSE(readParams(YamlParamReader::fromString(c.yaml), p, &error)) << c.yaml;
+    EXPECT_NE(error.find(c.expected), std::string::npos) << error;
+    const GraphBackendParams defaults;
+    EXPECT_EQ(p.loop_kernel, defaults.loop_kernel) << "a bad value keeps the default";
+    EXPECT_EQ(p.building_edge_kernel, defaults.building_edge_kernel);
+    EXPECT_EQ(p.mode, defaults.mode);
+  }
+  GraphBackendParams p;
+  std::string error;
+  EXPECT_TRUE(readParams(YamlParamReader::fromString("loop_kernel: huber\n"), p, &error)) << error;
+  EXPECT_EQ(p.loop_kernel, "huber");
+}
