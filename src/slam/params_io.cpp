@@ -36,6 +36,11 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_max_std_yaw", p.odometry.max_std_yaw);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
   r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
+  if (!(p.odometry.lateral_std_ratio > 0.0)) {
+    if (error) *error = "odometry_lateral_std_ratio must be > 0";
+    p.odometry.lateral_std_ratio = InformationParams{}.lateral_std_ratio;
+    ok = false;
+  }
   r.param("imu_attitude_std", p.imu_attitude_std);
   r.param("odometry_attitude_std", p.odometry_attitude_std);
   if (!readKernelName(r, "loop_kernel", p.loop_kernel, error)) ok = false;

@@ -341,7 +341,8 @@ TEST(ConfigConsistency, MisspeltValuesAreErrorsNotSilentDefaults) {
   };
   for (const Case& c : {Case{"loop_kernel: cauchi\n", "loop_kernel 'cauchi'"},
                         Case{"building_edge_kernel: Huber\n", "building_edge_kernel 'Huber'"},
-                        Case{"mode: nonrigid\n", "mode 'nonrigid'"}}) {
+                        Case{"mode: nonrigid\n", "mode 'nonrigid'"},
+                        Case{"odometry_lateral_std_ratio: 0\n", "odometry_lateral_std_ratio"}}) {
     GraphBackendParams p;
     std::string error;
     EXPECT_FALSE(readParams(YamlParamReader::fromString(c.yaml), p, &error)) << c.yaml;
@@ -350,6 +351,7 @@ TEST(ConfigConsistency, MisspeltValuesAreErrorsNotSilentDefaults) {
     EXPECT_EQ(p.loop_kernel, defaults.loop_kernel) << "a bad value keeps the default";
     EXPECT_EQ(p.building_edge_kernel, defaults.building_edge_kernel);
     EXPECT_EQ(p.mode, defaults.mode);
+    EXPECT_EQ(p.odometry.lateral_std_ratio, defaults.odometry.lateral_std_ratio);
   }
   GraphBackendParams p;
   std::string error;

@@ -5,8 +5,8 @@
 
 namespace osm_graph_slam {
 
-/// Diagonal 6×6 information (x y z, then rotation) whose standard deviations grow linearly from
-/// the minimum to the maximum as fitness goes from 0 to max_fitness; a negative (unknown)
+/// 6×6 information (x y z, then rotation; block-diagonal) whose standard deviations grow linearly
+/// from the minimum to the maximum as fitness goes from 0 to max_fitness; a negative (unknown)
 /// fitness uses the middle of the range. Standard deviations are squared into variances.
 /// `motion` is the edge's translation in its frame: across it the translation deviation is
 /// lateral_std_ratio times the deviation along it (isotropic for motions under 5 cm).
