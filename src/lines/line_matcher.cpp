@@ -422,6 +422,27 @@ Pose2 linePairTransform(const Pose2& T0, const LineSegment2& source, const Targe
   return Pose2(shift.x(), shift.y(), 0.0) * about_mid * T0;
 }
 
+/// Line-pair hypotheses from the guess (local matching): each wall made collinear with each
+/// parallel keyframe segment within local_line_seed_distance. Without them a building seen through
+/// one facade (no corner) is matched only if its prior is within the correspondence radius.
+void lineSeedHypotheses(const Search& search, const Pose2& guess, const Bounds& bounds,
+                        const LineMatcherParams& p, std::vector<Hypothesis>& hyps) {
+  if (!(p.local_line_seed_distance > 0.0)) return;
+  const double min_cos = std::cos(p.max_correspondence_angle_deg * kDeg);
+  const auto& targets = search.index().segs();
+  for (const LineSegment2& wall : search.source()) {
+    const LineSegment2 placed = wall.transformed(guess);
+    for (const auto& t : targets) {
+      if (std::abs(placed.direction().dot(t.u)) < min_cos) continue;
+      const LineSegment2 ts(t.a, t.a + t.len * t.u);
+      if (segmentDistanceWithCoverage(placed, ts).distance > p.local_line_seed_distance) continue;
+      const Pose2 T = linePairTransform(guess, wall, t);
+      if (withinBounds(T, guess, bounds))
+        hyps.push_back({T, search.translationOf(T), MatchFeature::kLine});
+    }
+  }
+}
+
 void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchFeature feature,
                 const LineMatcherParams& p) {
   const Score s = search.evaluate(T);
@@ -435,9 +456,14 @@ void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchF
 
   // Which directions do the matched walls constrain? Structure tensor of their normals.
   Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  double matched_length = 0.0;
   for (const auto& c : search.correspondences(T, p.matched_distance)) {
     const Eigen::Vector2d& n = search.index().segs()[c.target].n;
-    S += search.source()[c.source].length() * n * n.transpose();
+    const LineSegment2& src = search.source()[c.source];
+    S += src.length() * n * n.transpose();
+    centre += src.length() * T.transform(src.midpoint());
+    matched_length += src.length();
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(S);
   const double ratio = es.eigenvalues()(1) > 0 ? es.eigenvalues()(0) / es.eigenvalues()(1) : 0.0;
@@ -462,6 +488,8 @@ void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchF
   }
   r.information.topLeftCorner<2, 2>() = scale * txy;
   r.information(2, 2) = scale * th;
+  r.matched_centre =
+      matched_length > 0.0 ? Eigen::Vector2d(centre / matched_length) : T.translation();
   r.success = s.fitness >= p.min_fitness && s.matched >= p.min_matched_segments;
   if (!r.success) r.message = "fitness or matched segments below the thresholds";
 }
@@ -509,6 +537,7 @@ LineMatchResult LineMatcher::match(const std::vector<LineSegment2>& source_in,
   result.stats.edge_pairs_total = es.size() * et.size();
   std::vector<Hypothesis> hyps = edgeHypotheses(es, et, guess, mode, bounds, p, result.stats);
   hyps.push_back({guess, 0.0, MatchFeature::kLine});  // the guess itself competes
+  if (mode == MatchMode::kLocal) lineSeedHypotheses(search, guess, bounds, p, hyps);
 
   // Edge search: smallest translation first, each evaluation abandoned once it cannot win.
   std::stable_sort(hyps.begin(), hyps.end(), [](const Hypothesis& a, const Hypothesis& b) {

@@ -26,6 +26,7 @@ void readParams(const ParamReader& r, LineMatcherParams& p) {
   r.param("max_rotation_deg", p.max_rotation_deg);
   r.param("refine_k_nearest", p.refine_k_nearest);
   r.param("refine_rounds", p.refine_rounds);
+  r.param("local_line_seed_distance", p.local_line_seed_distance);
   r.param("least_squares_polish", p.least_squares_polish);
   r.param("polish_iterations", p.polish_iterations);
   r.param("weight_distance", p.weight_distance);

@@ -531,8 +531,10 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
         continue;
       }
       const Pose2 z = observed_from.inverse() * local.transform;
-      const Eigen::Matrix3d info =
-          rotateInformation(localInformation(local), local.transform.theta);
+      Eigen::Matrix3d info = localInformation(local);
+      if (params_.local_edge_at_walls)
+        info = leverInformation(info, local.matched_centre - local.transform.translation());
+      info = rotateInformation(info, local.transform.theta);
       // Joint optimisation moves this robot through planar edges: keep its roll and pitch.
       if (params_.joint_optimization && !kf.has_attitude) addOdometryAttitudePrior(kf, 1);
       const int edge = s.graph.addEdgeSE3SE2(

@@ -38,4 +38,12 @@ Matrix6d odometryInformation(double fitness, const InformationParams& p,
   return info;
 }
 
+Eigen::Matrix3d leverInformation(const Eigen::Matrix3d& info_at_point,
+                                 const Eigen::Vector2d& lever) {
+  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();  // d(point error) / d(x, y, theta)
+  J(0, 2) = -lever.y();
+  J(1, 2) = lever.x();
+  return J.transpose() * info_at_point * J;
+}
+
 }  // namespace osm_graph_slam

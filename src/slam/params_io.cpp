@@ -64,6 +64,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("building_edge_gate_chi2", p.building_edge_gate_chi2);
   r.param("local_edge_std_xy", p.local_edge_std_xy);
   r.param("local_edge_std_theta", p.local_edge_std_theta);
+  r.param("local_edge_at_walls", p.local_edge_at_walls);
   r.param("building_prior_std_xy", p.building_prior_std_xy);
   r.param("building_prior_std_theta", p.building_prior_std_theta);
   r.param("joint_optimization", p.joint_optimization);

@@ -83,6 +83,26 @@ TEST(OdometryInformation, YawHasItsOwnDeviationsScaledByFitness) {
   EXPECT_TRUE((best - Matrix6d(best.diagonal().asDiagonal())).isZero());
 }
 
+// A measurement that pins a wall 20 m from the building's vertex: turning the building about
+// that wall costs only the heading information; turning it about its vertex moves the wall.
+TEST(LeverInformation, RotationAboutTheMatchedWallCostsOnlyHeading) {
+  Eigen::Matrix3d at_wall = Eigen::Matrix3d::Zero();
+  at_wall(1, 1) = 25.0;   // the wall's normal (y)
+  at_wall(0, 0) = 1e-6;   // along the wall: unobserved
+  at_wall(2, 2) = 250.0;  // heading
+  const Eigen::Vector2d lever(20.0, 0.0);
+  const Eigen::Matrix3d at_vertex = leverInformation(at_wall, lever);
+  const double dtheta = 0.01;
+  auto cost = [&](const Eigen::Vector3d& d) { return d.dot(at_vertex * d); };
+  // About the wall: the vertex moves by -dtheta x lever = (0, -0.2).
+  EXPECT_NEAR(cost({0.0, -dtheta * lever.x(), dtheta}), 250.0 * dtheta * dtheta, 1e-9);
+  // About the vertex: the wall moves 0.2 m across itself.
+  EXPECT_NEAR(cost({0.0, 0.0, dtheta}), 250.0 * dtheta * dtheta + 25.0 * 0.04, 1e-9);
+  // Sliding along the wall stays (almost) free, and a zero lever changes nothing.
+  EXPECT_LT(cost({1.0, 0.0, 0.0}), 1e-5);
+  EXPECT_TRUE(leverInformation(at_wall, Eigen::Vector2d::Zero()).isApprox(at_wall));
+}
+
 TEST(OdometryInformation, TranslationAcrossTheMotionIsTighterByTheLateralRatio) {
   InformationParams p;
   p.min_std_xyz = 0.02;

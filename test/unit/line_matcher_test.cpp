@@ -161,6 +161,30 @@ TEST(LineMatcherSynthetic, SingleVisibleWallSetsTwoDofFlag) {
   EXPECT_LT(r.information(0, 0), 1e-5 * r.information(1, 1));
 }
 
+// A building seen through one facade only (no corner to match) whose OSM copy lies 1.8 m across
+// that facade: beyond the 1 m correspondence radius, so only the line seeds can find it.
+TEST(LineMatcherSynthetic, LocalMatchSeedsFindAFacadeBeyondTheCorrespondenceRadius) {
+  const Pose2 true_pose(-10.0, 6.0, 0.0);
+  const std::vector<LineSegment2> facade = {LineSegment2({0, 0}, {20, 0})};  // building frame
+  // What the keyframe saw (map frame): the true facade, and a parallel fence 1 m in front of it.
+  const std::vector<LineSegment2> keyframe = {LineSegment2({-9.0, 6.02}, {8.0, 5.98}),
+                                              LineSegment2({-6.0, 5.0}, {-2.0, 5.0})};
+  const Pose2 osm_pose = Pose2(0.4, 1.8, 1.0 * kDeg) * true_pose;
+  LineMatcherParams seeds;
+  seeds.local_line_seed_distance = 3.0;
+  const LineMatchResult r = LineMatcher(seeds).matchLocal(facade, keyframe, osm_pose);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.y, true_pose.y, 0.03);  // across the facade: recovered
+  EXPECT_LT(angleErrorDeg(r.transform.theta, true_pose.theta), 0.3);
+  EXPECT_TRUE(r.two_dof);
+  EXPECT_NEAR(r.transform.x, osm_pose.x, 0.3);  // along it: unobserved, stays near the guess
+  // The matched wall's centre, where the information applies: the facade at the match.
+  EXPECT_NEAR(r.matched_centre.y(), true_pose.y, 0.05);
+  EXPECT_NEAR(r.matched_centre.x(), osm_pose.x + 10.0, 0.3);
+
+  EXPECT_FALSE(LineMatcher().matchLocal(facade, keyframe, osm_pose).success);  // seeds off
+}
+
 // A row of two touching buildings seen from the street (y < 0): the street facades are visible,
 // the back walls face away, the shared wall is hidden, the far side wall of each is visible only
 // from its own side.

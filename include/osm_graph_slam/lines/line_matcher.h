@@ -22,9 +22,15 @@ struct LineMatcherParams {
   double max_translation = 3.0;    ///< [m]
   double max_rotation_deg = 15.0;  ///< ignored when the rotation is unbounded (first keyframe)
   // --- line-pair refinement (§3.3.3) ---
-  int refine_k_nearest = 3;          ///< target segments tried per source segment
-  int refine_rounds = 2;             ///< rounds while the best transform keeps improving
-  bool least_squares_polish = true;  ///< final Gauss-Newton on endpoint-to-line distances
+  int refine_k_nearest = 3;  ///< target segments tried per source segment
+  int refine_rounds = 2;     ///< rounds while the best transform keeps improving
+  /// Local matching also starts from every wall/segment line pair whose segments lie within this
+  /// of each other at the guess (0: off, only the k nearest within max_correspondence_distance).
+  /// A building seen through one facade has no corner to match, and a prior more than
+  /// max_correspondence_distance off across that facade is otherwise never matched. Off by
+  /// default: on the 1.5 km drive it let a building slide 5 m along its facade (doc/backend.md).
+  double local_line_seed_distance = 0.0;  ///< [m]
+  bool least_squares_polish = true;       ///< final Gauss-Newton on endpoint-to-line distances
   int polish_iterations = 6;
   // --- fitness (§3.3.4, eq. 3.1-3.4) ---
   double weight_distance = 1.0;          ///< A
@@ -92,6 +98,9 @@ struct LineMatchResult {
   /// type, scaled by (fitness - min_fitness) / (100 B - min_fitness) in [0, 1]; nearly zero
   /// along the wall when two_dof.
   Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  /// Length-weighted centre of the matched source walls (target frame): where the walls pin the
+  /// transform. `information` is taken there, not at the transform's origin (see leverInformation).
+  Eigen::Vector2d matched_centre = Eigen::Vector2d::Zero();
   double avg_distance = 0.0, coverage = 0.0, translation = 0.0;  ///< terms of the fitness
   LineMatchStats stats;
   std::string message;  ///< why it failed, when it did

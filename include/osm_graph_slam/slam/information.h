@@ -13,4 +13,10 @@ namespace osm_graph_slam {
 Matrix6d odometryInformation(double fitness, const InformationParams& params,
                              const Eigen::Vector3d& motion = Eigen::Vector3d::Zero());
 
+/// Planar (x, y, theta) information of a pose from a measurement that pins the point `lever`
+/// away from it (same frame), given as information at that point: a rotation about the pose
+/// moves the point by theta × lever, so position and heading errors are coupled.
+Eigen::Matrix3d leverInformation(const Eigen::Matrix3d& info_at_point,
+                                 const Eigen::Vector2d& lever);
+
 }  // namespace osm_graph_slam
