@@ -8,13 +8,15 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <set>
+#include <vector>
 
 #include "osm_graph_slam/common/param_reader.h"
 #include "osm_graph_slam/eval/building_metrics.h"
-#include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/graph_dump.h"
 #include "osm_graph_slam/slam/params_io.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
@@ -36,6 +38,14 @@ int usage(const std::string& why) {
 class OverrideReader : public ParamReader {
  public:
   explicit OverrideReader(std::map<std::string, std::string> values) : values_(std::move(values)) {}
+
+  /// --set keys no parameter asked for (misspelt, or a nested key without its 'group/').
+  std::vector<std::string> unusedKeys() const {
+    std::vector<std::string> out;
+    for (const auto& [key, value] : values_)
+      if (!used_.count(key)) out.push_back(key);
+    return out;
+  }
   bool getDouble(const std::string& key, double* v) const override {
     const std::string* s = find(key);
     if (s) *v = std::stod(*s);
@@ -59,10 +69,12 @@ class OverrideReader : public ParamReader {
 
  private:
   const std::string* find(const std::string& key) const {
+    used_.insert(key);
     auto it = values_.find(key);
     return it == values_.end() ? nullptr : &it->second;
   }
   std::map<std::string, std::string> values_;
+  mutable std::set<std::string> used_;
 };
 
 }  // namespace
@@ -91,13 +103,17 @@ int main(int argc, char** argv) {
   SlamPipelineParams params;
   std::string error;
   const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
+  const OverrideReader overrides(sets);
   if (!loadPipelineParams(config_dir,
                           args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
                           params, &error) ||
-      !readParams(OverrideReader(sets), params.backend, &error)) {
+      !readParams(overrides, params.backend, &error)) {
     std::cerr << "replay_backend: " << error << "\n";
     return 1;
   }
+  // A misspelt --set would otherwise replay the defaults under the wrong name.
+  if (const auto unused = overrides.unusedKeys(); !unused.empty())
+    return usage("--set " + unused.front() + ": no such graph_backend parameter");
   params.backend.use_osm = params.backend.use_osm && use_osm;
   GraphDump dump;
   if (!readGraphDump(args["dump"], dump, &error)) {
@@ -122,8 +138,7 @@ int main(int argc, char** argv) {
   const auto buildings = backend.correctedBuildings();
   for (const auto& [i, j] : findOverlappingBuildings(buildings, params.backend.overlap_min_area))
     std::cout << "overlap: buildings " << buildings[i].id << " and " << buildings[j].id << ", "
-              << polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu)
-              << " m^2\n";
+              << polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) << " m^2\n";
   if (!buildings.empty())
     ok = ok && writeBuildingsGeoJson(out + "/buildings_corrected.geojson", buildings, &error);
   size_t edges = 0, observed = 0;
