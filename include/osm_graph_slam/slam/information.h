@@ -1,5 +1,6 @@
 #pragma once
-// Information matrices of odometry-like SE3 edges from a registration fitness.
+// Information matrices: odometry-like SE3 edges from a registration fitness; planar edges whose
+// measurement pins a point away from the pose (lever arm).
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/slam/backend_params.h"
 
