@@ -432,8 +432,9 @@ void lineSeedHypotheses(const Search& search, const Pose2& guess, const Bounds& 
   const auto& targets = search.index().segs();
   for (const LineSegment2& wall : search.source()) {
     const LineSegment2 placed = wall.transformed(guess);
+    const Eigen::Vector2d u = placed.direction();
     for (const auto& t : targets) {
-      if (std::abs(placed.direction().dot(t.u)) < min_cos) continue;
+      if (std::abs(u.dot(t.u)) < min_cos) continue;
       const LineSegment2 ts(t.a, t.a + t.len * t.u);
       if (segmentDistanceWithCoverage(placed, ts).distance > p.local_line_seed_distance) continue;
       const Pose2 T = linePairTransform(guess, wall, t);
