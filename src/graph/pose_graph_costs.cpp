@@ -139,6 +139,21 @@ struct PriorSE3Functor {
   }
 };
 
+// Translation error rotated from the measurement's axes into the estimated building's (R(−e_θ)).
+// A building matched through one facade is informed across that wall only; in the measurement's
+// axes each edge's free direction would follow its own measured heading, and edges whose headings
+// differ by a few degrees would meet far along the wall and drag the building there.
+template <typename T>
+void inEstimatedAxes(T* e) {
+  using std::cos;
+  using std::sin;
+  const T c = cos(e[2]), s = sin(e[2]);
+  const T x = c * e[0] + s * e[1];
+  const T y = -s * e[0] + c * e[1];
+  e[0] = x;
+  e[1] = y;
+}
+
 struct SE3SE2Functor {
   Eigen::Vector3d z;
   Eigen::Matrix3d sqrt_info;
@@ -147,6 +162,7 @@ struct SE3SE2Functor {
     T planar[3], e[3];
     planarFromSE3(robot, planar);
     se2RelativeError(planar, building, z.data(), e);
+    inEstimatedAxes(e);
     weigh<3>(sqrt_info, e, r);
     return true;
   }

@@ -619,7 +619,8 @@ size_t GraphBackend::gateBuildingEdges(BackendUpdateReport& report) {
     auto b = s.buildings.find(e.building);
     if (kf == s.keyframes.end() || b == s.buildings.end()) continue;
     const Pose2 predicted = planarPose(kf->second.map_pose) * e.z;
-    const Pose2 d = predicted.inverse() * b->second.pose;
+    // The SE3-SE2 edge's error (up to sign): translation in the estimated building's axes.
+    const Pose2 d = b->second.pose.inverse() * predicted;
     const Eigen::Vector3d err(d.x, d.y, wrapAngle(d.theta));
     if (err.dot(e.information * err) <= params_.building_edge_gate_chi2) {
       keep.push_back(e);

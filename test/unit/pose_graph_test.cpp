@@ -239,6 +239,25 @@ TEST(PoseGraph, MixedSE3SE2RecoversKnownPlanarTransform) {
   EXPECT_NEAR(b.vertexSE3(0)->translation().z(), 1.2, 1e-6);
 }
 
+TEST(PoseGraph, WallOnlyEdgesLeaveTheBuildingWhereItsPriorIsAlongTheWall) {
+  // Two matches of one facade (along the building's x axis) that disagree by 0.3 m across it and
+  // by 2.3 deg in heading. Each informs only across the wall. In the measurements' axes their
+  // free directions would cross 7.5 m along the wall and drag the building there.
+  PoseGraph g;
+  g.addVertexSE3(0, Eigen::Isometry3d::Identity(), true);
+  const Pose2 prior(10.0, 5.0, 0.0);
+  g.addVertexSE2(1, prior);
+  Eigen::Matrix3d wall_info = Eigen::Vector3d(1e-4, 100.0, 1000.0).asDiagonal();
+  ASSERT_GE(g.addEdgeSE3SE2(0, 1, Pose2(10.0, 5.3, 0.04), wall_info), 0);
+  ASSERT_GE(g.addEdgeSE3SE2(0, 1, Pose2(10.0, 5.0, 0.0), wall_info), 0);
+  ASSERT_GE(g.addPriorSE2(1, prior, Eigen::Vector3d(0.04, 0.04, 1.0).asDiagonal()), 0);
+  g.optimize(0);
+  const Pose2 b = *g.vertexSE2(1);
+  EXPECT_NEAR(b.x, 10.0, 0.1) << "slid along its wall";
+  EXPECT_NEAR(b.y, 5.15, 0.05);
+  EXPECT_NEAR(b.theta, 0.02, 0.005);
+}
+
 TEST(PoseGraph, UnaryPriorsAndPointEdges) {
   PoseGraph g;
   g.addVertexSE3(0, makeSE3(1, 1, 1, 0.1, 0.1, 1.0));

@@ -149,7 +149,9 @@ class PoseGraph {
   /// measurement = Xfrom⁻¹ · Xto.
   int addEdgeSE2(int from, int to, const Pose2& measurement, const Eigen::Matrix3d& information,
                  const EdgeOptions& options = {});
-  /// measurement = planar(Xrobot)⁻¹ · Xbuilding, planar() = (x, y, yaw) of the SE3 pose.
+  /// measurement = planar(Xrobot)⁻¹ · Xbuilding, planar() = (x, y, yaw) of the SE3 pose. Unlike
+  /// g2o's SE2 edge, the translation error is in the estimated building's axes (the information's
+  /// frame), so a wall-only constraint leaves the building free along its own wall.
   int addEdgeSE3SE2(int robot, int building, const Pose2& measurement,
                     const Eigen::Matrix3d& information, const EdgeOptions& options = {});
   int addPriorSE3(int vertex, const Eigen::Isometry3d& measurement, const Matrix6d& information,
