@@ -170,8 +170,8 @@ TEST(LineMatcherSynthetic, LocalMatchSeedsFindAFacadeBeyondTheCorrespondenceRadi
   const std::vector<LineSegment2> keyframe = {LineSegment2({-9.0, 6.02}, {8.0, 5.98}),
                                               LineSegment2({-6.0, 5.0}, {-2.0, 5.0})};
   const Pose2 osm_pose = Pose2(0.4, 1.8, 1.0 * kDeg) * true_pose;
-  LineMatcherParams seeds;
-  seeds.local_line_seed_distance = 3.0;
+  const LineMatcherParams seeds;  // the default seeds pairs up to 3 m apart
+  ASSERT_GE(seeds.local_line_seed_distance, 2.0);
   const LineMatchResult r = LineMatcher(seeds).matchLocal(facade, keyframe, osm_pose);
   ASSERT_TRUE(r.success) << r.message;
   EXPECT_NEAR(r.transform.y, true_pose.y, 0.03);  // across the facade: recovered
@@ -182,7 +182,9 @@ TEST(LineMatcherSynthetic, LocalMatchSeedsFindAFacadeBeyondTheCorrespondenceRadi
   EXPECT_NEAR(r.matched_centre.y(), true_pose.y, 0.05);
   EXPECT_NEAR(r.matched_centre.x(), osm_pose.x + 10.0, 0.3);
 
-  EXPECT_FALSE(LineMatcher().matchLocal(facade, keyframe, osm_pose).success);  // seeds off
+  LineMatcherParams off;
+  off.local_line_seed_distance = 0.0;
+  EXPECT_FALSE(LineMatcher(off).matchLocal(facade, keyframe, osm_pose).success);
 }
 
 // A row of two touching buildings seen from the street (y < 0): the street facades are visible,

@@ -27,9 +27,8 @@ struct LineMatcherParams {
   /// Local matching also starts from every wall/segment line pair whose segments lie within this
   /// of each other at the guess (0: off, only the k nearest within max_correspondence_distance).
   /// A building seen through one facade has no corner to match, and a prior more than
-  /// max_correspondence_distance off across that facade is otherwise never matched. Off by
-  /// default: on the 1.5 km drive it let a building slide 5 m along its facade (doc/backend.md).
-  double local_line_seed_distance = 0.0;  ///< [m]
+  /// max_correspondence_distance off across that facade is otherwise never matched.
+  double local_line_seed_distance = 3.0;  ///< [m]
   bool least_squares_polish = true;       ///< final Gauss-Newton on endpoint-to-line distances
   int polish_iterations = 6;
   // --- fitness (§3.3.4, eq. 3.1-3.4) ---

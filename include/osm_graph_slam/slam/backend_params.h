@@ -97,10 +97,9 @@ struct GraphBackendParams {
   double local_edge_std_xy = 0.1;      ///< [m]
   double local_edge_std_theta = 0.01;  ///< [rad]
   /// true: the edge's information is taken where the matched walls are and carried to the
-  /// building's reference vertex with the rotation's lever arm. false (default): as if the vertex
-  /// itself had been matched. Measured better RPE/ATE on the simulated drives, but it let a
-  /// building slide along its facade in the squeezed-overlap test (doc/backend.md).
-  bool local_edge_at_walls = false;
+  /// building's reference vertex with the rotation's lever arm. false: as if the vertex itself
+  /// had been matched, although it can be 20 m from the walls that were seen (doc/backend.md).
+  bool local_edge_at_walls = true;
   /// OSM prior of each building. Deliberately weaker than the simulated misplacement (1 m, 2 deg):
   /// a building then follows its observations, and buildings seen again later tie the trajectory
   /// together like loop closures. On the simulated Karlsruhe drives (calibration error, motion
