@@ -9,6 +9,7 @@
 #include <iostream>
 #include <map>
 #include <set>
+#include <stdexcept>
 #include <vector>
 
 #include "osm_graph_slam/common/param_reader.h"
@@ -46,20 +47,21 @@ class OverrideReader : public ParamReader {
       if (!used_.count(key)) out.push_back(key);
     return out;
   }
+  /// --set values that are not of the parameter's type ("0.z0" for a number, "yes" for a bool).
+  const std::vector<std::string>& badValues() const { return bad_; }
+
   bool getDouble(const std::string& key, double* v) const override {
-    const std::string* s = find(key);
-    if (s) *v = std::stod(*s);
-    return s != nullptr;
+    return parse(key, v, [](const std::string& s, size_t* pos) { return std::stod(s, pos); });
   }
   bool getInt(const std::string& key, int* v) const override {
-    const std::string* s = find(key);
-    if (s) *v = std::stoi(*s);
-    return s != nullptr;
+    return parse(key, v, [](const std::string& s, size_t* pos) { return std::stoi(s, pos); });
   }
   bool getBool(const std::string& key, bool* v) const override {
-    const std::string* s = find(key);
-    if (s) *v = *s == "true" || *s == "1";
-    return s != nullptr;
+    return parse(key, v, [](const std::string& s, size_t* pos) {
+      if (s != "true" && s != "false" && s != "1" && s != "0") throw std::invalid_argument(s);
+      *pos = s.size();
+      return s == "true" || s == "1";
+    });
   }
   bool getString(const std::string& key, std::string* v) const override {
     const std::string* s = find(key);
@@ -68,6 +70,24 @@ class OverrideReader : public ParamReader {
   }
 
  private:
+  /// The whole value must parse; anything else is reported and the default kept.
+  template <typename T, typename Parse>
+  bool parse(const std::string& key, T* v, Parse p) const {
+    const std::string* s = find(key);
+    if (!s) return false;
+    try {
+      size_t pos = 0;
+      const T parsed = p(*s, &pos);
+      if (pos == s->size()) {
+        *v = parsed;
+        return true;
+      }
+    } catch (const std::exception&) {
+    }
+    bad_.push_back(key + "=" + *s);
+    return false;
+  }
+
   const std::string* find(const std::string& key) const {
     used_.insert(key);
     auto it = values_.find(key);
@@ -75,6 +95,7 @@ class OverrideReader : public ParamReader {
   }
   std::map<std::string, std::string> values_;
   mutable std::set<std::string> used_;
+  mutable std::vector<std::string> bad_;
 };
 
 }  // namespace
@@ -111,6 +132,9 @@ int main(int argc, char** argv) {
     std::cerr << "replay_backend: " << error << "\n";
     return 1;
   }
+  if (!overrides.badValues().empty())
+    return usage("--set " + overrides.badValues().front() +
+                 ": not a value of that parameter's type");
   // A misspelt --set would otherwise replay the defaults under the wrong name.
   if (const auto unused = overrides.unusedKeys(); !unused.empty())
     return usage("--set " + unused.front() + ": no such graph_backend parameter");
