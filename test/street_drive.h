@@ -93,13 +93,14 @@ struct StreetDrive {
     return t;
   }
 
-  /// Keyframes with segments (and clouds when kept), then the buildings. gravity: every keyframe
-  /// gets this IMU roll/pitch when given.
+  /// Keyframes from `first` on with segments (and clouds when kept), then the buildings.
+  /// gravity: every keyframe gets this IMU roll/pitch when given; gnss: the true positions.
   void feed(GraphBackend& backend, const std::vector<Eigen::Isometry3d>& odom,
             const std::vector<Building>& prior,
-            const std::optional<Eigen::Vector2d>& gravity = std::nullopt) const {
+            const std::optional<Eigen::Vector2d>& gravity = std::nullopt, size_t first = 0,
+            bool gnss = false) const {
     backend.addBuildings(prior, Eigen::Vector2d::Zero(), 1000.0);
-    for (size_t k = 0; k < odom.size(); ++k) {
+    for (size_t k = first; k < odom.size(); ++k) {
       KeyframeInput kf;
       kf.id = k;
       kf.stamp = 0.1 * k;
@@ -107,6 +108,7 @@ struct StreetDrive {
       kf.odom_fitness = 0.05;
       if (k < clouds.size()) kf.cloud = clouds[k];
       kf.gravity_roll_pitch = gravity;
+      if (gnss) kf.gnss_position = true_poses[k].translation();
       backend.addKeyframe(kf);
       backend.addLineSegments(k, segments[k]);
     }

@@ -61,6 +61,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pnh.param("warn_throttle_period", warn_period_, 5.0);
     pnh.param("use_imu", use_imu_, true);
     pnh.param("imu_max_time_difference", imu_max_dt_, 0.05);
+    pnh.param("gnss_max_gap", gnss_max_gap_, 1.5);
 
     GraphBackendParams params;
     std::string error;
@@ -80,6 +81,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
     origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
     if (use_imu_) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
+    fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
     if (tf_rate_ > 0.0)
@@ -111,6 +113,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     }
     const std::optional<ImuSample> imu = imuAt(msg->header.stamp);
     if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
+    kf.gnss_position = gnssPositionAt(msg->header.stamp);
     if (!first_keyframe_seen_) {
       // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
       // orientation), else the parameter or the first global matching (OSM thesis §3.4).
@@ -124,7 +127,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         yaw = backend_->params().initial_yaw;
       }
       std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
-      map_to_odom_ = initialMapToOdom(kf.odom_pose, yaw);
+      map_to_odom_ =
+          initialMapToOdom(kf.odom_pose, yaw, kf.gnss_position.value_or(Eigen::Vector2d::Zero()));
     }
     backend_->addKeyframe(std::move(kf));
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
@@ -188,6 +192,38 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return best;
   }
 
+  struct GnssFix {
+    ros::Time stamp;
+    double lat = 0, lon = 0;
+  };
+
+  void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
+    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX ||
+        !std::isfinite(msg->latitude) || !std::isfinite(msg->longitude))
+      return;
+    std::lock_guard<std::mutex> guard(gnss_mutex_);
+    gnss_.push_back({msg->header.stamp, msg->latitude, msg->longitude});
+    while (gnss_.size() > 2000) gnss_.pop_front();
+  }
+
+  /// base_link's GNSS position at stamp in the map frame: interpolated between the fixes around
+  /// it (at most gnss_max_gap apart), once the map origin is known.
+  std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> guard(gnss_mutex_);
+    if (!enu_) return std::nullopt;
+    for (size_t i = 1; i < gnss_.size(); ++i) {
+      const GnssFix &a = gnss_[i - 1], &b = gnss_[i];
+      if (a.stamp > stamp || b.stamp < stamp) continue;
+      const double gap = (b.stamp - a.stamp).toSec();
+      if (gap > gnss_max_gap_) return std::nullopt;
+      const double w = gap > 0.0 ? (stamp - a.stamp).toSec() / gap : 0.0;
+      const Eigen::Vector3d p =
+          enu_->toEnu(a.lat + w * (b.lat - a.lat), a.lon + w * (b.lon - a.lon), 0.0);
+      return Eigen::Vector2d(p.x(), p.y());
+    }
+    return std::nullopt;
+  }
+
   void onSegments(const LineSegmentArrayConstPtr& msg) {
     std::vector<LineSegment2> segments;
     segments.reserve(msg->segments.size());
@@ -232,6 +268,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (backend_->hasOrigin()) return;
     backend_->setOrigin(fix->latitude, fix->longitude,
                         std::isfinite(fix->altitude) ? fix->altitude : 0.0);
+    {
+      std::lock_guard<std::mutex> guard(gnss_mutex_);
+      enu_.emplace(fix->latitude, fix->longitude, 0.0);
+    }
     NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
   }
 
@@ -358,6 +398,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::mutex imu_mutex_;
   std::deque<ImuSample> imu_;
   ros::Subscriber imu_sub_;
+  double gnss_max_gap_ = 1.5;
+  std::mutex gnss_mutex_;
+  std::deque<GnssFix> gnss_;
+  std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
+  ros::Subscriber fix_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_;
   ros::ServiceServer save_srv_, dump_srv_;
   ros::WallTimer tf_timer_;

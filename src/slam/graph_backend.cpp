@@ -87,11 +87,11 @@ Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
 }  // namespace
 
 Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
-                                   std::optional<double> yaw) {
+                                   std::optional<double> yaw, const Eigen::Vector2d& position) {
   const double odom_yaw = planarPose(first_odom_pose).theta;
   Eigen::Isometry3d first =
       isometryFromPlanar(Pose2(0.0, 0.0, yaw ? *yaw - odom_yaw : 0.0)) * first_odom_pose;
-  first.translation().setZero();
+  first.translation() << position.x(), position.y(), 0.0;
   return first * first_odom_pose.inverse();
 }
 
@@ -293,9 +293,13 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     kf.cloud = in.cloud;
     const int vid = static_cast<int>(in.id);
     if (s.keyframes.empty()) {
-      // The first keyframe sits at the map origin (the first GPS fix) with the known heading, or
-      // odometry's until the first global matching sets it.
-      s.map_to_odom = initialMapToOdom(in.odom_pose, s.initial_yaw);
+      // The first keyframe sits at its GNSS position, else at the map origin (the first GPS fix),
+      // with the known heading, or odometry's until the first global matching sets it.
+      if (!in.gnss_position)
+        logger_->info("first keyframe " + std::to_string(in.id) +
+                      " has no GNSS position: fixed at the map origin (the first fix)");
+      s.map_to_odom = initialMapToOdom(in.odom_pose, s.initial_yaw,
+                                       in.gnss_position.value_or(Eigen::Vector2d::Zero()));
       kf.map_pose = s.map_to_odom * in.odom_pose;
       s.graph.addVertexSE3(vid, kf.map_pose, true);
     } else {
@@ -707,7 +711,13 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
 
 void GraphBackend::rotateTrajectory(double dyaw) {
   State& s = *state_;
-  const Eigen::Isometry3d rot = isometryFromPlanar(Pose2(0.0, 0.0, dyaw));
+  // About the first keyframe, which is fixed where GNSS put it.
+  const Eigen::Vector2d pivot =
+      s.keyframes.empty()
+          ? Eigen::Vector2d::Zero()
+          : Eigen::Vector2d(s.keyframes.begin()->second.map_pose.translation().head<2>());
+  const Eigen::Vector2d shift = pivot - Pose2(0.0, 0.0, dyaw).rotation() * pivot;
+  const Eigen::Isometry3d rot = isometryFromPlanar(Pose2(shift.x(), shift.y(), dyaw));
   for (auto& [id, kf] : s.keyframes) {
     kf.map_pose = rot * kf.map_pose;
     s.graph.setVertexSE3(static_cast<int>(id), kf.map_pose);

@@ -56,7 +56,8 @@ void SlamPipeline::setOrigin(double lat, double lon, double alt) {
 }
 
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
-                               const std::optional<Eigen::Vector2d>& gravity_roll_pitch) {
+                               const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                               const std::optional<Eigen::Vector2d>& gnss_position) {
   if (!started_) {
     start_ = Clock::now();
     started_ = true;
@@ -85,12 +86,13 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
                     result.registration.converged ? result.registration.fitness : -1.0,
-                    gravity_roll_pitch);
+                    gravity_roll_pitch, gnss_position);
   return true;
 }
 
 void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
-                                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch) {
+                                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                                   const std::optional<Eigen::Vector2d>& gnss_position) {
   ++timings_.keyframes;
   KeyframeInput input;
   input.id = kf.id;
@@ -100,6 +102,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
   input.odom_fitness = fitness;
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = gravity_roll_pitch;
+  input.gnss_position = gnss_position;
   backend_->addKeyframe(input);
 
   std::vector<LineSegment2> segments;

@@ -51,6 +51,7 @@ struct DriveScan {
   std::string error;
   std::optional<Eigen::Vector2d> roll_pitch;  ///< base_link in ENU
   std::optional<Eigen::Isometry3d> truth;     ///< base_link in ENU at the first fix
+  std::optional<Eigen::Vector2d> gnss;        ///< the GNSS fix in the same frame
 };
 
 /// A drive: origin, initial heading, sensor mounting and the scans in order.
@@ -106,6 +107,7 @@ class KittiRawSource : public DriveSource {
     OxtsRecord r;
     if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
       scan.truth = oxtsPose(r, *enu_);
+      scan.gnss = enu_->toEnu(r.lat, r.lon).head<2>();  // KITTI's OXTS is GNSS + INS
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
     }
     return true;
@@ -285,7 +287,7 @@ int main(int argc, char** argv) {
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
     pipeline.processScan(scan.stamp, scan.cloud,
-                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>());
+                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss);
     progress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

@@ -136,7 +136,8 @@ std::vector<StageConfig> stages() {
          EXPECT_TRUE(readParams(r, p, &error)) << "graph_backend.yaml: " << error;
        },
        {"map_frame", "odom_frame", "base_link_frame", "optimization_period", "tf_publish_rate",
-        "map_cloud_resolution", "warn_throttle_period", "use_imu", "imu_max_time_difference"}},
+        "map_cloud_resolution", "warn_throttle_period", "use_imu", "imu_max_time_difference",
+        "gnss_max_gap"}},
   };
 }
 

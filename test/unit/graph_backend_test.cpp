@@ -319,6 +319,37 @@ TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
       << "separated buildings keep a clearance, not a compromise overlap";
 }
 
+TEST(GraphBackend, FirstKeyframeIsFixedAtItsGnssPositionNotAtTheOrigin) {
+  // The first six scans never became keyframes (dropped at start-up): the vehicle is 12 m past
+  // the first fix, which is the map origin.
+  constexpr size_t kFirst = 6;
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.use_osm = false;
+  params.initial_yaw = drive().true_poses[kFirst].theta;
+  GraphBackend at_origin(params), at_gnss(params);
+  const auto odom = drive().odometry(0.0, 1.0);
+  drive().feed(at_origin, odom, {}, std::nullopt, kFirst);
+  drive().feed(at_gnss, odom, {}, std::nullopt, kFirst, true);
+  at_origin.update();
+  at_gnss.update();
+  const double offset = drive().true_poses[kFirst].translation().norm();
+  ASSERT_GT(offset, 5.0);
+  EXPECT_NEAR(ate(at_origin), offset, 0.01);
+  EXPECT_LT(ate(at_gnss), 0.01);
+  // A heading found later (odometry's frame is 0.5 rad off) is applied about the first keyframe,
+  // which stays where GNSS put it.
+  params.initial_yaw_known = false;
+  std::vector<Eigen::Isometry3d> turned;
+  for (const auto& pose : odom) turned.push_back(isometryFromPlanar(Pose2(3.0, -1.0, 0.5)) * pose);
+  GraphBackend late_heading(params);
+  drive().feed(late_heading, turned, {}, std::nullopt, kFirst, true);
+  late_heading.update();
+  EXPECT_GT(ate(late_heading), 1.0);
+  late_heading.setInitialHeading(drive().true_poses[kFirst].theta);
+  late_heading.update();
+  EXPECT_LT(ate(late_heading), 0.01);
+}
+
 TEST(GraphBackend, ImuAttitudeKeepsTheTrajectoryLevel) {
   // Odometry that pitches 0.3 deg per keyframe: the trajectory dives; an IMU knows it is level.
   auto odom = drive().odometry(0.002, 1.005);

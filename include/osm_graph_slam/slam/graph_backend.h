@@ -34,6 +34,10 @@ struct KeyframeInput {
   PointCloudConstPtr cloud;    ///< filtered cloud in base_link (may be null)
   /// Roll and pitch of base_link against gravity (an IMU), if known [rad].
   std::optional<Eigen::Vector2d> gravity_roll_pitch;
+  /// Where GNSS puts base_link at this keyframe's stamp, in the map frame (ENU from the map
+  /// origin) [m], if known. The first keyframe is fixed there: the origin is the first fix, and
+  /// when the first scans never became keyframes (dropped, empty) the vehicle has moved since.
+  std::optional<Eigen::Vector2d> gnss_position;
 };
 
 struct LoopClosureInput {
@@ -84,10 +88,11 @@ struct BuildingState {
   Building corrected() const;
 };
 
-/// map -> odom that puts the first keyframe at the map origin with the given ENU yaw (or with
-/// odometry's yaw when unknown), keeping odometry's roll and pitch.
+/// map -> odom that puts the first keyframe at `position` (default: the map origin) with the
+/// given ENU yaw (or with odometry's yaw when unknown), keeping odometry's roll and pitch.
 Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
-                                   std::optional<double> yaw);
+                                   std::optional<double> yaw,
+                                   const Eigen::Vector2d& position = Eigen::Vector2d::Zero());
 
 class GraphBackend {
  public:

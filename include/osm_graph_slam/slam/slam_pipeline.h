@@ -50,8 +50,11 @@ class SlamPipeline {
   /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter). Bad scans are
   /// reported and skipped; returns true if the scan produced a pose.
   /// gravity_roll_pitch: base_link roll and pitch from an IMU at the scan's time, if any.
+  /// gnss_position: base_link's GNSS position in the map frame at the scan's time, if any (the
+  /// first keyframe is fixed there).
   bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
-                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt);
+                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
+                   const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt);
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
 
@@ -63,7 +66,8 @@ class SlamPipeline {
  private:
   void account(const BackendUpdateReport& report);
   void processKeyframe(const Keyframe& kf, double fitness,
-                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch);
+                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                       const std::optional<Eigen::Vector2d>& gnss_position);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
