@@ -62,6 +62,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pnh.param("use_imu", use_imu_, true);
     pnh.param("imu_max_time_difference", imu_max_dt_, 0.05);
     pnh.param("gnss_max_gap", gnss_max_gap_, 1.5);
+    pnh.param("gnss_max_time_difference", gnss_max_dt_, 0.05);
 
     GraphBackendParams params;
     std::string error;
@@ -206,11 +207,20 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     while (gnss_.size() > 2000) gnss_.pop_front();
   }
 
-  /// base_link's GNSS position at stamp in the map frame: interpolated between the fixes around
-  /// it (at most gnss_max_gap apart), once the map origin is known.
+  /// base_link's GNSS position at stamp in the map frame, once the map origin is known:
+  /// interpolated between the fixes around it (at most gnss_max_gap apart), else the nearest fix
+  /// within gnss_max_time_difference (the next fix may not have arrived yet).
   std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp) {
     std::lock_guard<std::mutex> guard(gnss_mutex_);
     if (!enu_) return std::nullopt;
+    std::optional<Eigen::Vector2d> nearest;
+    double nearest_dt = gnss_max_dt_;
+    for (const GnssFix& f : gnss_) {
+      const double dt = std::abs((f.stamp - stamp).toSec());
+      if (dt > nearest_dt) continue;
+      nearest_dt = dt;
+      nearest = enu_->toEnu(f.lat, f.lon).head<2>();
+    }
     for (size_t i = 1; i < gnss_.size(); ++i) {
       const GnssFix &a = gnss_[i - 1], &b = gnss_[i];
       if (a.stamp > stamp || b.stamp < stamp) continue;
@@ -221,7 +231,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
           enu_->toEnu(a.lat + w * (b.lat - a.lat), a.lon + w * (b.lon - a.lon), 0.0);
       return Eigen::Vector2d(p.x(), p.y());
     }
-    return std::nullopt;
+    return nearest;
   }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
@@ -398,7 +408,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::mutex imu_mutex_;
   std::deque<ImuSample> imu_;
   ros::Subscriber imu_sub_;
-  double gnss_max_gap_ = 1.5;
+  double gnss_max_gap_ = 1.5, gnss_max_dt_ = 0.05;
   std::mutex gnss_mutex_;
   std::deque<GnssFix> gnss_;
   std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
