@@ -114,8 +114,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     }
     const std::optional<ImuSample> imu = imuAt(msg->header.stamp);
     if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
-    kf.gnss_position = gnssPositionAt(msg->header.stamp);
     if (!first_keyframe_seen_) {
+      kf.gnss_position = gnssPositionAt(msg->header.stamp);  // only the first one is used
       // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
       // orientation), else the parameter or the first global matching (OSM thesis §3.4).
       first_keyframe_seen_ = true;
@@ -225,7 +225,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       const GnssFix &a = gnss_[i - 1], &b = gnss_[i];
       if (a.stamp > stamp || b.stamp < stamp) continue;
       const double gap = (b.stamp - a.stamp).toSec();
-      if (gap > gnss_max_gap_) return std::nullopt;
+      if (gap > gnss_max_gap_) break;
       const double w = gap > 0.0 ? (stamp - a.stamp).toSec() / gap : 0.0;
       const Eigen::Vector3d p =
           enu_->toEnu(a.lat + w * (b.lat - a.lat), a.lon + w * (b.lon - a.lon), 0.0);

@@ -107,7 +107,7 @@ class KittiRawSource : public DriveSource {
     OxtsRecord r;
     if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
       scan.truth = oxtsPose(r, *enu_);
-      scan.gnss = enu_->toEnu(r.lat, r.lon).head<2>();  // KITTI's OXTS is GNSS + INS
+      scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();  // KITTI's OXTS is GNSS + INS
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
     }
     return true;
