@@ -37,6 +37,8 @@ EdgeSignature signatureOf(EdgeType type) {
       return {2, V::kSE2, V::kPointXY};
     case EdgeType::kSE3PointXY:
       return {2, V::kSE3, V::kPointXY};
+    case EdgeType::kSE2PointOnLine:
+      return {2, V::kSE2, V::kSE2};
   }
   return {0, V::kSE3, V::kSE3};
 }
@@ -116,6 +118,8 @@ const char* toString(EdgeType type) {
       return "SE2-XY";
     case EdgeType::kSE3PointXY:
       return "SE3-XY";
+    case EdgeType::kSE2PointOnLine:
+      return "SE2 point-on-line";
   }
   return "?";
 }
@@ -149,6 +153,7 @@ int errorDimension(EdgeType type) {
     case EdgeType::kSE3PointXY:
       return 2;
     case EdgeType::kPriorSE3Yaw:
+    case EdgeType::kSE2PointOnLine:
       return 1;
   }
   return 0;
@@ -156,6 +161,7 @@ int errorDimension(EdgeType type) {
 
 int measurementDimension(EdgeType type) {
   if (type == EdgeType::kSE3 || type == EdgeType::kPriorSE3) return 7;
+  if (type == EdgeType::kSE2PointOnLine) return 5;
   return errorDimension(type);
 }
 
@@ -378,6 +384,17 @@ int PoseGraph::addPriorSE3Yaw(int vertex, double yaw, double information,
 int PoseGraph::addPriorSE2(int vertex, const Pose2& measurement, const Eigen::Matrix3d& information,
                            const EdgeOptions& options) {
   return addEdge(EdgeType::kPriorSE2, {vertex}, se2Vector(measurement), information, options);
+}
+
+int PoseGraph::addEdgeSE2PointOnLine(int point_owner, int line_owner, const Eigen::Vector2d& point,
+                                     const Eigen::Vector2d& normal, double offset,
+                                     double information, const EdgeOptions& options) {
+  const double norm = normal.norm();
+  if (!(norm > 1e-9) || !std::isfinite(norm)) return fail("edge SE2 point-on-line: zero normal");
+  Eigen::VectorXd m(5);
+  m << point, normal / norm, offset / norm;
+  return addEdge(EdgeType::kSE2PointOnLine, {point_owner, line_owner}, m,
+                 Eigen::Matrix<double, 1, 1>(information), options);
 }
 
 int PoseGraph::addEdgeSE2PointXY(int pose, int point, const Eigen::Vector2d& measurement,

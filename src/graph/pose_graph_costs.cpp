@@ -229,6 +229,25 @@ struct SE2PointFunctor {
   }
 };
 
+// r = s·(n·x − c), x = Xline⁻¹ · Xpoint · p.
+struct SE2PointOnLineFunctor {
+  Eigen::Vector2d p, n;
+  double c;
+  double sqrt_info;
+  template <typename T>
+  bool operator()(const T* point_owner, const T* line_owner, T* r) const {
+    using std::cos;
+    using std::sin;
+    const T wx = point_owner[0] + cos(point_owner[2]) * p.x() - sin(point_owner[2]) * p.y();
+    const T wy = point_owner[1] + sin(point_owner[2]) * p.x() + cos(point_owner[2]) * p.y();
+    const T dx = wx - line_owner[0], dy = wy - line_owner[1];
+    const T cl = cos(line_owner[2]), sl = sin(line_owner[2]);
+    const T lx = cl * dx + sl * dy, ly = -sl * dx + cl * dy;
+    r[0] = T(sqrt_info) * (n.x() * lx + n.y() * ly - T(c));
+    return true;
+  }
+};
+
 struct SE3PointFunctor {
   Eigen::Vector2d z;
   Eigen::Matrix2d sqrt_info;
@@ -507,6 +526,9 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       return autoDiff<SE2PointFunctor, 2, 3, 2>(SE2PointFunctor{m, s});
     case EdgeType::kSE3PointXY:
       return lifted(autoDiff<SE3PointFunctor, 2, 7, 2>(SE3PointFunctor{m, s}), true, false);
+    case EdgeType::kSE2PointOnLine:
+      return autoDiff<SE2PointOnLineFunctor, 1, 3, 3>(
+          SE2PointOnLineFunctor{m.head<2>(), m.segment<2>(2), m[4], s(0, 0)});
   }
   return nullptr;
 }

@@ -8,6 +8,7 @@
 #include "osm_graph_slam/eval/slam_evaluation.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/building_contacts.h"
 #include "osm_graph_slam/slam/information.h"
 
 namespace osm_graph_slam {
@@ -150,6 +151,13 @@ struct GraphBackend::State {
   std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
   int next_building_vertex = kBuildingVertexBase;
   std::vector<int> overlap_edges;
+  struct SharedWall {
+    BuildingContact contact;  ///< ENU prior geometry
+    bool tied = false;        ///< edges added
+    std::vector<int> edges;   ///< the two wall-end-on-wall edges
+  };
+  std::map<std::pair<int64_t, int64_t>, SharedWall> shared_walls;
+  size_t shared_walls_searched = 0;  ///< number of buildings at the last search
   struct BuildingEdge {
     int edge_id;
     uint64_t keyframe;
@@ -591,6 +599,7 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report) {
   // Phase 2 (level 1): robot vertices fixed, buildings move to satisfy their constraints.
   for (int edge : s.overlap_edges) s.graph.removeEdge(edge);  // re-derived below
   s.overlap_edges.clear();
+  if (params_.use_shared_walls && params_.mode == OsmMode::kNonRigid) addSharedWallEdges(report);
   const std::vector<int> unfix = fixRobots();
   report.phase2 = s.graph.optimize(1, options);
   readBuildingPoses();
@@ -660,6 +669,52 @@ void GraphBackend::readRobotPoses() {
 void GraphBackend::readBuildingPoses() {
   for (auto& [bid, b] : state_->buildings)
     if (auto pose = state_->graph.vertexSE2(b.vertex_id)) b.pose = *pose;
+}
+
+void GraphBackend::findNewContacts() {
+  State& s = *state_;
+  if (s.shared_walls_searched == s.buildings.size()) return;
+  s.shared_walls_searched = s.buildings.size();
+  std::vector<int64_t> ids;
+  std::vector<Polygon2> outlines;
+  for (const auto& [bid, b] : s.buildings) {
+    ids.push_back(bid);
+    outlines.push_back(b.prior.outline_enu);
+  }
+  for (const auto& c : findBuildingContacts(outlines, params_.shared_walls))
+    s.shared_walls.try_emplace(std::make_pair(ids[c.a], ids[c.b]), State::SharedWall{c, false});
+}
+
+void GraphBackend::addSharedWallEdges(BackendUpdateReport& report) {
+  // Pairs join the graph once one of the two buildings is in it; the other follows (and so on
+  // along a row), so a building nobody saw moves with the neighbour it shares a wall with.
+  State& s = *state_;
+  findNewContacts();
+  const double info = 1.0 / (params_.shared_wall_std * params_.shared_wall_std);
+  const EdgeOptions options{1, RobustKernel::huber(params_.shared_wall_kernel_width)};
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (auto& [key, wall] : s.shared_walls) {
+      if (wall.tied) continue;
+      BuildingState& a = s.buildings.at(key.first);
+      BuildingState& b = s.buildings.at(key.second);
+      if (a.vertex_id < 0 && b.vertex_id < 0) continue;
+      const BuildingContact& c = wall.contact;
+      const Pose2& pa = a.prior.reference_pose;
+      const Pose2& pb = b.prior.reference_pose;
+      const Eigen::Vector2d normal = pb.rotation().transpose() * c.b_normal;
+      const double offset = normal.dot(pb.inverse().transform(c.b_point));
+      const int va = s.buildingVertex(a, params_), vb = s.buildingVertex(b, params_);
+      for (const auto& end : c.a_ends) {
+        const int edge = s.graph.addEdgeSE2PointOnLine(va, vb, pa.inverse().transform(end), normal,
+                                                       offset, info, options);
+        if (edge >= 0) wall.edges.push_back(edge);
+      }
+      wall.tied = true;
+      changed = true;
+    }
+  }
+  for (const auto& [key, wall] : s.shared_walls) report.shared_walls += wall.edges.empty() ? 0 : 1;
 }
 
 void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {

@@ -74,6 +74,13 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("overlap_information", p.overlap_information);
   r.param("overlap_min_area", p.overlap_min_area);
   r.param("overlap_clearance", p.overlap_clearance);
+  r.param("use_shared_walls", p.use_shared_walls);
+  r.param("shared_wall_std", p.shared_wall_std);
+  r.param("shared_wall_kernel_width", p.shared_wall_kernel_width);
+  r.param("shared_wall_max_distance", p.shared_walls.max_distance);
+  r.param("shared_wall_max_angle_deg", p.shared_walls.max_angle_deg);
+  r.param("shared_wall_min_fraction", p.shared_walls.min_shared_fraction);
+  r.param("shared_wall_min_length", p.shared_walls.min_shared_length);
   readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
   if (!readParams(PrefixedParamReader(r, "graph_optimizer"), p.optimizer, error)) ok = false;
   return ok;

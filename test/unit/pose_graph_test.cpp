@@ -258,6 +258,26 @@ TEST(PoseGraph, WallOnlyEdgesLeaveTheBuildingWhereItsPriorIsAlongTheWall) {
   EXPECT_NEAR(b.theta, 0.02, 0.005);
 }
 
+TEST(PoseGraph, PointOnLineEdgesConstrainOnlyTheDistanceFromTheLine) {
+  // Building 2 (fixed, turned 90 deg) has the wall x = 5 in its frame: the world line y = 5.
+  // Building 1's corner at its origin starts 3 m off it and its prior is weak.
+  PoseGraph g;
+  g.addVertexSE2(1, Pose2(3.0, 2.0, 0.3));
+  g.addVertexSE2(2, Pose2(20.0, 0.0, M_PI / 2), true);
+  ASSERT_GE(g.addPriorSE2(1, Pose2(3.0, 2.0, 0.3), Eigen::Vector3d(1, 1, 1).asDiagonal()), 0);
+  const int edge =
+      g.addEdgeSE2PointOnLine(1, 2, Eigen::Vector2d::Zero(), Eigen::Vector2d(2, 0), 10.0, 1e4);
+  ASSERT_GE(edge, 0) << g.lastError();
+  EXPECT_EQ(g.edge(edge)->measurement[4], 5.0) << "normal and offset are normalised together";
+  g.optimize();
+  const Pose2 moved = *g.vertexSE2(1);
+  EXPECT_NEAR(moved.y, 5.0, 0.002) << "onto the line";
+  EXPECT_NEAR(moved.x, 3.0, 1e-6) << "nothing imposed along it";
+  EXPECT_NEAR(moved.theta, 0.3, 1e-6) << "nor on the heading";
+  EXPECT_LT(g.addEdgeSE2PointOnLine(1, 2, Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), 1, 1),
+            0);
+}
+
 TEST(PoseGraph, UnaryPriorsAndPointEdges) {
   PoseGraph g;
   g.addVertexSE3(0, makeSE3(1, 1, 1, 0.1, 0.1, 1.0));

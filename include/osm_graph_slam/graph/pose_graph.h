@@ -37,6 +37,9 @@ enum class EdgeType {
   kPriorSE2,     ///< unary full SE2 pose (3×3), e.g. the OSM prior of a building
   kSE2PointXY,   ///< SE2 pose observes an XY point in its frame (2×2)
   kSE3PointXY,   ///< SE3 pose (projected to the plane) observes an XY point (2×2)
+  /// A point fixed in the first SE2 vertex lies on a line fixed in the second (1×1), e.g. the end
+  /// of a building's wall on the wall it shares with its neighbour.
+  kSE2PointOnLine,
 };
 
 const char* toString(VertexType type);
@@ -72,7 +75,7 @@ struct EdgeInfo {
   int level = 0;
   RobustKernel kernel;
   /// SE3: (tx, ty, tz, qx, qy, qz, qw); SE2/SE3SE2/PriorSE2: (x, y, θ); XY/point: (x, y);
-  /// XYZ: (x, y, z); yaw: (yaw).
+  /// XYZ: (x, y, z); yaw: (yaw); point-on-line: (px, py, nx, ny, c), see addEdgeSE2PointOnLine().
   Eigen::VectorXd measurement;
   Eigen::MatrixXd information;
 };
@@ -169,6 +172,12 @@ class PoseGraph {
   /// measurement = planar(Xpose)⁻¹ · p.
   int addEdgeSE3PointXY(int pose, int point, const Eigen::Vector2d& measurement,
                         const Eigen::Matrix2d& information, const EdgeOptions& options = {});
+  /// e = n·x − c with x = Xline⁻¹ · Xpoint · p: the signed distance of the point p (in the first
+  /// vertex's frame) from the line {x : n·x = c} (in the second vertex's frame, unit n). Nothing
+  /// is imposed along the line.
+  int addEdgeSE2PointOnLine(int point_owner, int line_owner, const Eigen::Vector2d& point,
+                            const Eigen::Vector2d& normal, double offset, double information,
+                            const EdgeOptions& options = {});
   /// Generic form used by file readers: measurement/information laid out as in EdgeInfo.
   int addEdge(EdgeType type, const std::vector<int>& vertices, const Eigen::VectorXd& measurement,
               const Eigen::MatrixXd& information, const EdgeOptions& options = {});

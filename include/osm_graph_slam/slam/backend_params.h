@@ -5,6 +5,7 @@
 
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/lines/line_matcher.h"
+#include "osm_graph_slam/slam/building_contacts.h"
 
 namespace osm_graph_slam {
 
@@ -121,6 +122,14 @@ struct GraphBackendParams {
   /// [m] separated buildings are placed this much further apart than flush, so that buildings
   /// separated from two neighbours at once do not end overlapping by a compromise of millimetres.
   double overlap_clearance = 0.01;
+  /// Non-rigid mode: buildings whose facing walls (nearly) coincide in the prior keep them
+  /// coinciding (two wall-end-on-wall edges per pair, level 1, Huber kernel). A building seen
+  /// through one facade is then placed along its street by the neighbours it touches, and a
+  /// building nobody saw follows an observed neighbour. doc/backend.md "Shared walls".
+  bool use_shared_walls = true;
+  double shared_wall_std = 0.2;           ///< [m] distance of each wall end from the other wall
+  double shared_wall_kernel_width = 1.0;  ///< Huber width in standard deviations
+  BuildingContactParams shared_walls;
   LineMatcherParams matcher;
 };
 

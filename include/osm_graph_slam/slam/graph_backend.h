@@ -56,6 +56,7 @@ struct BackendUpdateReport {
   size_t local_attempts = 0, local_unseen = 0, local_rejected = 0;
   size_t building_edges_gated = 0;  ///< removed by the consistency gate
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
+  size_t shared_walls = 0;  ///< building pairs tied by a shared wall in this update
   bool heading_initialized_now = false;
   OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
@@ -153,6 +154,8 @@ class GraphBackend {
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
   void optimizePhases(BackendUpdateReport& report);
   void resolveOverlaps(BackendUpdateReport& report);
+  void addSharedWallEdges(BackendUpdateReport& report);
+  void findNewContacts();
   void updateMapToOdom();
   void rotateTrajectory(double dyaw);
 
