@@ -35,8 +35,11 @@ struct StreetDrive {
   std::vector<std::vector<LineSegment2>> segments;
   std::vector<PointCloudPtr> clouds;  ///< sensor frame (kept only when asked for)
 
-  explicit StreetDrive(int keyframes, double spacing = 2.5, bool keep_clouds = false) {
-    scene = makeStreetScene(16, 11);
+  explicit StreetDrive(int keyframes, double spacing = 2.5, bool keep_clouds = false)
+      : StreetDrive(makeStreetScene(16, 11), keyframes, spacing, keep_clouds) {}
+
+  StreetDrive(std::vector<SimBuilding> buildings, int keyframes, double spacing, bool keep_clouds)
+      : scene(std::move(buildings)) {
     WallScanParams scan;
     scan.beams_per_ring = 900;
     const WallPointExtractor walls;

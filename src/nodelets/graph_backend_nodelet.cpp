@@ -12,6 +12,7 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <deque>
@@ -26,6 +27,7 @@
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/osm/gnss_fix_lookup.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_logging.h"
@@ -116,6 +118,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
     if (!first_keyframe_seen_) {
       kf.gnss_position = gnssPositionAt(msg->header.stamp);  // only the first one is used
+      {
+        std::lock_guard<std::mutex> guard(gnss_mutex_);
+        gnss_.clear();  // and no later fix is kept (onFix)
+      }
       // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
       // orientation), else the parameter or the first global matching (OSM thesis §3.4).
       first_keyframe_seen_ = true;
@@ -193,18 +199,20 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return best;
   }
 
-  struct GnssFix {
-    ros::Time stamp;
-    double lat = 0, lon = 0;
-  };
-
   void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
     if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX ||
         !std::isfinite(msg->latitude) || !std::isfinite(msg->longitude))
       return;
+    if (first_keyframe_seen_) return;  // only the first keyframe is anchored by GNSS
     std::lock_guard<std::mutex> guard(gnss_mutex_);
-    gnss_.push_back({msg->header.stamp, msg->latitude, msg->longitude});
-    while (gnss_.size() > 2000) gnss_.pop_front();
+    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0};
+    // In stamp order, whatever order they arrive in (gnssFixAt searches by stamp).
+    gnss_.insert(std::upper_bound(gnss_.begin(), gnss_.end(), fix,
+                                  [](const GnssFixSample& a, const GnssFixSample& b) {
+                                    return a.stamp < b.stamp;
+                                  }),
+                 fix);
+    if (gnss_.size() > 2000) gnss_.erase(gnss_.begin());
   }
 
   /// base_link's GNSS position at stamp in the map frame, once the map origin is known:
@@ -213,25 +221,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp) {
     std::lock_guard<std::mutex> guard(gnss_mutex_);
     if (!enu_) return std::nullopt;
-    std::optional<Eigen::Vector2d> nearest;
-    double nearest_dt = gnss_max_dt_;
-    for (const GnssFix& f : gnss_) {
-      const double dt = std::abs((f.stamp - stamp).toSec());
-      if (dt > nearest_dt) continue;
-      nearest_dt = dt;
-      nearest = enu_->toEnu(f.lat, f.lon).head<2>();
-    }
-    for (size_t i = 1; i < gnss_.size(); ++i) {
-      const GnssFix &a = gnss_[i - 1], &b = gnss_[i];
-      if (a.stamp > stamp || b.stamp < stamp) continue;
-      const double gap = (b.stamp - a.stamp).toSec();
-      if (gap > gnss_max_gap_) break;
-      const double w = gap > 0.0 ? (stamp - a.stamp).toSec() / gap : 0.0;
-      const Eigen::Vector3d p =
-          enu_->toEnu(a.lat + w * (b.lat - a.lat), a.lon + w * (b.lon - a.lon), 0.0);
-      return Eigen::Vector2d(p.x(), p.y());
-    }
-    return nearest;
+    const auto fix = gnssFixAt(gnss_, stamp.toSec(), gnss_max_gap_, gnss_max_dt_);
+    if (!fix) return std::nullopt;
+    return Eigen::Vector2d(enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>());
   }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
@@ -300,10 +292,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         }
         NODELET_DEBUG(
             "graph: +%zu keyframes, +%zu loops, +%zu map priors, +%zu building edges, "
-            "%zu overlap edges, chi2 %.3g -> %.3g, %.1f ms",
+            "%zu overlap edges, %zu shared walls, chi2 %.3g -> %.3g, %.1f ms",
             report.keyframes_added, report.loops_added, report.global_priors, report.building_edges,
-            report.overlap_edges, report.phase1.initial_chi2, report.phase1.final_chi2,
-            report.total_ms);
+            report.overlap_edges, report.shared_walls, report.phase1.initial_chi2,
+            report.phase1.final_chi2, report.total_ms);
         publishOutputs();
       }
       lock.lock();
@@ -403,14 +395,15 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
-  bool use_imu_ = true, first_keyframe_seen_ = false;
+  bool use_imu_ = true;
+  std::atomic<bool> first_keyframe_seen_{false};  ///< read by the gps/fix callback
   double imu_max_dt_ = 0.05;
   std::mutex imu_mutex_;
   std::deque<ImuSample> imu_;
   ros::Subscriber imu_sub_;
   double gnss_max_gap_ = 1.5, gnss_max_dt_ = 0.05;
   std::mutex gnss_mutex_;
-  std::deque<GnssFix> gnss_;
+  std::vector<GnssFixSample> gnss_;  ///< until the first keyframe
   std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
   ros::Subscriber fix_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_;

@@ -15,6 +15,7 @@
 #include <set>
 #include <vector>
 
+#include "osm_graph_slam/osm/gnss_fix_lookup.h"
 #include "osm_graph_slam/ros/conversions.h"
 
 namespace osm_graph_slam {
@@ -52,6 +53,7 @@ struct BagDriveReader::Impl {
   rosbag::View::iterator cloud_it;
   size_t num_clouds = 0;
   std::vector<BagFix> fixes;
+  std::vector<GnssFixSample> track;           ///< the fixes in stamp order, for fixAt()
   std::map<int64_t, Eigen::Quaterniond> imu;  ///< orientation of the IMU frame in ENU
   std::string imu_frame;
   std::map<int64_t, Eigen::Isometry3d> ground_truth;
@@ -105,6 +107,11 @@ bool BagDriveReader::open(const std::string& path, const BagDriveTopics& topics,
   try {
     impl_->bag.open(path, rosbag::bagmode::Read);
     impl_->readSmallTopics();
+    for (const BagFix& f : impl_->fixes)
+      impl_->track.push_back({static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt});
+    std::stable_sort(
+        impl_->track.begin(), impl_->track.end(),
+        [](const GnssFixSample& a, const GnssFixSample& b) { return a.stamp < b.stamp; });
     impl_->clouds =
         std::make_unique<rosbag::View>(impl_->bag, rosbag::TopicQuery(topicVariants(topics.cloud)));
     impl_->num_clouds = impl_->clouds->size();
@@ -128,6 +135,12 @@ size_t BagDriveReader::numImu() const {
 }
 size_t BagDriveReader::numGroundTruth() const {
   return impl_->ground_truth.size();
+}
+
+std::optional<BagFix> BagDriveReader::fixAt(int64_t stamp_ns, double max_gap, double max_dt) const {
+  const auto fix = gnssFixAt(impl_->track, static_cast<double>(stamp_ns) * 1e-9, max_gap, max_dt);
+  if (!fix) return std::nullopt;
+  return BagFix{stamp_ns, fix->lat, fix->lon, fix->alt};
 }
 
 std::optional<BagFix> BagDriveReader::firstFix() const {

@@ -172,6 +172,7 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.global_rejected += report.global_rejected;
   timings_.building_edges += report.building_edges;
   timings_.overlap_edges = report.overlap_edges;  // re-derived at every update
+  timings_.shared_walls = report.shared_walls;
 }
 
 std::string SlamPipeline::timingTable() const {
@@ -190,14 +191,14 @@ std::string SlamPipeline::timingTable() const {
                 "graph back-end   %10.0f   %13.2f   %17.2f\n"
                 "%zu scans, %zu keyframes, %zu loops in %.1f s: %.1f scans/s\n"
                 "map priors: %zu global priors (%zu rejected), %zu robot-building edges, %zu "
-                "overlap edges\n",
+                "overlap edges, %zu shared walls\n",
                 t.prefilter_ms, t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms,
                 t.tracking_ms / scans, t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans,
                 t.walls_ms / kfs, t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs,
                 t.loops_ms, t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans,
                 t.osm_ms / kfs, t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans,
                 t.keyframes, t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors,
-                t.global_rejected, t.building_edges, t.overlap_edges);
+                t.global_rejected, t.building_edges, t.overlap_edges, t.shared_walls);
   return buf;
 }
 

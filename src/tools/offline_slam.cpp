@@ -132,6 +132,7 @@ class BagSource : public DriveSource {
     lat = fix->lat;
     lon = fix->lon;
     alt = fix->alt;
+    enu_.emplace(lat, lon, alt);
     if (const auto q = reader_.firstOrientation()) initial_yaw = yawOf(*q);
     // The sensor mounting from tf_static: base_link -> the first cloud's frame.
     pending_ = reader_.nextCloud();
@@ -157,11 +158,15 @@ class BagSource : public DriveSource {
     scan.error = c->error;
     if (const auto q = reader_.orientationAt(c->stamp_ns)) scan.roll_pitch = rollPitchOf(*q);
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
+    // The pipeline anchors its first keyframe here, whichever cloud that is.
+    if (const auto f = reader_.fixAt(c->stamp_ns))
+      scan.gnss = enu_->toEnu(f->lat, f->lon, f->alt).head<2>();
     return true;
   }
 
  private:
   BagDriveReader reader_;
+  std::optional<EnuConverter> enu_;
   std::optional<BagCloud> pending_;
 };
 

@@ -5,11 +5,32 @@
 #include <cmath>
 
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/osm/gnss_fix_lookup.h"
 
 namespace osm_graph_slam {
 namespace {
 
 constexpr double kLat0 = 49.0111, kLon0 = 8.4240;  // Karlsruhe, KITTI drive 0005
+
+TEST(GnssFixLookup, InterpolatesBetweenCloseFixesElseTakesTheNearestWithinTheLimit) {
+  const std::vector<GnssFixSample> fixes = {
+      {10.0, 49.0, 8.0, 100.0}, {10.1, 49.001, 8.002, 101.0}, {14.0, 49.01, 8.01, 110.0}};
+  const auto mid = gnssFixAt(fixes, 10.025, 1.5, 0.05);
+  ASSERT_TRUE(mid.has_value());
+  EXPECT_NEAR(mid->lat, 49.00025, 1e-12);
+  EXPECT_NEAR(mid->lon, 8.0005, 1e-12);
+  EXPECT_NEAR(mid->alt, 100.25, 1e-9);
+  // Between 10.1 and 14.0 the fixes are 3.9 s apart: only a fix within 0.05 s counts.
+  EXPECT_FALSE(gnssFixAt(fixes, 12.0, 1.5, 0.05).has_value());
+  const auto near_last = gnssFixAt(fixes, 13.97, 1.5, 0.05);
+  ASSERT_TRUE(near_last.has_value());
+  EXPECT_EQ(near_last->lat, 49.01);
+  // Before the first and after the last fix: the nearest one, if close enough.
+  EXPECT_EQ(gnssFixAt(fixes, 9.96, 1.5, 0.05)->lat, 49.0);
+  EXPECT_FALSE(gnssFixAt(fixes, 9.9, 1.5, 0.05).has_value());
+  EXPECT_EQ(gnssFixAt(fixes, 14.04, 1.5, 0.05)->lat, 49.01);
+  EXPECT_FALSE(gnssFixAt({}, 10.0, 1.5, 0.05).has_value());
+}
 
 TEST(EnuConverter, OriginMapsToZero) {
   const EnuConverter enu(kLat0, kLon0, 112.0);

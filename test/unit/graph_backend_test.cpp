@@ -323,6 +323,57 @@ TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
       << "separated buildings keep a clearance, not a compromise overlap";
 }
 
+TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWith) {
+  // Eight touching houses north of the street, a backyard building behind the third one (hidden
+  // from the street), a detached house south. Priors: the backyard building 1.5 m off across
+  // the wall it shares, two middle houses 1.5 m and 1 m off along the street.
+  std::vector<SimBuilding> scene;
+  double x = -38.0;
+  for (double width : {10.0, 8.0, 12.0, 9.0, 11.0, 10.0, 9.0, 12.0}) {
+    scene.push_back(rectangleBuilding(x, 7.0, width, 12.0, 0.0));
+    x += width;
+  }
+  scene.push_back(rectangleBuilding(-19.0, 19.0, 10.0, 6.0, 0.0));  // backyard, behind house 2
+  scene.push_back(rectangleBuilding(-20.0, -20.0, 15.0, 12.0, 0.0));
+  const StreetDrive row(scene, 30, 2.5, false);
+  std::vector<Building> prior = row.truth;
+  auto move = [&](size_t i, const Pose2& by) {
+    prior[i] = toBuilding(prior[i].id, transformPolygon(prior[i].outline_enu, by));
+  };
+  move(3, Pose2(1.5, 0, 0));
+  move(5, Pose2(-1.0, 0, 0));
+  move(8, Pose2(0.4, 1.5, 0));
+
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.initial_yaw = row.true_poses[0].theta;
+  auto error = [&](const GraphBackend& backend, size_t i) {
+    for (const auto& b : backend.correctedBuildings())
+      if (b.id == row.truth[i].id)
+        return Eigen::Vector2d(b.reference_pose.translation() -
+                               row.truth[i].reference_pose.translation());
+    return Eigen::Vector2d(HUGE_VAL, HUGE_VAL);
+  };
+  params.use_shared_walls = true;
+  GraphBackend shared(params);
+  params.use_shared_walls = false;
+  GraphBackend without(params);
+  row.feed(shared, row.odometry(0.0, 1.0), prior);
+  row.feed(without, row.odometry(0.0, 1.0), prior);
+  const BackendUpdateReport r = shared.update();
+  without.update();
+  EXPECT_GE(r.shared_walls, 8u) << "the row's seven shared walls and the backyard's";
+  EXPECT_EQ(r.overlaps_remaining, 0u);
+  std::cout << "shared walls: backyard building " << error(without, 8).y() << " -> "
+            << error(shared, 8).y() << " m across its shared wall; middle houses "
+            << error(shared, 3).norm() << " / " << error(shared, 5).norm() << " m\n";
+  EXPECT_GT(std::abs(error(without, 8).y()), 1.4) << "nothing else informs it";
+  EXPECT_LT(std::abs(error(shared, 8).y()), 0.1);
+  EXPECT_NEAR(error(shared, 8).x(), 0.4, 0.1) << "nothing informs it along the wall";
+  EXPECT_LT(error(shared, 3).norm(), 0.15);
+  EXPECT_LT(error(shared, 5).norm(), 0.15);
+  EXPECT_LT(error(shared, 9).norm(), 0.1) << "the detached house shares no wall";
+}
+
 TEST(GraphBackend, FirstKeyframeIsFixedAtItsGnssPositionNotAtTheOrigin) {
   // The first six scans never became keyframes (dropped at start-up): the vehicle is 12 m past
   // the first fix, which is the map origin.

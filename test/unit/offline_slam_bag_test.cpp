@@ -129,6 +129,14 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
     if (n == kScans / 2) {
       std::ifstream bin(drive.scan_files[n], std::ios::binary | std::ios::ate);
       EXPECT_EQ(size_t(bin.tellg()), c->cloud->size() * 16);
+      // The GNSS position at the cloud's stamp is that scan's OXTS record (stamps a few ms
+      // apart: 2e-6 deg is 0.2 m).
+      OxtsRecord oxts;
+      ASSERT_TRUE(readOxtsFile(drive.oxts_files[n], oxts, &error)) << error;
+      const auto at = reader.fixAt(c->stamp_ns);
+      ASSERT_TRUE(at);
+      EXPECT_NEAR(at->lat, oxts.lat, 2e-6);
+      EXPECT_NEAR(at->lon, oxts.lon, 2e-6);
     }
     ++n;
   }
@@ -136,6 +144,7 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
   // Look-ups further away than max_dt find nothing.
   EXPECT_FALSE(reader.groundTruthAt(drive.scan_stamps.back() + 1000000000LL));
   EXPECT_FALSE(reader.orientationAt(drive.scan_stamps.front() - 1000000000LL));
+  EXPECT_FALSE(reader.fixAt(drive.scan_stamps.back() + 1000000000LL));
 }
 
 TEST_F(OfflineSlamBag, BagAndKittiRawGiveTheSameTrajectory) {

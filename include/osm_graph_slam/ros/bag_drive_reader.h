@@ -48,6 +48,9 @@ class BagDriveReader {
   size_t numGroundTruth() const;
   /// The first fix with status >= STATUS_FIX and finite coordinates.
   std::optional<BagFix> firstFix() const;
+  /// The fix at stamp, interpolated between the fixes around it (at most max_gap apart) or the
+  /// nearest within max_dt (gnssFixAt).
+  std::optional<BagFix> fixAt(int64_t stamp_ns, double max_gap = 1.5, double max_dt = 0.05) const;
   /// Orientation of base_link in ENU from the IMU message nearest to stamp (within max_dt),
   /// with the static base_link -> IMU frame rotation applied.
   std::optional<Eigen::Quaterniond> orientationAt(int64_t stamp_ns, double max_dt = 0.05) const;

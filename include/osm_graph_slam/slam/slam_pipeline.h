@@ -32,6 +32,7 @@ struct SlamPipelineParams {
 struct PipelineTimings {
   size_t scans = 0, keyframes = 0, loops = 0;
   size_t global_priors = 0, global_rejected = 0, building_edges = 0, overlap_edges = 0;
+  size_t shared_walls = 0;  ///< building pairs tied by a shared wall (latest update)
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
