@@ -95,8 +95,19 @@ visualization_msgs::MarkerArray backendMarkers(const PoseGraph& graph,
                               rgba(1, 0.6, 0, 0.5));
   Marker overlap =
       makeMarker(header, "edges_level2_building_building", Marker::LINE_LIST, 0.15, rgba(1, 0, 0));
+  // Shared walls: a post at each end of the wall span the two buildings keep in common.
+  Marker shared =
+      makeMarker(header, "edges_level1_shared_wall", Marker::LINE_LIST, 0.3, rgba(1, 1, 1));
   for (const auto& [id, e] : graph.edges()) {
     geometry_msgs::Point a, b;
+    if (e.type == EdgeType::kSE2PointOnLine) {
+      if (const auto owner = graph.vertexSE2(e.vertices[0])) {
+        const Eigen::Vector2d end = owner->transform(e.measurement.head<2>());
+        shared.points.push_back(point(end.x(), end.y(), 0.0));
+        shared.points.push_back(point(end.x(), end.y(), 4.0));
+      }
+      continue;
+    }
     if (!vertexPosition(graph, e.vertices[0], &a)) continue;
     if (e.num_vertices == 1) {
       if (e.type == EdgeType::kPriorSE2) continue;  // every building has one: not worth a line
@@ -109,7 +120,7 @@ visualization_msgs::MarkerArray backendMarkers(const PoseGraph& graph,
     m.points.push_back(a);
     m.points.push_back(b);
   }
-  for (Marker* m : {&odometry, &priors, &mapping, &overlap})
+  for (Marker* m : {&odometry, &priors, &mapping, &overlap, &shared})
     if (!m->points.empty()) out.markers.push_back(*m);
 
   Marker original =
