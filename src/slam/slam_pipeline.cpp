@@ -179,9 +179,10 @@ std::string SlamPipeline::timingTable() const {
   const PipelineTimings& t = timings_;
   const double scans = std::max<size_t>(1, t.scans);
   const double kfs = std::max<size_t>(1, t.keyframes);
-  char buf[1024];
+  char buf[2048];
   std::snprintf(buf, sizeof(buf),
                 "stage            total [ms]   per scan [ms]   per keyframe [ms]\n"
+                "input (wait)     %10.0f   %13.2f   %17.2f\n"
                 "prefilter        %10.0f   %13.2f   %17.2f\n"
                 "tracking         %10.0f   %13.2f   %17.2f\n"
                 "wall points      %10.0f   %13.2f   %17.2f\n"
@@ -192,13 +193,14 @@ std::string SlamPipeline::timingTable() const {
                 "%zu scans, %zu keyframes, %zu loops in %.1f s: %.1f scans/s\n"
                 "map priors: %zu global priors (%zu rejected), %zu robot-building edges, %zu "
                 "overlap edges, %zu shared walls\n",
-                t.prefilter_ms, t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms,
-                t.tracking_ms / scans, t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans,
-                t.walls_ms / kfs, t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs,
-                t.loops_ms, t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans,
-                t.osm_ms / kfs, t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans,
-                t.keyframes, t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors,
-                t.global_rejected, t.building_edges, t.overlap_edges, t.shared_walls);
+                t.input_ms, t.input_ms / scans, t.input_ms / kfs, t.prefilter_ms,
+                t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms, t.tracking_ms / scans,
+                t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans, t.walls_ms / kfs,
+                t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs, t.loops_ms,
+                t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans, t.osm_ms / kfs,
+                t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans, t.keyframes,
+                t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors, t.global_rejected,
+                t.building_edges, t.overlap_edges, t.shared_walls);
   return buf;
 }
 
@@ -210,7 +212,8 @@ std::string SlamPipeline::timingJson() const {
                               {"wall_time_s", t.wall_time_s},
                               {"scans_per_second", t.scansPerSecond()},
                               {"ms",
-                               {{"prefilter", t.prefilter_ms},
+                               {{"input", t.input_ms},
+                                {"prefilter", t.prefilter_ms},
                                 {"tracking", t.tracking_ms},
                                 {"walls", t.walls_ms},
                                 {"segments", t.segments_ms},

@@ -11,11 +11,16 @@
 //                [--ground-truth-topic ground_truth] [--base-frame base_link]
 // The first GPS fix is the map origin; the first IMU orientation (OXTS record) the initial
 // heading, and the IMU's roll/pitch at each keyframe an attitude prior (unless --no-imu).
+#include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
@@ -170,6 +175,56 @@ class BagSource : public DriveSource {
   std::optional<BagCloud> pending_;
 };
 
+/// Reads the scans on its own thread, a few ahead of the pipeline. On a cold disk reading a
+/// 2 MB HDL-64E scan takes about as long as processing it (35 vs 40 ms); this way they overlap.
+class ScanPrefetcher {
+ public:
+  ScanPrefetcher(DriveSource& source, size_t max_scans, size_t depth)
+      : source_(source), max_scans_(max_scans), depth_(depth), thread_([this] { run(); }) {}
+  ~ScanPrefetcher() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+  /// The next scan in order; false at the end of the drive (or after max_scans).
+  bool next(DriveScan& scan) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [this] { return !queue_.empty() || done_; });
+    if (queue_.empty()) return false;
+    scan = std::move(queue_.front());
+    queue_.pop_front();
+    changed_.notify_all();
+    return true;
+  }
+
+ private:
+  void run() {
+    for (size_t i = 0; i < max_scans_; ++i) {
+      DriveScan scan;
+      if (!source_.next(scan)) break;
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait(lock, [this] { return queue_.size() < depth_ || stop_; });
+      if (stop_) break;
+      queue_.push_back(std::move(scan));
+      changed_.notify_all();
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    done_ = true;
+    changed_.notify_all();
+  }
+
+  DriveSource& source_;
+  const size_t max_scans_, depth_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::deque<DriveScan> queue_;
+  bool done_ = false, stop_ = false;
+  std::thread thread_;  ///< last: starts once everything above exists
+};
+
 void progress(size_t done, size_t total) {
   if (total == 0 || (done % 10 != 0 && done != total)) return;
   const int width = 40;
@@ -285,7 +340,15 @@ int main(int argc, char** argv) {
   if (args.count("max-scans")) n = std::min<size_t>(n, std::stoul(args["max-scans"]));
   std::map<double, Eigen::Isometry3d> truth_by_stamp;
   DriveScan scan;
-  for (size_t i = 0; i < n && drive->next(scan); ++i) {
+  ScanPrefetcher prefetcher(*drive, n, 8);
+  auto readScan = [&] {
+    const auto t0 = std::chrono::steady_clock::now();
+    const bool ok = prefetcher.next(scan);
+    pipeline.addInputTime(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    return ok;
+  };
+  for (size_t i = 0; i < n && readScan(); ++i) {
     if (!scan.cloud) {
       std::cerr << "\noffline_slam: " << scan.error << " (scan skipped)\n";
       continue;

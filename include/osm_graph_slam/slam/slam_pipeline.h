@@ -33,6 +33,7 @@ struct PipelineTimings {
   size_t scans = 0, keyframes = 0, loops = 0;
   size_t global_priors = 0, global_rejected = 0, building_edges = 0, overlap_edges = 0;
   size_t shared_walls = 0;  ///< building pairs tied by a shared wall (latest update)
+  double input_ms = 0;      ///< reading the scans (measured by the caller: addInputTime)
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
@@ -58,6 +59,9 @@ class SlamPipeline {
                    const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt);
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
+  /// Time the caller waited for input (files, a bag), so the report shows it next to the
+  /// stages: on a cold disk reading can take as long as all of them.
+  void addInputTime(double ms) { timings_.input_ms += ms; }
 
   const GraphBackend& backend() const { return *backend_; }
   PipelineTimings timings() const { return timings_; }
