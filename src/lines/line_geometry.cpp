@@ -182,16 +182,6 @@ Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T) {
 
 namespace {
 
-double signedArea(const Polygon2& p) {
-  double a = 0.0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    const Eigen::Vector2d& u = p[i];
-    const Eigen::Vector2d& v = p[(i + 1) % p.size()];
-    a += u.x() * v.y() - v.x() * u.y();
-  }
-  return 0.5 * a;
-}
-
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
 }
@@ -219,12 +209,23 @@ bool rayBlocked(const Eigen::Vector2d& from, const Eigen::Vector2d& to, const Po
 
 }  // namespace
 
+double polygonSignedArea(const Polygon2& p) {
+  double a = 0.0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    const Eigen::Vector2d& u = p[i];
+    const Eigen::Vector2d& v = p[(i + 1) % p.size()];
+    a += u.x() * v.y() - v.x() * u.y();
+  }
+  return 0.5 * a;
+}
+
 std::vector<size_t> visibleWalls(const Polygon2& outline, const Eigen::Vector2d& viewpoint,
                                  double max_range, const std::vector<const Polygon2*>& occluders) {
   std::vector<size_t> visible;
   const size_t n = outline.size();
   if (n < 3) return visible;
-  const double orientation = signedArea(outline) >= 0.0 ? 1.0 : -1.0;  // CCW: outside is right
+  const double orientation =
+      polygonSignedArea(outline) >= 0.0 ? 1.0 : -1.0;  // CCW: outside is right
   size_t index = 0;  // polygonSegments' numbering (degenerate edges skipped)
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d& a = outline[i];

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "osm_graph_slam/lines/line_geometry.h"
+
 namespace osm_graph_slam {
 namespace {
 
@@ -15,13 +17,7 @@ struct Wall {
 };
 
 std::vector<Wall> outwardWalls(const Polygon2& outline, double min_length) {
-  double area2 = 0.0;
-  for (size_t i = 0; i < outline.size(); ++i) {
-    const auto& a = outline[i];
-    const auto& b = outline[(i + 1) % outline.size()];
-    area2 += a.x() * b.y() - b.x() * a.y();
-  }
-  const double side = area2 >= 0.0 ? 1.0 : -1.0;  // counter-clockwise: outward is to the right
+  const double side = polygonSignedArea(outline) >= 0.0 ? 1.0 : -1.0;  // CCW: outside is right
   std::vector<Wall> walls;
   for (size_t i = 0; i < outline.size(); ++i) {
     Wall w;

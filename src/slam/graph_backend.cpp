@@ -153,8 +153,7 @@ struct GraphBackend::State {
   std::vector<int> overlap_edges;
   struct SharedWall {
     BuildingContact contact;  ///< ENU prior geometry
-    bool tied = false;        ///< edges added
-    std::vector<int> edges;   ///< the two wall-end-on-wall edges
+    bool tied = false;        ///< its two wall-end-on-wall edges are in the graph
   };
   std::map<std::pair<int64_t, int64_t>, SharedWall> shared_walls;
   size_t shared_walls_searched = 0;  ///< number of buildings at the last search
@@ -705,16 +704,14 @@ void GraphBackend::addSharedWallEdges(BackendUpdateReport& report) {
       const Eigen::Vector2d normal = pb.rotation().transpose() * c.b_normal;
       const double offset = normal.dot(pb.inverse().transform(c.b_point));
       const int va = s.buildingVertex(a, params_), vb = s.buildingVertex(b, params_);
-      for (const auto& end : c.a_ends) {
-        const int edge = s.graph.addEdgeSE2PointOnLine(va, vb, pa.inverse().transform(end), normal,
-                                                       offset, info, options);
-        if (edge >= 0) wall.edges.push_back(edge);
-      }
+      for (const auto& end : c.a_ends)
+        s.graph.addEdgeSE2PointOnLine(va, vb, pa.inverse().transform(end), normal, offset, info,
+                                      options);
       wall.tied = true;
       changed = true;
     }
   }
-  for (const auto& [key, wall] : s.shared_walls) report.shared_walls += wall.edges.empty() ? 0 : 1;
+  for (const auto& [key, wall] : s.shared_walls) report.shared_walls += wall.tied ? 1 : 0;
 }
 
 void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {

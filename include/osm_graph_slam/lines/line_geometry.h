@@ -57,6 +57,9 @@ double polygonOverlapArea(const Polygon2& a, const Polygon2& b);
 
 Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T);
 
+/// Signed area [m^2]: positive for a counter-clockwise ring (outside is then to the right).
+double polygonSignedArea(const Polygon2& polygon);
+
 /// Indices (as in polygonSegments) of the walls of a building outline that a sensor at
 /// `viewpoint` can see: the wall faces it (the viewpoint is on its outer side), some of it lies
 /// within max_range, and at least one of three points along it is not hidden behind another
