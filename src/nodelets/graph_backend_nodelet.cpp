@@ -289,6 +289,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         {
           std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
           map_to_odom_ = backend_->mapToOdom();
+          ++map_to_odom_version_;
         }
         NODELET_DEBUG(
             "graph: +%zu keyframes, +%zu loops, +%zu map priors, +%zu building edges, "
@@ -343,15 +344,29 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (backend_->numKeyframes() == 0) return;
     // Stamped with the current time, as map -> odom corrects odometry from now on; the latest
     // keyframe's stamp republished at 20 Hz made tf2 warn TF_REPEATED_DATA thousands of times.
-    // A clock standing still (paused bag) publishes nothing new.
-    geometry_msgs::TransformStamped tf;
+    // A clock standing still (paused or finished bag) publishes nothing new, unless an
+    // optimisation changed the correction since: that one goes out 1 us after the previous
+    // broadcast (tf2 drops a repeated stamp), so TF shows the final map, not the one before.
+    Eigen::Isometry3d map_to_odom;
+    uint64_t version = 0;
+    {
+      std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+      map_to_odom = map_to_odom_;
+      version = map_to_odom_version_;
+    }
     const ros::Time now = ros::Time::now();
-    tf.header.stamp = now.isZero() ? lastStamp() : now;
-    if (tf.header.stamp <= last_tf_stamp_) return;
-    last_tf_stamp_ = tf.header.stamp;
+    ros::Time stamp = now.isZero() ? lastStamp() : now;
+    if (stamp <= last_tf_stamp_) {
+      if (version == tf_version_) return;
+      stamp = last_tf_stamp_ + ros::Duration(0, 1000);
+    }
+    last_tf_stamp_ = stamp;
+    tf_version_ = version;
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = stamp;
     tf.header.frame_id = map_frame_;
     tf.child_frame_id = odom_frame_;
-    tf.transform = toTransformMsg(cachedMapToOdom());
+    tf.transform = toTransformMsg(map_to_odom);
     tf_broadcaster_.sendTransform(tf);
   }
 
@@ -387,7 +402,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Time last_stamp_;
   std::map<uint64_t, ros::Time> keyframe_stamps_;
 
-  ros::Time last_tf_stamp_;  ///< stamp of the last map -> odom broadcast
+  uint64_t map_to_odom_version_ = 0;  ///< counts optimisations that set map_to_odom_
+  ros::Time last_tf_stamp_;           ///< stamp of the last map -> odom broadcast
+  uint64_t tf_version_ = 0;           ///< map_to_odom_version_ of that broadcast
   std::thread worker_;
   std::mutex wake_mutex_;
   std::condition_variable wake_;
