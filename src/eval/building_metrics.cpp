@@ -2,7 +2,6 @@
 
 #include "osm_graph_slam/lines/line_geometry.h"
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
@@ -72,18 +71,12 @@ BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
 
 std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
     const std::vector<Building>& buildings, double min_area) {
-  // Bounding boxes first: real maps have hundreds of buildings, few of them near each other.
-  std::vector<Eigen::AlignedBox2d> boxes(buildings.size());
-  for (size_t i = 0; i < buildings.size(); ++i)
-    for (const auto& v : buildings[i].outline_enu) boxes[i].extend(v);
+  std::vector<const Polygon2*> outlines;
+  for (const auto& b : buildings) outlines.push_back(&b.outline_enu);
   std::vector<std::pair<size_t, size_t>> pairs;
-  for (size_t i = 0; i < buildings.size(); ++i) {
-    for (size_t j = i + 1; j < buildings.size(); ++j) {
-      if (boxes[i].isEmpty() || boxes[j].isEmpty() || !boxes[i].intersects(boxes[j])) continue;
-      if (polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
-        pairs.emplace_back(i, j);
-    }
-  }
+  for (const auto& [i, j] : nearbyPolygonPairs(outlines, 0.0))
+    if (polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
+      pairs.emplace_back(i, j);
   return pairs;
 }
 

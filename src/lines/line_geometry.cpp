@@ -1,5 +1,6 @@
 #include "osm_graph_slam/lines/line_geometry.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <boost/geometry.hpp>
 #include <boost/geometry/geometries/point_xy.hpp>
@@ -217,6 +218,31 @@ double polygonSignedArea(const Polygon2& p) {
     a += u.x() * v.y() - v.x() * u.y();
   }
   return 0.5 * a;
+}
+
+std::vector<std::pair<size_t, size_t>> nearbyPolygonPairs(
+    const std::vector<const Polygon2*>& polygons, double margin) {
+  std::vector<Eigen::AlignedBox2d> boxes(polygons.size());
+  std::vector<size_t> order;
+  for (size_t i = 0; i < polygons.size(); ++i) {
+    for (const auto& v : *polygons[i]) boxes[i].extend(v);
+    if (boxes[i].isEmpty()) continue;
+    boxes[i].min().array() -= 0.5 * margin;  // both grown by half: gaps up to margin pair
+    boxes[i].max().array() += 0.5 * margin;
+    order.push_back(i);
+  }
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return boxes[a].min().x() < boxes[b].min().x(); });
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (size_t k = 0; k < order.size(); ++k) {
+    const Eigen::AlignedBox2d& box = boxes[order[k]];
+    for (size_t l = k + 1; l < order.size() && boxes[order[l]].min().x() <= box.max().x(); ++l) {
+      if (!box.intersects(boxes[order[l]])) continue;
+      pairs.emplace_back(std::min(order[k], order[l]), std::max(order[k], order[l]));
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
 }
 
 std::vector<size_t> visibleWalls(const Polygon2& outline, const Eigen::Vector2d& viewpoint,

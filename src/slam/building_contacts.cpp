@@ -1,6 +1,5 @@
 #include "osm_graph_slam/slam/building_contacts.h"
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
@@ -32,12 +31,6 @@ std::vector<Wall> outwardWalls(const Polygon2& outline, double min_length) {
   return walls;
 }
 
-Eigen::AlignedBox2d boundsOf(const Polygon2& outline) {
-  Eigen::AlignedBox2d box;
-  for (const auto& v : outline) box.extend(v);
-  return box;
-}
-
 // The contact of wall a with the facing wall b, if they face each other closely enough.
 bool facing(const Wall& a, const Wall& b, const BuildingContactParams& p, BuildingContact* c) {
   if (a.n.dot(b.n) > -std::cos(p.max_angle_deg * M_PI / 180.0)) return false;
@@ -62,28 +55,22 @@ bool facing(const Wall& a, const Wall& b, const BuildingContactParams& p, Buildi
 std::vector<BuildingContact> findBuildingContacts(const std::vector<Polygon2>& outlines,
                                                   const BuildingContactParams& params) {
   std::vector<std::vector<Wall>> walls;
-  std::vector<Eigen::AlignedBox2d> bounds;
+  std::vector<const Polygon2*> polygons;
   for (const auto& outline : outlines) {
     walls.push_back(outwardWalls(outline, params.min_wall_length));
-    bounds.push_back(boundsOf(outline));
+    polygons.push_back(&outline);
   }
-  const Eigen::Vector2d margin = Eigen::Vector2d::Constant(params.max_distance);
   std::vector<BuildingContact> contacts;
-  for (size_t i = 0; i < outlines.size(); ++i) {
-    if (bounds[i].isEmpty()) continue;
-    const Eigen::AlignedBox2d grown(bounds[i].min() - margin, bounds[i].max() + margin);
-    for (size_t j = i + 1; j < outlines.size(); ++j) {
-      if (bounds[j].isEmpty() || !grown.intersects(bounds[j])) continue;
-      BuildingContact best, candidate;
-      for (const Wall& a : walls[i])
-        for (const Wall& b : walls[j])
-          if (facing(a, b, params, &candidate) && candidate.shared_length > best.shared_length)
-            best = candidate;
-      if (best.shared_length <= 0.0) continue;
-      best.a = i;
-      best.b = j;
-      contacts.push_back(best);
-    }
+  for (const auto& [i, j] : nearbyPolygonPairs(polygons, params.max_distance)) {
+    BuildingContact best, candidate;
+    for (const Wall& a : walls[i])
+      for (const Wall& b : walls[j])
+        if (facing(a, b, params, &candidate) && candidate.shared_length > best.shared_length)
+          best = candidate;
+    if (best.shared_length <= 0.0) continue;
+    best.a = i;
+    best.b = j;
+    contacts.push_back(best);
   }
   return contacts;
 }

@@ -2,10 +2,13 @@
 // noise and clutter, through the real pipeline (wall points -> RANSAC segments -> matcher).
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/lines/wall_scan_simulator.h"
@@ -223,6 +226,39 @@ TEST(PolygonOverlap, TouchingBuildingsDoNotOverlap) {
   const Polygon2 c = transformPolygon(a, Pose2(-1.0, 0.0, 0.0));  // pushed 1 m into b
   EXPECT_GT(polygonOverlapArea(c, b), 1.0);
   EXPECT_LT(polygonOverlapArea(c, b), 20.0);
+}
+
+TEST(PolygonPairs, SweepFindsExactlyTheBoxPairsWithinTheMargin) {
+  // Random quadrilaterals of a 300 m square, some empty: the sweep along x gives the same pairs
+  // as testing every pair of grown boxes.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(0.0, 300.0), size(2.0, 25.0);
+  std::vector<Polygon2> polygons(400);
+  for (size_t i = 0; i < polygons.size(); ++i) {
+    if (i % 37 == 0) continue;  // empty
+    const Eigen::Vector2d c(pos(rng), pos(rng));
+    const double w = size(rng), h = size(rng);
+    polygons[i] = {c, c + Eigen::Vector2d(w, 0.3), c + Eigen::Vector2d(w, h),
+                   c + Eigen::Vector2d(-0.5, h)};
+  }
+  std::vector<const Polygon2*> pointers;
+  for (const auto& p : polygons) pointers.push_back(&p);
+  for (const double margin : {0.0, 2.5}) {
+    std::vector<std::pair<size_t, size_t>> expected;
+    for (size_t i = 0; i < polygons.size(); ++i)
+      for (size_t j = i + 1; j < polygons.size(); ++j) {
+        if (polygons[i].empty() || polygons[j].empty()) continue;
+        Eigen::AlignedBox2d a, b;
+        for (const auto& v : polygons[i]) a.extend(v);
+        for (const auto& v : polygons[j]) b.extend(v);
+        const Eigen::Vector2d grow = Eigen::Vector2d::Constant(margin);
+        if (Eigen::AlignedBox2d(a.min() - grow, a.max() + grow).intersects(b))
+          expected.emplace_back(i, j);
+      }
+    const auto pairs = nearbyPolygonPairs(pointers, margin);
+    EXPECT_EQ(pairs, expected) << "margin " << margin;
+    EXPECT_GT(pairs.size(), 100u);  // the test exercises real neighbourhoods
+  }
 }
 
 TEST(LineMatcherOverlap, PushesOutAlongTheShallowestPenetration) {

@@ -1,6 +1,7 @@
 #pragma once
 // Line-segment geometry of the line matcher (OSM thesis §3.3.1, §3.3.4): segment distances with
 // and without coverage, angular and virtual edges, polygon outlines and their overlap.
+#include <utility>
 #include <vector>
 
 #include "osm_graph_slam/common/geometry2d.h"
@@ -59,6 +60,12 @@ Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T);
 
 /// Signed area [m^2]: positive for a counter-clockwise ring (outside is then to the right).
 double polygonSignedArea(const Polygon2& polygon);
+
+/// Pairs (i < j, sorted) of polygons whose bounding boxes, grown by margin [m], intersect: the
+/// candidates for overlap and contact tests. A sweep along x, so a city of thousands of
+/// buildings costs about n log n, not n^2. Empty polygons pair with nothing.
+std::vector<std::pair<size_t, size_t>> nearbyPolygonPairs(
+    const std::vector<const Polygon2*>& polygons, double margin);
 
 /// Indices (as in polygonSegments) of the walls of a building outline that a sensor at
 /// `viewpoint` can see: the wall faces it (the viewpoint is on its outer side), some of it lies

@@ -1,0 +1,120 @@
+// building_pairs_benchmark: the candidate search behind shared walls and overlap removal
+// (nearbyPolygonPairs, a sweep along x) against testing every pair of bounding boxes (the
+// reference, measured in the same run), on random city blocks of growing size; also the full
+// shared-wall and overlap searches that use it.
+//   building_pairs_benchmark [--buildings N[,N...]] [--json]
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/slam/building_contacts.h"
+
+using namespace osm_graph_slam;
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// n rectangles of 8-25 m at about the building density of the Karlsruhe extract (one per
+/// 40 m x 40 m), some touching or overlapping, like a misplaced prior.
+std::vector<Building> randomCity(int n) {
+  std::mt19937 rng(1);
+  const double side = 40.0 * std::sqrt(double(n));
+  std::uniform_real_distribution<double> pos(0.0, side), size(8.0, 25.0);
+  std::vector<Building> city(n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2d c(pos(rng), pos(rng));
+    const double w = size(rng), h = size(rng);
+    city[i].id = i;
+    city[i].outline_enu = {c, c + Eigen::Vector2d(w, 0.0), c + Eigen::Vector2d(w, h),
+                           c + Eigen::Vector2d(0.0, h)};
+  }
+  return city;
+}
+
+/// The reference: every pair of grown boxes.
+size_t allPairsCount(const std::vector<const Polygon2*>& polygons, double margin) {
+  std::vector<Eigen::AlignedBox2d> boxes(polygons.size());
+  for (size_t i = 0; i < polygons.size(); ++i)
+    for (const auto& v : *polygons[i]) boxes[i].extend(v);
+  const Eigen::Vector2d grow = Eigen::Vector2d::Constant(margin);
+  size_t count = 0;
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    const Eigen::AlignedBox2d grown(boxes[i].min() - grow, boxes[i].max() + grow);
+    for (size_t j = i + 1; j < boxes.size(); ++j) count += grown.intersects(boxes[j]) ? 1 : 0;
+  }
+  return count;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<int> sizes = {170, 1000, 5000, 20000};
+  bool json = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--buildings" && i + 1 < argc) {
+      sizes.clear();
+      std::stringstream list(argv[++i]);
+      for (std::string item; std::getline(list, item, ',');)
+        sizes.push_back(std::atoi(item.c_str()));
+    } else if (a == "--json") {
+      json = true;
+    } else {
+      std::fprintf(stderr, "usage: building_pairs_benchmark [--buildings N[,N...]] [--json]\n");
+      return 2;
+    }
+  }
+  const BuildingContactParams contact_params;
+  if (json)
+    std::printf("[");
+  else
+    std::printf("%9s %8s %10s %14s %7s %13s %13s\n", "buildings", "pairs", "sweep ms",
+                "all-pairs ms", "ratio", "contacts ms", "overlaps ms");
+  for (size_t k = 0; k < sizes.size(); ++k) {
+    const std::vector<Building> city = randomCity(std::max(sizes[k], 1));
+    std::vector<const Polygon2*> polygons;
+    std::vector<Polygon2> outlines;
+    for (const auto& b : city) {
+      polygons.push_back(&b.outline_enu);
+      outlines.push_back(b.outline_enu);
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    const size_t pairs = nearbyPolygonPairs(polygons, contact_params.max_distance).size();
+    const double sweep_ms = msSince(t0);
+    t0 = std::chrono::steady_clock::now();
+    const size_t reference = allPairsCount(polygons, contact_params.max_distance);
+    const double all_ms = msSince(t0);
+    t0 = std::chrono::steady_clock::now();
+    const size_t contacts = findBuildingContacts(outlines, contact_params).size();
+    const double contacts_ms = msSince(t0);
+    t0 = std::chrono::steady_clock::now();
+    const size_t overlaps = findOverlappingBuildings(city).size();
+    const double overlaps_ms = msSince(t0);
+    if (pairs != reference)
+      std::fprintf(stderr, "building_pairs_benchmark: sweep found %zu pairs, all-pairs %zu\n",
+                   pairs, reference);
+    if (json) {
+      std::printf(
+          "%s{\"buildings\": %zu, \"pairs\": %zu, \"reference_pairs\": %zu, \"sweep_ms\": %.4f, "
+          "\"all_pairs_ms\": %.4f, \"ratio\": %.2f, \"contacts\": %zu, \"contacts_ms\": %.4f, "
+          "\"overlaps\": %zu, \"overlaps_ms\": %.4f}",
+          k ? ", " : "", city.size(), pairs, reference, sweep_ms, all_ms, all_ms / sweep_ms,
+          contacts, contacts_ms, overlaps, overlaps_ms);
+    } else {
+      std::printf("%9zu %8zu %10.3f %14.3f %6.1fx %13.3f %13.3f\n", city.size(), pairs, sweep_ms,
+                  all_ms, all_ms / sweep_ms, contacts_ms, overlaps_ms);
+    }
+  }
+  if (json) std::printf("]\n");
+  return 0;
+}
