@@ -332,7 +332,7 @@ if [ "$OFFLINE" = 0 ]; then
 else
   echo "[demo] 4. offline_slam with the perturbed OSM prior ($PRIOR), no ROS master"
   run_step "offline_slam with OSM" "$LOGS/offline_slam_osm.log" \
-    "$BIN/offline_slam" --kitti-raw "$DRIVE" --osm "$PRIOR" --output "$OUT/slam_osm"
+    "$BIN/offline_slam" --kitti-raw "$DRIVE" --config "$ROOT/config/sim.yaml" --osm "$PRIOR" --output "$OUT/slam_osm"
   grep "scans/s" "$LOGS/offline_slam_osm.log" | tr '\r' '\n' | grep "scans/s" | tail -n 1 | sed 's/^/[demo]   /'
   EVAL_GT="$OUT/slam_osm/ground_truth_tum.txt"
 fi
@@ -345,7 +345,7 @@ else
   echo "[demo] 5. baseline (odometry + loops, no OSM): offline_slam --no-osm on the same drive" \
     "(the same core pipeline without a ROS master; fast)"
   run_step "offline_slam without OSM (baseline)" "$LOGS/offline_slam_no_osm.log" \
-    "$BIN/offline_slam" --kitti-raw "$DRIVE" --no-osm --output "$OUT/slam_no_osm"
+    "$BIN/offline_slam" --kitti-raw "$DRIVE" --config "$ROOT/config/sim.yaml" --no-osm --output "$OUT/slam_no_osm"
   tr '\r' '\n' <"$LOGS/offline_slam_no_osm.log" | grep "scans/s" | tail -n 1 | sed 's/^/[demo]   /'
 fi
 cleanup  # roscore and the Overpass test server are no longer needed

@@ -5,7 +5,8 @@
 //
 //   offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag) --output DIR
 //                [--osm FILE.osm|.pbf | --overpass URL] [--no-osm] [--no-loops]
-//                [--config OVERRIDES.yaml (default config/kitti.yaml)] [--max-scans N] [--json]
+//                [--config OVERRIDES.yaml (default config/kitti.yaml; simulated drives: sim.yaml)]
+//                [--max-scans N] [--json]
 //                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
 //                [--cloud-topic velodyne_points] [--gps-topic gps/fix] [--imu-topic imu/data]
 //                [--ground-truth-topic ground_truth] [--base-frame base_link]
@@ -280,6 +281,14 @@ int main(int argc, char** argv) {
 
   std::unique_ptr<DriveSource> drive;
   if (args.count("kitti-raw")) {
+    // simulate_urban writes sim_info.json two levels above the drive folder.
+    std::filesystem::path drive_dir = std::filesystem::absolute(args["kitti-raw"]);
+    if (drive_dir.filename().empty()) drive_dir = drive_dir.parent_path();  // "DRIVE/"
+    if (!args.count("config") &&
+        std::filesystem::exists(drive_dir.parent_path().parent_path() / "sim_info.json"))
+      std::cerr << "offline_slam: note: " << drive_dir.string()
+                << " was written by simulate_urban, whose prior misplaces every building on its "
+                   "own; its overrides are --config config/sim.yaml (using config/kitti.yaml)\n";
     auto kitti = std::make_unique<KittiRawSource>();
     if (!kitti->open(args["kitti-raw"], argOr(args, "calib-dir", ""), &error)) {
       std::cerr << "offline_slam: " << error << "\n";

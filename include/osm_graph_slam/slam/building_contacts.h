@@ -10,9 +10,10 @@
 namespace osm_graph_slam {
 
 struct BuildingContactParams {
-  /// [m] facing walls this far apart (gap or overlap) in the prior count as one shared wall: the
-  /// prior's misplacement, not a real gap (the simulated prior: 1 m per building per axis).
-  double max_distance = 2.5;
+  /// [m] facing walls this far apart (gap or overlap) in the prior count as one shared wall. Real
+  /// OSM neighbours share nodes; a prior that misplaces each building on its own (the simulator,
+  /// 1 m per axis) needs a few metres (config/sim.yaml: 2.5).
+  double max_distance = 0.5;
   double max_angle_deg = 8.0;  ///< facing walls antiparallel within this
   /// The walls must face each other over this fraction of the shorter one, or over min_length.
   double min_shared_fraction = 0.5;
