@@ -2,11 +2,15 @@
 // (nearbyPolygonPairs, a sweep along x) against testing every pair of bounding boxes (the
 // reference, measured in the same run), on random city blocks of growing size; also the full
 // shared-wall and overlap searches that use it.
-//   building_pairs_benchmark [--buildings N[,N...]] [--json]
+//   building_pairs_benchmark [--buildings N[,N...]] [--margin M (default:
+//   shared_wall_max_distance)]
+//                            [--repeat N (median of N runs, default 5)] [--json]
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 #include <sstream>
 #include <string>
@@ -22,6 +26,19 @@ namespace {
 
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Median wall time of `repeat` runs (the first run pays for cold caches and page faults).
+template <typename F>
+double medianMs(int repeat, F&& run) {
+  std::vector<double> ms;
+  for (int r = 0; r < std::max(repeat, 1); ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    run();
+    ms.push_back(msSince(t0));
+  }
+  std::nth_element(ms.begin(), ms.begin() + ms.size() / 2, ms.end());
+  return ms[ms.size() / 2];
 }
 
 /// n rectangles of 8-25 m at about the building density of the Karlsruhe extract (one per
@@ -60,6 +77,8 @@ size_t allPairsCount(const std::vector<const Polygon2*>& polygons, double margin
 int main(int argc, char** argv) {
   std::vector<int> sizes = {170, 1000, 5000, 20000};
   bool json = false;
+  int repeat = 5;
+  BuildingContactParams contact_params;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--buildings" && i + 1 < argc) {
@@ -67,14 +86,22 @@ int main(int argc, char** argv) {
       std::stringstream list(argv[++i]);
       for (std::string item; std::getline(list, item, ',');)
         sizes.push_back(std::atoi(item.c_str()));
+    } else if (a == "--repeat" && i + 1 < argc) {
+      repeat = std::atoi(argv[++i]);
+    } else if (a == "--margin" && i + 1 < argc) {
+      contact_params.max_distance = std::atof(argv[++i]);
     } else if (a == "--json") {
       json = true;
     } else {
-      std::fprintf(stderr, "usage: building_pairs_benchmark [--buildings N[,N...]] [--json]\n");
+      std::fprintf(stderr,
+                   "usage: building_pairs_benchmark [--buildings N[,N...]] [--margin M] [--repeat "
+                   "N] [--json]\n");
       return 2;
     }
   }
-  const BuildingContactParams contact_params;
+  if (!json)
+    std::printf("margin (shared-wall max distance) %.2f m, median of %d runs\n",
+                contact_params.max_distance, repeat);
   if (json)
     std::printf("[");
   else
@@ -88,28 +115,26 @@ int main(int argc, char** argv) {
       polygons.push_back(&b.outline_enu);
       outlines.push_back(b.outline_enu);
     }
-    auto t0 = std::chrono::steady_clock::now();
-    const size_t pairs = nearbyPolygonPairs(polygons, contact_params.max_distance).size();
-    const double sweep_ms = msSince(t0);
-    t0 = std::chrono::steady_clock::now();
-    const size_t reference = allPairsCount(polygons, contact_params.max_distance);
-    const double all_ms = msSince(t0);
-    t0 = std::chrono::steady_clock::now();
-    const size_t contacts = findBuildingContacts(outlines, contact_params).size();
-    const double contacts_ms = msSince(t0);
-    t0 = std::chrono::steady_clock::now();
-    const size_t overlaps = findOverlappingBuildings(city).size();
-    const double overlaps_ms = msSince(t0);
+    const double margin = contact_params.max_distance;
+    size_t pairs = 0, reference = 0, contacts = 0, overlaps = 0;
+    const double sweep_ms =
+        medianMs(repeat, [&] { pairs = nearbyPolygonPairs(polygons, margin).size(); });
+    const double all_ms = medianMs(repeat, [&] { reference = allPairsCount(polygons, margin); });
+    const double contacts_ms =
+        medianMs(repeat, [&] { contacts = findBuildingContacts(outlines, contact_params).size(); });
+    const double overlaps_ms =
+        medianMs(repeat, [&] { overlaps = findOverlappingBuildings(city).size(); });
     if (pairs != reference)
       std::fprintf(stderr, "building_pairs_benchmark: sweep found %zu pairs, all-pairs %zu\n",
                    pairs, reference);
     if (json) {
       std::printf(
-          "%s{\"buildings\": %zu, \"pairs\": %zu, \"reference_pairs\": %zu, \"sweep_ms\": %.4f, "
+          "%s{\"buildings\": %zu, \"margin_m\": %.3f, \"pairs\": %zu, \"reference_pairs\": %zu, "
+          "\"sweep_ms\": %.4f, "
           "\"all_pairs_ms\": %.4f, \"ratio\": %.2f, \"contacts\": %zu, \"contacts_ms\": %.4f, "
           "\"overlaps\": %zu, \"overlaps_ms\": %.4f}",
-          k ? ", " : "", city.size(), pairs, reference, sweep_ms, all_ms, all_ms / sweep_ms,
-          contacts, contacts_ms, overlaps, overlaps_ms);
+          k ? ", " : "", city.size(), contact_params.max_distance, pairs, reference, sweep_ms,
+          all_ms, all_ms / sweep_ms, contacts, contacts_ms, overlaps, overlaps_ms);
     } else {
       std::printf("%9zu %8zu %10.3f %14.3f %6.1fx %13.3f %13.3f\n", city.size(), pairs, sweep_ms,
                   all_ms, all_ms / sweep_ms, contacts_ms, overlaps_ms);
