@@ -2,9 +2,9 @@
 // (nearbyPolygonPairs, a sweep along x) against testing every pair of bounding boxes (the
 // reference, measured in the same run), on random city blocks of growing size; also the full
 // shared-wall and overlap searches that use it.
-//   building_pairs_benchmark [--buildings N[,N...]] [--margin M (default:
-//   shared_wall_max_distance)]
-//                            [--repeat N (median of N runs, default 5)] [--json]
+//   building_pairs_benchmark [--buildings N[,N...]] [--margin M] [--repeat N] [--json]
+// --margin defaults to the shared-wall max distance; --repeat (default 5) runs each stage N times
+// and prints the median.
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
