@@ -1,0 +1,543 @@
+"""Tests of scripts/slam_matrix.py without the real tools: the grid of each preset, summary,
+check limits, result parsing with missing keys, resume, and whole drives run with fake
+simulate_urban / offline_slam / evaluate_slam programs (small Python scripts in a temporary bin
+folder).
+
+    /usr/bin/python3 -m unittest discover -s test/scripts -p '*_test.py'     (from the repo root)
+"""
+import contextlib
+import importlib.util
+import io
+import json
+import math
+import os
+import shutil
+import stat
+import sys
+import tempfile
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(os.path.dirname(HERE))
+SCRIPT = os.path.join(REPO, "scripts", "slam_matrix.py")
+
+spec = importlib.util.spec_from_file_location("slam_matrix", SCRIPT)
+sm = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(sm)
+
+# One program for the three tools, dispatching on its name. FAKE_CALLS: a file each call is
+# appended to. Behaviour by environment: FAKE_OLD_SIM (simulate_urban prints its usage for the new
+# flags), FAKE_NEW_EVAL (evaluate_slam knows --run-report/--loops and writes coverage/loops keys);
+# by seed: 13 -> simulate_urban fails, 66 -> offline_slam --no-osm crashes.
+FAKE_TOOL = r'''#!/usr/bin/python3
+import json, os, signal, sys
+name = os.path.basename(sys.argv[0])
+args = sys.argv[1:]
+with open(os.environ["FAKE_CALLS"], "a") as f:
+    f.write(json.dumps([name] + args) + "\n")
+def opt(key, default=None):
+    return args[args.index(key) + 1] if key in args else default
+NEW = ("--prior-model", "--rtk", "--manoeuvres", "--drop-scans", "--dropout-burst")
+if name == "simulate_urban":
+    if os.environ.get("FAKE_OLD_SIM") and any(a in NEW for a in args):
+        sys.stderr.write("usage: simulate_urban --out DIR [options]\n  --osm FILE\n  --sensor hdl64e|os1_64\n")
+        sys.exit(2)
+    seed = int(opt("--seed", "1"))
+    if seed == 13:
+        sys.stderr.write("[####      ] 10/40\rsimulate_urban: cannot write scan 10: disk full\n")
+        sys.exit(1)
+    out = opt("--out")
+    drive = os.path.join(out, "2020_01_01", "2020_01_01_drive_0001_sync")
+    os.makedirs(os.path.join(drive, "velodyne_points", "data"))
+    os.makedirs(os.path.join(drive, "oxts", "data"))
+    os.makedirs(os.path.join(out, "ground_truth"))
+    n = 20
+    with open(os.path.join(drive, "velodyne_points", "data", "0000000000.bin"), "wb") as f:
+        f.write(b"\0" * 1000)
+    with open(os.path.join(drive, "oxts", "timestamps.txt"), "w") as f:
+        for i in range(n):
+            f.write("2020-01-01 12:00:%02d.%09d\n" % (i // 10, (i % 10) * 100000000))
+    with open(os.path.join(drive, "oxts", "data", "0000000000.txt"), "w") as f:
+        f.write("49.0 8.4 110.0 0 0 0\n")
+    with open(os.path.join(out, "ground_truth", "poses_imu.txt"), "w") as f:
+        for i in range(n):
+            f.write("1 0 0 %g 0 1 0 0 0 0 1 0\n" % (0.8 * i))
+    json.dump({"seed": seed, "enu_origin": {"lat": 49.0, "lon": 8.4, "alt": 110.0}, "scans": n,
+               "route_length_m": 15.2, "revisits": 3}, open(os.path.join(out, "sim_info.json"), "w"))
+    for f in ("prior.osm", "buildings_true.geojson"):
+        open(os.path.join(out, f), "w").write("x\n")
+    print("scans: %d" % n)
+elif name == "offline_slam":
+    out = opt("--output")
+    sim_info = os.path.join(os.path.dirname(os.path.dirname(opt("--kitti-raw"))), "sim_info.json")
+    seed = json.load(open(sim_info))["seed"]
+    if seed == 66 and "--no-osm" in args:
+        sys.stderr.write("offline_slam: optimising\n")
+        sys.stderr.flush()
+        os.kill(os.getpid(), signal.SIGSEGV)
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, "trajectory_tum.txt"), "w") as f:
+        for i in range(2, 18):  # 0.2 .. 1.7 s of the 0 .. 1.9 s drive
+            f.write("%d.%09d %g 0 0 0 0 0 1\n" % (1577880000 + i // 10, (i % 10) * 100000000, 0.8 * i))
+    open(os.path.join(out, "ground_truth_tum.txt"), "w").write("")
+    json.dump({"scans": 20, "keyframes": 16, "loops": 4, "scans_per_second": 25.5,
+               "tracking": {"scans": 20, "matched": 20, "failed_matches": 0, "lost_events": 0,
+                            "longest_no_keyframe_s": 0.1}}, open(os.path.join(out, "timing.json"), "w"))
+    open(os.path.join(out, "loops.csv"), "w").write("a,b\n")
+    print("done")
+elif name == "evaluate_slam":
+    new = bool(os.environ.get("FAKE_NEW_EVAL"))
+    if new and "--run-report" in args and os.environ["FAKE_NEW_EVAL"] == "broken":
+        sys.stderr.write("evaluate_slam: --run-report 'x' has no \"tracking\" section\n")
+        sys.exit(1)
+    if "--help" in args:
+        sys.stderr.write("evaluate_slam: unexpected argument '--help'\nusage: evaluate_slam --estimate FILE "
+                         "--ground-truth FILE%s [--json]\n" % (" [--run-report FILE] [--loops FILE]" if new else ""))
+        sys.exit(2)
+    doc = {"slam": {"ate_m": {"mean": 0.12}, "rpe_trans_m": {"mean": 0.006}},
+           "odom+loops": {"ate_m": {"mean": 0.2}, "rpe_trans_m": {"mean": 0.005}},
+           "ate_change_vs_odom+loops": -0.4,
+           "buildings_prior": {"mean_corner_error_m": 1.4, "overlapping_pairs": 10, "matched": 28},
+           "buildings_corrected": {"mean_corner_error_m": 0.4, "overlapping_pairs": 0, "matched": 28}}
+    if new:
+        doc["coverage"] = {"fraction": 0.97, "longest_gap_s": 0.3}
+        doc["loops"] = {"revisits": 5, "revisits_closed": 4, "recall": 0.8, "accepted": 6, "false": 1}
+    print(json.dumps(doc))
+'''
+
+
+def make_fake_bin(folder):
+    os.makedirs(folder, exist_ok=True)
+    for tool in sm.TOOLS:
+        path = os.path.join(folder, tool)
+        with open(path, "w") as f:
+            f.write(FAKE_TOOL)
+        os.chmod(path, os.stat(path).st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+
+
+def run_main(argv):
+    """(exit status, printed text) of slam_matrix.main."""
+    lines = []
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        status = sm.main(argv, log=lines.append)
+    return status, "\n".join(lines) + err.getvalue()
+
+
+def preset_drives(name, extra=()):
+    args = sm.build_parser().parse_args(["--preset", name] + list(extra))
+    return sm.build_grid(*sm.axes_from_args(args))
+
+
+class GridTest(unittest.TestCase):
+    def test_default_preset_is_balanced(self):
+        drives = preset_drives("default")
+        self.assertGreaterEqual(len(drives), 24)
+        self.assertEqual(len({d.name for d in drives}), len(drives))
+        worlds = {d.world.label for d in drives}
+        self.assertEqual(worlds, {"karlsruhe", "city"})
+        karlsruhe = [d for d in drives if d.world.label == "karlsruhe"][0]
+        self.assertTrue(karlsruhe.world.path.endswith("shared/data/osm/2011_09_26_drive_0005_sync.osm"))
+        for w in worlds:
+            self.assertGreaterEqual(len({d.seed for d in drives if d.world.label == w}), 3)
+        self.assertEqual({d.length for d in drives}, {300, 1500})
+        self.assertEqual({d.prior_model for d in drives}, set(sm.PRIOR_MODELS))
+        self.assertEqual({d.sensor for d in drives}, set(sm.SENSORS))
+        self.assertEqual({d.gnss for d in drives}, {"noisy"})
+        # every prior model and sensor meets both worlds and both lengths
+        for attr, values in (("prior_model", sm.PRIOR_MODELS), ("sensor", sm.SENSORS)):
+            for v in values:
+                mine = [d for d in drives if getattr(d, attr) == v]
+                self.assertEqual({d.world.label for d in mine}, worlds, (attr, v))
+                self.assertEqual({d.length for d in mine}, {300, 1500}, (attr, v))
+        # each world and length has both worlds' seeds x lengths cells
+        for w in worlds:
+            for length in (300, 1500):
+                self.assertGreaterEqual(len({d.seed for d in drives if d.world.label == w and d.length == length}), 3)
+        # every (prior model, sensor) pair is measured
+        self.assertEqual(len({(d.prior_model, d.sensor) for d in drives}), 8)
+        self.assertLess(sum(d.estimated_seconds() for d in drives), 2 * 3600 * 0.85)
+
+    def test_quick_preset(self):
+        drives = preset_drives("quick")
+        self.assertTrue(4 <= len(drives) <= 6)
+        self.assertTrue(all(150 <= d.length <= 300 for d in drives))
+        self.assertEqual({d.world.label for d in drives}, {"karlsruhe", "city"})
+        self.assertEqual(len({d.prior_model for d in drives}), 2)
+        self.assertLess(sum(d.estimated_seconds() for d in drives), 10 * 60 * 0.8)
+
+    def test_stress_preset_has_manoeuvres_and_drops_and_a_control(self):
+        drives = preset_drives("stress")
+        self.assertTrue(any(d.manoeuvres != "none" for d in drives))
+        self.assertTrue(any(d.drop_scans > 0 for d in drives))
+        self.assertTrue(any(d.manoeuvres == "none" and d.drop_scans == 0 for d in drives))
+        self.assertEqual({d.world.label for d in drives}, {"karlsruhe", "city"})
+
+    def test_explicit_axes_replace_the_presets(self):
+        drives = preset_drives("default", ["--sensor", "os1_64", "--seed", "7,8"])
+        self.assertEqual({d.sensor for d in drives}, {"os1_64"})
+        self.assertEqual({d.seed for d in drives}, {7, 8})
+        self.assertEqual({d.prior_model for d in drives}, set(sm.PRIOR_MODELS))
+        drives = preset_drives("quick", ["--world", "city"])
+        self.assertEqual({d.world.label for d in drives}, {"city"})
+
+    def test_without_preset_the_product_of_the_axes(self):
+        args = sm.build_parser().parse_args(["--world", "city", "--seed", "1,2", "--length", "100",
+                                             "--length", "200", "--manoeuvres", "sharp_turn,stop"])
+        drives = sm.build_grid(*sm.axes_from_args(args))
+        self.assertEqual(len(drives), 4)
+        self.assertEqual({d.manoeuvres for d in drives}, {"sharp_turn,stop"})
+
+    def test_bad_axis_values_are_one_clear_error(self):
+        for argv in (["--seed", "x"], ["--prior-model", "banana"], ["--length", "0"], ["--drop-scans", "1.5"]):
+            status, text = run_main(["--world", "city", "--list"] + argv)
+            self.assertEqual(status, 2, argv)
+            self.assertIn("slam_matrix: ", text)
+            self.assertNotIn("Traceback", text)
+
+    def test_flags_map_one_to_one_and_defaults_are_omitted(self):
+        city = sm.World("city")
+        d = sm.Drive(city, 1, 300)
+        self.assertEqual(d.sim_flags(), ["--seed", "1", "--length", "300"])
+        self.assertEqual(d.name, "city_s1_300m_independent_hdl64e_noisy")
+        d = sm.Drive(sm.World("k", "/x.osm"), 2, 150, "global", "os1_64", "rtk", "sharp_turn,stop", 0.05, 5)
+        self.assertEqual(d.sim_flags(), ["--seed", "2", "--length", "150", "--osm", "/x.osm", "--prior-model",
+                                         "global", "--sensor", "os1_64", "--rtk", "--manoeuvres",
+                                         "sharp_turn,stop", "--drop-scans", "0.05", "--dropout-burst", "5"])
+        self.assertEqual(d.name, "k_s2_150m_global_os1_64_rtk_man-sharp_turn+stop_drop0.05x5")
+        # a burst length without drops is the same drive as the default one
+        self.assertEqual(sm.Drive(city, 1, 300, dropout_burst=5), sm.Drive(city, 1, 300))
+
+    def test_world_specs(self):
+        self.assertEqual(sm.parse_world("city").path, None)
+        self.assertEqual(sm.parse_world("karlsruhe").label, "karlsruhe")
+        self.assertEqual(sm.parse_world(os.path.join(REPO, sm.KARLSRUHE)).label, "karlsruhe")
+        w = sm.parse_world("berlin=/data/b.osm.pbf")
+        self.assertEqual((w.label, w.path), ("berlin", "/data/b.osm.pbf"))
+        self.assertEqual(sm.parse_world("/data/kitti_00.osm").label, "kitti_00")
+
+
+def row(name, status="ok", **metrics):
+    return {"drive": name, "world": "city", "seed": 1, "length_m": 300, "prior_model": "global",
+            "sensor": "hdl64e", "gnss": "noisy", "status": status, "metrics": metrics}
+
+
+class SummaryAndCheckTest(unittest.TestCase):
+    def test_median_and_worst_follow_the_bad_direction(self):
+        rows = [row("a", coverage=1.0, ate_change_pct=-40.0, scans_per_s=20.0, false_loops=0),
+                row("b", coverage=0.8, ate_change_pct=10.0, scans_per_s=15.0, false_loops=2),
+                row("c", coverage=0.9, ate_change_pct=-10.0, scans_per_s=None),
+                row("d", "error: simulate: boom", coverage=0.1, ate_change_pct=99.0)]
+        s = sm.summarize(rows)
+        self.assertAlmostEqual(s["coverage"]["median"], 0.9)
+        self.assertEqual((s["coverage"]["worst"], s["coverage"]["worst_drive"]), (0.8, "b"))
+        self.assertEqual((s["ate_change_pct"]["worst"], s["ate_change_pct"]["worst_drive"]), (10.0, "b"))
+        self.assertAlmostEqual(s["ate_change_pct"]["median"], -10.0)
+        self.assertEqual(s["scans_per_s"]["worst"], 15.0)
+        self.assertEqual(s["scans_per_s"]["count"], 2)
+        self.assertEqual(s["false_loops"]["worst"], 2)
+        self.assertIsNone(s["keyframes"]["median"])
+        self.assertEqual(sm.worst_drive(rows)[0], "b")
+        table = sm.format_table(rows, s)
+        self.assertEqual(len(table.splitlines()), 1 + 4 + 2)
+        self.assertIn("error: simulate: boom", table)
+        self.assertIn("-", table.splitlines()[3])
+
+    def test_check_names_the_drive_and_the_limit(self):
+        rows = [row("good", ate_ratio=0.6, rpe_ratio=1.0, coverage=1.0, false_loops=0, bld_corrected=0.3),
+                row("bad", ate_ratio=1.3, rpe_ratio=1.0, coverage=0.5, false_loops=0, bld_corrected=0.3),
+                row("unmeasured", ate_ratio=0.9, rpe_ratio=1.0, bld_corrected=0.3)]
+        limits = {"max_ate_ratio": 1.0, "min_coverage": 0.9, "max_rpe_ratio": None,
+                  "max_false_loops": None, "max_building_error": 0.5}
+        v = sm.check_rows(rows, limits)
+        self.assertEqual(len(v), 3, v)
+        self.assertTrue(any(x.startswith("bad:") and "--max-ate-ratio 1" in x for x in v))
+        self.assertTrue(any(x.startswith("bad:") and "--min-coverage 0.9" in x for x in v))
+        self.assertTrue(any(x.startswith("unmeasured:") and "not measured" in x for x in v))
+        self.assertEqual(sm.check_rows(rows[:1], limits), [])
+        v = sm.check_rows([row("x", "error: evaluate: boom")], limits)
+        self.assertEqual(v, ["x: did not finish (error: evaluate: boom)"])
+        self.assertEqual(sm.check_rows(rows, {}), [])
+
+
+class ParseTest(unittest.TestCase):
+    TODAY = {"slam": {"associated": 154, "ate_m": {"mean": 0.133}, "rpe_trans_m": {"mean": 0.006}},
+             "odom+loops": {"ate_m": {"mean": 0.231}, "rpe_trans_m": {"mean": 0.006}},
+             "ate_change_vs_odom+loops": -0.426,
+             "buildings_prior": {"matched": 28, "mean_corner_error_m": 1.432, "overlapping_pairs": 10},
+             "buildings_corrected": {"matched": 28, "mean_corner_error_m": 0.380, "overlapping_pairs": 0},
+             "buildings_prior_observed": {"matched": 25, "mean_corner_error_m": 1.431},
+             "buildings_corrected_observed": {"matched": 25, "mean_corner_error_m": 0.252}}
+
+    def test_todays_keys(self):
+        m = sm.parse_metrics(self.TODAY, {"keyframes": 154, "loops": 7, "scans_per_second": 21.0},
+                             None, {"revisits": 3, "scans": 651})
+        self.assertAlmostEqual(m["ate_change_pct"], -42.6)
+        self.assertAlmostEqual(m["ate_ratio"], 0.133 / 0.231)
+        self.assertAlmostEqual(m["rpe_ratio"], 1.0)
+        self.assertEqual((m["bld_prior"], m["bld_corrected"]), (1.432, 0.380))
+        self.assertEqual((m["seen_prior"], m["seen_corrected"], m["seen_matched"]), (1.431, 0.252, 25))
+        self.assertEqual((m["overlaps"], m["overlaps_prior"]), (0, 10))
+        self.assertEqual((m["keyframes"], m["loops"], m["revisits"]), (154, 7, 3))
+        self.assertIsNone(m["recall"])
+        self.assertIsNone(m["false_loops"])
+        self.assertIsNone(m["coverage"])
+        self.assertEqual(m["scans_per_s"], 21.0)
+
+    def test_new_keys_win(self):
+        ev = dict(self.TODAY, coverage={"fraction": 0.93, "longest_gap_s": 4.0, "untracked_scans": 12},
+                  loops={"revisits": 10, "revisits_closed": 7, "recall": 0.7, "accepted": 9, "false": 1})
+        m = sm.parse_metrics(ev, {"loops": 99, "tracking": {"lost_events": 2}}, None, {"revisits": 3},
+                             {"fraction": 0.5, "longest_gap_s": 9.0})
+        self.assertEqual((m["coverage"], m["coverage_source"], m["longest_gap_s"]), (0.93, "evaluate_slam", 4.0))
+        self.assertEqual((m["loops"], m["revisits"], m["recall"], m["false_loops"]), (9, 10, 0.7, 1))
+        self.assertEqual(m["lost_events"], 2)
+
+    def test_missing_everything_gives_none_not_an_exception(self):
+        for ev in ({}, None, {"slam": {}}, {"slam": {"ate_m": "x"}, "odometry": {"ate_m": {"mean": 0}}}):
+            m = sm.parse_metrics(ev, None, "garbage", [])
+            self.assertIsNone(m["ate_osm"])
+            self.assertIsNone(m["ate_ratio"])
+            self.assertIsNone(m["coverage"])
+            sm.format_table([row("x", **m)], sm.summarize([row("x", **m)]))
+
+    def test_other_baseline_label(self):
+        ev = {"slam": {"ate_m": {"mean": 0.3}}, "odometry": {"ate_m": {"mean": 0.2}}}
+        m = sm.parse_metrics(ev)
+        self.assertAlmostEqual(m["ate_change_pct"], 50.0)
+
+    def test_own_coverage(self):
+        c = sm.own_coverage([2.0, 3.0, 8.0], [0.0, 10.0])
+        self.assertAlmostEqual(c["fraction"], 0.6)
+        self.assertAlmostEqual(c["longest_gap_s"], 5.0)
+        self.assertEqual(sm.own_coverage([], [0.0, 10.0])["fraction"], 0.0)
+        self.assertIsNone(sm.own_coverage([1.0], [5.0]))
+
+    def test_kitti_stamps(self):
+        self.assertEqual(sm.kitti_stamp_ns("2020-01-01 12:00:00.1"), 1577880000 * 10**9 + 100000000)
+        self.assertEqual(sm.stamp_text(1577880000 * 10**9 + 5), "1577880000.000000005")
+        with self.assertRaises(ValueError):
+            sm.kitti_stamp_ns("yesterday")
+
+    def test_ground_truth_moves_into_the_first_fix_frame(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            sim = os.path.join(tmp, "sim")
+            drive = os.path.join(sim, "d")
+            os.makedirs(os.path.join(drive, "oxts", "data"))
+            os.makedirs(os.path.join(sim, "ground_truth"))
+            json.dump({"enu_origin": {"lat": 49.0, "lon": 8.4, "alt": 110.0}}, open(os.path.join(sim, "sim_info.json"), "w"))
+            # the first fix 0.001 deg (111.2 m) north of the simulator's origin
+            # the first record is in an outage (no fix): the map origin is the next one
+            no_fix = ["48.0", "8.0", "100.0"] + ["0"] * 20 + ["10000"] + ["0"] * 6
+            open(os.path.join(drive, "oxts", "data", "0000000000.txt"), "w").write(" ".join(no_fix) + "\n")
+            open(os.path.join(drive, "oxts", "data", "0000000001.txt"), "w").write("49.001 8.4 110.0 0 0 0\n")
+            open(os.path.join(drive, "oxts", "timestamps.txt"), "w").write(
+                "2020-01-01 12:00:00.000000000\n2020-01-01 12:00:00.100000000\n")
+            c, s = math.cos(0.3), math.sin(0.3)
+            open(os.path.join(sim, "ground_truth", "poses_imu.txt"), "w").write(
+                "1 0 0 0 0 1 0 0 0 0 1 0\n%r %r 0 10 %r %r 0 5 0 0 1 1\n" % (c, -s, s, c))
+            out = os.path.join(tmp, "gt.txt")
+            self.assertEqual(sm.write_full_ground_truth(sim, drive, out), 2)
+            rows = [list(map(float, line.split())) for line in open(out)]
+            self.assertAlmostEqual(rows[0][0], 1577880000.0)
+            self.assertAlmostEqual(rows[1][0] - rows[0][0], 0.1, places=6)
+            self.assertAlmostEqual(rows[0][1], 0.0, places=2)
+            self.assertAlmostEqual(rows[0][2], -111.2, delta=0.2)
+            # rigid: the step between the poses keeps its length
+            self.assertAlmostEqual(math.dist(rows[0][1:4], rows[1][1:4]), math.hypot(10, 5, 1), places=4)
+            qz, qw = rows[1][6], rows[1][7]
+            self.assertAlmostEqual(2 * math.atan2(qz, qw), 0.3, places=4)
+
+
+class RunTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="slam_matrix_test_")
+        self.bin = os.path.join(self.tmp, "bin")
+        make_fake_bin(self.bin)
+        self.out = os.path.join(self.tmp, "out")
+        self.calls = os.path.join(self.tmp, "calls.jsonl")
+        self.config = os.path.join(self.tmp, "sim.yaml")
+        open(self.config, "w").write("{}\n")
+        self.env = {k: os.environ.get(k) for k in ("FAKE_CALLS", "FAKE_OLD_SIM", "FAKE_NEW_EVAL")}
+        os.environ["FAKE_CALLS"] = self.calls
+        os.environ.pop("FAKE_OLD_SIM", None)
+        os.environ.pop("FAKE_NEW_EVAL", None)
+
+    def tearDown(self):
+        for k, v in self.env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def matrix(self, *argv):
+        return run_main(["--bin", self.bin, "--out", self.out, "--config", self.config] + list(argv))
+
+    def tool_calls(self):
+        if not os.path.exists(self.calls):
+            return []
+        return [json.loads(line) for line in open(self.calls)]
+
+    def test_drives_rows_resume_and_keep(self):
+        status, text = self.matrix("--world", "city", "--seed", "1,2", "--length", "100", "--jobs", "2")
+        self.assertEqual(status, 0, text)
+        self.assertNotIn("Traceback", text)
+        doc = json.load(open(os.path.join(self.out, "matrix.json")))
+        self.assertEqual([r["status"] for r in doc["drives"]], ["ok", "ok"])
+        m = doc["drives"][0]["metrics"]
+        self.assertAlmostEqual(m["ate_change_pct"], -40.0)
+        self.assertAlmostEqual(m["ate_ratio"], 0.6)
+        self.assertEqual((m["keyframes"], m["loops"], m["revisits"]), (16, 4, 3))
+        # no coverage from this evaluate_slam: the matrix's own, 0.2 .. 1.7 s of 0 .. 1.9 s
+        self.assertAlmostEqual(m["coverage"], 1.5 / 1.9, places=3)
+        self.assertIsNone(m["false_loops"])
+        d = os.path.join(self.out, "city_s1_100m_independent_hdl64e_noisy")
+        for f in ("result.json", "drive.json", "evaluation.json", "ground_truth_tum.txt",
+                  "logs/simulate_urban.log", "logs/offline_slam_osm.log", "logs/offline_slam_no_osm.log",
+                  "logs/evaluate_slam.log"):
+            self.assertTrue(os.path.exists(os.path.join(d, f)), f)
+        drive_dir = os.path.join(d, "sim", "2020_01_01", "2020_01_01_drive_0001_sync")
+        self.assertFalse(os.path.exists(os.path.join(drive_dir, "velodyne_points")))
+        self.assertTrue(os.path.exists(os.path.join(drive_dir, "oxts")))
+        self.assertIn("worst drive:", text)
+        self.assertIn("median", text)
+        calls = self.tool_calls()
+        sims = [c for c in calls if c[0] == "simulate_urban"]
+        self.assertEqual(len(sims), 2)
+        self.assertIn("--motion-distortion", sims[0])
+        self.assertNotIn("--sensor", sims[0])
+        slam = [c for c in calls if c[0] == "offline_slam"]
+        self.assertEqual(len(slam), 4)
+        self.assertTrue(all(c[c.index("--config") + 1] == self.config for c in slam))
+        self.assertEqual(sum("--no-osm" in c for c in slam), 2)
+        evals = [c for c in calls if c[0] == "evaluate_slam" and "--help" not in c]
+        self.assertTrue(all("--run-report" not in c and "--loops" not in c for c in evals))
+
+        # resume: nothing runs again; a new drive does
+        os.remove(self.calls)
+        status, text = self.matrix("--world", "city", "--seed", "1,2,3", "--length", "100")
+        self.assertEqual(status, 0, text)
+        sims = [c for c in self.tool_calls() if c[0] == "simulate_urban"]
+        self.assertEqual([c[c.index("--seed") + 1] for c in sims], ["3"])
+        self.assertIn("2 finished before, 1 to run", text)
+        # --force runs everything; --keep keeps the scans
+        os.remove(self.calls)
+        status, text = self.matrix("--world", "city", "--seed", "1", "--length", "100", "--force", "--keep")
+        self.assertEqual(len([c for c in self.tool_calls() if c[0] == "simulate_urban"]), 1)
+        self.assertTrue(os.path.exists(os.path.join(drive_dir, "velodyne_points")))
+
+    def test_new_evaluate_options_are_passed_when_known(self):
+        os.environ["FAKE_NEW_EVAL"] = "1"
+        status, text = self.matrix("--world", "city", "--length", "100")
+        self.assertEqual(status, 0, text)
+        evals = [c for c in self.tool_calls() if c[0] == "evaluate_slam" and "--help" not in c]
+        self.assertEqual(len(evals), 1)
+        self.assertTrue(evals[0][evals[0].index("--run-report") + 1].endswith("slam_osm/timing.json"))
+        self.assertTrue(evals[0][evals[0].index("--loops") + 1].endswith("slam_osm/loops.csv"))
+        m = json.load(open(os.path.join(self.out, "matrix.json")))["drives"][0]["metrics"]
+        self.assertEqual((m["coverage"], m["recall"], m["false_loops"], m["loops"]), (0.97, 0.8, 1, 6))
+        status, text = self.matrix("--world", "city", "--length", "100", "--check", "--max-false-loops", "0")
+        self.assertEqual(status, 1)
+        self.assertIn("CHECK FAILED: city_s1_100m_independent_hdl64e_noisy: false loops 1.000 > --max-false-loops 0", text)
+        status, text = self.matrix("--world", "city", "--length", "100", "--check", "--max-false-loops", "1",
+                                   "--max-ate-ratio", "0.7", "--min-coverage", "0.9")
+        self.assertEqual(status, 0, text)
+        self.assertIn("check passed", text)
+
+    def test_evaluation_falls_back_without_the_new_options(self):
+        os.environ["FAKE_NEW_EVAL"] = "broken"
+        status, text = self.matrix("--world", "city", "--length", "100")
+        self.assertEqual(status, 0, text)
+        r = json.load(open(os.path.join(self.out, "matrix.json")))["drives"][0]
+        self.assertEqual(r["status"], "ok")
+        self.assertIn("evaluated without them", r["metrics"]["notes"][0])
+        evals = [c for c in self.tool_calls() if c[0] == "evaluate_slam" and "--help" not in c]
+        self.assertEqual(["--run-report" in c for c in evals], [True, False])
+
+    def test_bad_input_gives_one_line_each_and_the_matrix_goes_on(self):
+        missing = os.path.join(self.tmp, "nowhere.osm")
+        status, text = self.matrix("--world", "city", "--world", "gone=" + missing, "--seed", "1,13,66",
+                                   "--length", "100", "--check")
+        self.assertEqual(status, 1)
+        self.assertNotIn("Traceback", text)
+        doc = json.load(open(os.path.join(self.out, "matrix.json")))
+        by = {(r["world"], r["seed"]): r["status"] for r in doc["drives"]}
+        self.assertEqual(by[("city", 1)], "ok")
+        self.assertEqual(by[("gone", 1)], "error: world file missing: %s" % missing)
+        self.assertEqual(by[("city", 13)],
+                         "error: simulate: simulate_urban exited with status 1: "
+                         "simulate_urban: cannot write scan 10: disk full")
+        self.assertTrue(by[("city", 66)].startswith(
+            "error: offline_slam --no-osm: offline_slam crashed (SIGSEGV): offline_slam: optimising"), by)
+        self.assertIn("CHECK FAILED: gone_s1_100m", text)
+        # a failed drive keeps its result (not run again) and loses its scans
+        d66 = os.path.join(self.out, "city_s66_100m_independent_hdl64e_noisy")
+        self.assertTrue(os.path.exists(os.path.join(d66, "result.json")))
+        self.assertFalse(os.path.exists(os.path.join(d66, "sim", "2020_01_01", "2020_01_01_drive_0001_sync",
+                                                     "velodyne_points")))
+        os.remove(self.calls)
+        self.matrix("--world", "city", "--seed", "66", "--length", "100")
+        self.assertEqual([c for c in self.tool_calls() if c[0] == "simulate_urban"], [])
+        self.matrix("--world", "city", "--seed", "66", "--length", "100", "--retry-failed")
+        self.assertEqual(len([c for c in self.tool_calls() if c[0] == "simulate_urban"]), 1)
+
+    def test_simulator_without_the_new_flags(self):
+        os.environ["FAKE_OLD_SIM"] = "1"
+        status, text = self.matrix("--world", "city", "--length", "100", "--prior-model", "independent,global")
+        self.assertEqual(status, 0, text)
+        by = {r["prior_model"]: r["status"] for r in json.load(open(os.path.join(self.out, "matrix.json")))["drives"]}
+        self.assertEqual(by["independent"], "ok")
+        self.assertEqual(by["global"], "error: simulate: simulate_urban does not know --prior-model "
+                                       "(printed its usage; not built yet?)")
+
+    def test_unwritable_output_and_missing_tools(self):
+        blocker = os.path.join(self.tmp, "file")
+        open(blocker, "w").write("")
+        status, text = run_main(["--bin", self.bin, "--out", os.path.join(blocker, "sub"), "--world", "city"])
+        self.assertEqual(status, 2)
+        self.assertIn("slam_matrix: cannot write the output folder", text)
+        self.assertNotIn("Traceback", text)
+        status, text = run_main(["--bin", os.path.join(self.tmp, "nobin"), "--out", self.out, "--world", "city"])
+        self.assertEqual(status, 2)
+        self.assertIn("missing in", text)
+
+    def test_unwritable_drive_folder_is_one_row(self):
+        os.makedirs(self.out)
+        open(os.path.join(self.out, "city_s1_100m_independent_hdl64e_noisy"), "w").write("")
+        status, text = self.matrix("--world", "city", "--seed", "1,2", "--length", "100")
+        self.assertEqual(status, 0, text)
+        statuses = [r["status"] for r in json.load(open(os.path.join(self.out, "matrix.json")))["drives"]]
+        self.assertTrue(statuses[0].startswith("error: cannot write "), statuses)
+        self.assertEqual(statuses[1], "ok")
+
+    def test_plan_skips_finished_drives(self):
+        drives = [sm.Drive(sm.World("city"), s, 100) for s in (1, 2, 3)]
+        for d, status in ((drives[0], "ok"), (drives[1], "error: x")):
+            os.makedirs(os.path.join(self.out, d.name))
+            json.dump(sm.drive_row(d, status), open(os.path.join(self.out, d.name, "result.json"), "w"))
+        to_run, stored = sm.plan(drives, self.out)
+        self.assertEqual(to_run, [drives[2]])
+        self.assertEqual(set(stored), {drives[0], drives[1]})
+        self.assertEqual(sm.plan(drives, self.out, retry_failed=True)[0], drives[1:])
+        self.assertEqual(sm.plan(drives, self.out, force=True)[0], drives)
+
+    def test_injected_runner(self):
+        drives = [sm.Drive(sm.World("city"), s, 100) for s in (1, 2)]
+        ctx = sm.Context(self.bin, self.config, self.out, [])
+        seen = []
+
+        def runner(drive, ctx):
+            seen.append(drive)
+            if drive.seed == 2:
+                raise RuntimeError("runner bug")
+            return sm.drive_row(drive, "ok", {"ate_change_pct": 1.0})
+
+        results = sm.run_matrix(drives, ctx, drives, 2, runner=runner, log=lambda *_: None)
+        self.assertEqual(len(seen), 2)
+        self.assertEqual(results[drives[0]]["status"], "ok")
+        self.assertEqual(results[drives[1]]["status"], "error: internal: RuntimeError: runner bug")
+
+
+if __name__ == "__main__":
+    unittest.main()
