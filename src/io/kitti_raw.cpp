@@ -117,6 +117,11 @@ std::array<double, OxtsRecord::kNumFields> OxtsRecord::toArray() const {
           double(orimode)};
 }
 
+bool OxtsRecord::hasGnssFix() const {
+  return std::isfinite(lat) && std::isfinite(lon) && std::isfinite(alt) &&
+         !(pos_accuracy >= kOxtsNoFixAccuracy);
+}
+
 OxtsRecord OxtsRecord::fromArray(const std::array<double, kNumFields>& v) {
   OxtsRecord r;
   double* dst[] = {&r.lat, &r.lon, &r.alt,          &r.roll,        &r.pitch, &r.yaw, &r.vn,
@@ -328,6 +333,18 @@ bool openKittiRawDrive(const std::string& drive_dir, const std::string& calib_di
     return fail(error, "'" + (oxts / "timestamps.txt").string() + "' has " +
                            std::to_string(drive.oxts_stamps.size()) + " stamps for " +
                            std::to_string(drive.oxts_files.size()) + " OXTS files");
+  }
+  const fs::path truth = root / "oxts_true";
+  if (fs::is_directory(truth / "data")) {
+    drive.truth_oxts_files = listFiles((truth / "data").string(), ".txt");
+    if (!readKittiTimestamps((truth / "timestamps.txt").string(), drive.truth_oxts_stamps, error)) {
+      return false;
+    }
+    if (drive.truth_oxts_stamps.size() != drive.truth_oxts_files.size()) {
+      return fail(error, "'" + (truth / "timestamps.txt").string() + "' has " +
+                             std::to_string(drive.truth_oxts_stamps.size()) + " stamps for " +
+                             std::to_string(drive.truth_oxts_files.size()) + " OXTS files");
+    }
   }
   std::vector<fs::path> dirs;
   if (!calib_dir.empty()) {

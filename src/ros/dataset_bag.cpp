@@ -87,6 +87,12 @@ BagConversionResult convertKittiRawToBag(const KittiRawBagOptions& o, const Prog
   for (size_t i = 0; i < oxts.size(); ++i) {
     if (!readOxtsFile(drive.oxts_files[i], oxts[i], &error)) return failed(r, error);
   }
+  // The simulator's exact records (oxts_true/) are the ground truth when present; oxts/ then
+  // holds what its GNSS/INS measured.
+  std::vector<OxtsRecord> truth(drive.truth_oxts_files.size());
+  for (size_t i = 0; i < truth.size(); ++i) {
+    if (!readOxtsFile(drive.truth_oxts_files[i], truth[i], &error)) return failed(r, error);
+  }
   AtomicBag bag(o.bag_path);
   if (!bag.open(error)) return failed(r, error);
 
@@ -99,24 +105,35 @@ BagConversionResult convertKittiRawToBag(const KittiRawBagOptions& o, const Prog
                  makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.imu_frame, first)},
                 first, r);
 
-  const size_t total = drive.scan_files.size() + oxts.size();
+  const size_t total = drive.scan_files.size() + oxts.size() + truth.size();
   size_t done = 0;
   if (!oxts.empty()) {
-    const EnuConverter enu(oxts.front().lat, oxts.front().lon, oxts.front().alt);
-    for (size_t i = 0; i < oxts.size(); ++i) {
-      const OxtsRecord& x = oxts[i];
-      const ros::Time t = toRosTime(drive.oxts_stamps[i]);
-      bag.write(o.gps_topic, t, makeNavSatFix(x, o.imu_frame, t));
-      bag.write(o.imu_topic, t, makeImuFromOxts(x, o.imu_frame, t));
+    // The ENU frame of the ground truth is anchored at the first fix (the pipeline's origin); a
+    // record without a fix (outage) becomes a NavSatFix with STATUS_NO_FIX.
+    size_t anchor = 0;
+    while (anchor + 1 < oxts.size() && !oxts[anchor].hasGnssFix()) ++anchor;
+    const EnuConverter enu(oxts[anchor].lat, oxts[anchor].lon, oxts[anchor].alt);
+    auto writeTruth = [&](const OxtsRecord& x, const ros::Time& t) {
       Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
       pose.translation() = enu.toEnu(x.lat, x.lon, x.alt);
       pose.linear() = quaternionFromRpy(x.roll, x.pitch, x.yaw).toRotationMatrix();
       bag.write(
           o.ground_truth_topic, t,
           makeOdometry(pose, o.enu_frame, o.base_frame, t, {x.vf, x.vl, x.vu}, {x.wf, x.wl, x.wu}));
+      ++r.ground_truth;
+    };
+    for (size_t i = 0; i < oxts.size(); ++i) {
+      const OxtsRecord& x = oxts[i];
+      const ros::Time t = toRosTime(drive.oxts_stamps[i]);
+      bag.write(o.gps_topic, t, makeNavSatFix(x, o.imu_frame, t));
+      bag.write(o.imu_topic, t, makeImuFromOxts(x, o.imu_frame, t));
+      if (truth.empty()) writeTruth(x, t);
       ++r.gps;
       ++r.imu;
-      ++r.ground_truth;
+      if (progress) progress(++done, total);
+    }
+    for (size_t i = 0; i < truth.size(); ++i) {
+      writeTruth(truth[i], toRosTime(drive.truth_oxts_stamps[i]));
       if (progress) progress(++done, total);
     }
   }

@@ -55,6 +55,11 @@ sensor_msgs::NavSatFix makeNavSatFix(const OxtsRecord& oxts, const std::string& 
   msg.latitude = oxts.lat;
   msg.longitude = oxts.lon;
   msg.altitude = oxts.alt;
+  if (!oxts.hasGnssFix()) {  // an outage: the record's position is no fix
+    msg.status.status = sensor_msgs::NavSatStatus::STATUS_NO_FIX;
+    msg.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
+    return msg;
+  }
   const double h = oxts.pos_accuracy > 0.0 ? oxts.pos_accuracy * oxts.pos_accuracy : 1.0;
   msg.position_covariance = {h, 0, 0, 0, h, 0, 0, 0, 4.0 * h};
   msg.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_DIAGONAL_KNOWN;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "osm_graph_slam/io/kitti_raw.h"
@@ -39,7 +40,141 @@ std::string fmt(const char* f, double v) {
 
 }  // namespace
 
-std::vector<PriorBuilding> perturbBuildings(const Scene& scene, const PriorPerturbationParams& p) {
+bool parsePriorModel(const std::string& name, PriorModel& model) {
+  for (PriorModel m :
+       {PriorModel::kIndependent, PriorModel::kBlocks, PriorModel::kGlobal, PriorModel::kMixed}) {
+    if (name == priorModelName(m)) {
+      model = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+const char* priorModelName(PriorModel model) {
+  switch (model) {
+    case PriorModel::kIndependent:
+      return "independent";
+    case PriorModel::kBlocks:
+      return "blocks";
+    case PriorModel::kGlobal:
+      return "global";
+    case PriorModel::kMixed:
+      return "mixed";
+  }
+  return "independent";
+}
+
+namespace {
+
+/// Rigid 2D map p -> R p + t.
+struct Rigid2 {
+  Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
+  Eigen::Vector2d t = Eigen::Vector2d::Zero();
+  double theta = 0.0;
+  /// Rotation by theta about centre c, then a shift by d.
+  static Rigid2 about(const Eigen::Vector2d& c, double theta, const Eigen::Vector2d& d) {
+    Rigid2 T;
+    T.theta = theta;
+    T.R = Pose2(0, 0, theta).rotation();
+    T.t = c + d - T.R * c;
+    return T;
+  }
+  /// this after other.
+  Rigid2 operator*(const Rigid2& other) const {
+    Rigid2 T;
+    T.theta = theta + other.theta;
+    T.R = R * other.R;
+    T.t = R * other.t + t;
+    return T;
+  }
+  Eigen::Vector2d operator()(const Eigen::Vector2d& p) const { return R * p + t; }
+};
+
+/// Axis-aligned bounds of an outline.
+struct Bounds {
+  Eigen::Vector2d lo{1e18, 1e18}, hi{-1e18, -1e18};
+  explicit Bounds(const Polygon2& poly) {
+    for (const auto& v : poly) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+};
+
+bool outlinesTouch(const Polygon2& a, const Polygon2& b, double tolerance) {
+  for (const auto& v : a)
+    if (distanceToPolygon(v, b) <= tolerance) return true;
+  for (const auto& v : b)
+    if (distanceToPolygon(v, a) <= tolerance) return true;
+  return false;
+}
+
+int findRoot(std::vector<int>& parent, int i) {
+  while (parent[i] != i) i = parent[i] = parent[parent[i]];
+  return i;
+}
+
+constexpr uint64_t kBlockTag = 0x626c6f636b73ULL;   // "blocks"
+constexpr uint64_t kGlobalTag = 0x676c6f62616cULL;  // "global"
+
+}  // namespace
+
+std::vector<int> priorBlockGroups(const Scene& scene, const PriorPerturbationParams& p) {
+  const auto& buildings = scene.world.buildings;
+  const int n = int(buildings.size());
+  // Connected components of touching outlines: a sweep along x over the bounds.
+  std::vector<Bounds> bounds;
+  for (const auto& b : buildings) bounds.emplace_back(b.outline);
+  std::vector<int> order(n), parent(n);
+  for (int i = 0; i < n; ++i) order[i] = parent[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return bounds[a].lo.x() < bounds[b].lo.x(); });
+  const double tol = std::max(0.0, p.block_touch_distance);
+  for (int ii = 0; ii < n; ++ii) {
+    const int i = order[ii];
+    for (int jj = ii + 1; jj < n; ++jj) {
+      const int j = order[jj];
+      if (bounds[j].lo.x() > bounds[i].hi.x() + tol) break;
+      if (bounds[j].lo.y() > bounds[i].hi.y() + tol || bounds[i].lo.y() > bounds[j].hi.y() + tol)
+        continue;
+      if (findRoot(parent, i) == findRoot(parent, j)) continue;
+      if (outlinesTouch(buildings[i].outline, buildings[j].outline, tol))
+        parent[findRoot(parent, i)] = findRoot(parent, j);
+    }
+  }
+  // Each component goes to the grid cell of its vertex mean; a cell is one group.
+  std::map<int, std::pair<Eigen::Vector2d, size_t>> sums;
+  for (int i = 0; i < n; ++i) {
+    auto& s =
+        sums.emplace(findRoot(parent, i), std::make_pair(Eigen::Vector2d::Zero(), 0)).first->second;
+    for (const auto& v : buildings[i].outline) s.first += v;
+    s.second += buildings[i].outline.size();
+  }
+  std::map<std::pair<int64_t, int64_t>, int> cell_group;
+  std::map<int, int> component_group;
+  std::vector<int> group(n, -1);
+  for (int i = 0; i < n; ++i) {
+    const int root = findRoot(parent, i);
+    auto it = component_group.find(root);
+    if (it == component_group.end()) {
+      const auto& s = sums.at(root);
+      const Eigen::Vector2d c = s.first / double(std::max<size_t>(s.second, 1));
+      std::pair<int64_t, int64_t> cell{-1 - int64_t(root), 0};  // no grid: the component alone
+      if (p.block_size > 0.0)
+        cell = {int64_t(std::floor(c.x() / p.block_size)),
+                int64_t(std::floor(c.y() / p.block_size))};
+      const int next = int(cell_group.size());
+      const int g = cell_group.emplace(cell, next).first->second;
+      it = component_group.emplace(root, g).first;
+    }
+    group[i] = it->second;
+  }
+  return group;
+}
+
+std::vector<PriorBuilding> perturbBuildings(const Scene& scene, const PriorPerturbationParams& p,
+                                            PriorMapInfo* info) {
   const auto& buildings = scene.world.buildings;
   const size_t n = buildings.size();
   SimRng rng(hashCombine(p.seed, 0x7072696f72ULL));
@@ -51,6 +186,72 @@ std::vector<PriorBuilding> perturbBuildings(const Scene& scene, const PriorPertu
   std::vector<bool> is_removed(n, false);
   for (size_t i = 0; i < removed && i < n; ++i) is_removed[order[i]] = true;
 
+  // Group offsets (blocks, global) from streams of their own: the per-building draws below stay
+  // the same whatever the model.
+  const bool use_blocks = p.model == PriorModel::kBlocks || p.model == PriorModel::kMixed;
+  const bool use_global = p.model == PriorModel::kGlobal || p.model == PriorModel::kMixed;
+  Rigid2 global;
+  if (use_global && n > 0) {
+    SimRng g(hashCombine(p.seed, kGlobalTag));
+    const double dir = g.uniform(-M_PI, M_PI);
+    const double mag = g.uniform(p.global_offset_min, p.global_offset_max);
+    const double th = p.global_rotation_sigma_deg * M_PI / 180.0 * g.gaussian();
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    size_t count = 0;
+    for (const auto& b : buildings) {
+      for (const auto& v : b.outline) c += v;
+      count += b.outline.size();
+    }
+    c /= double(std::max<size_t>(count, 1));
+    global = Rigid2::about(c, th, mag * Eigen::Vector2d(std::cos(dir), std::sin(dir)));
+    if (info) {
+      info->global_offset = mag * Eigen::Vector2d(std::cos(dir), std::sin(dir));
+      info->global_rotation = th;
+    }
+  }
+  std::vector<Rigid2> block_of(n);
+  if (use_blocks) {
+    const std::vector<int> group = priorBlockGroups(scene, p);
+    int groups = 0;
+    for (int g : group) groups = std::max(groups, g + 1);
+    std::vector<Eigen::Vector2d> sum(groups, Eigen::Vector2d::Zero());
+    std::vector<size_t> count(groups, 0);
+    for (size_t i = 0; i < n; ++i) {
+      for (const auto& v : buildings[i].outline) sum[group[i]] += v;
+      count[group[i]] += buildings[i].outline.size();
+    }
+    std::vector<Rigid2> offsets(groups);
+    for (int g = 0; g < groups; ++g) {
+      // Seeded by the group's first building id: the offset does not depend on the order.
+      int64_t first_id = 0;
+      for (size_t i = 0; i < n; ++i) {
+        if (group[i] == g) {
+          first_id = buildings[i].osm_id;
+          break;
+        }
+      }
+      SimRng r(hashCombine(hashCombine(p.seed, kBlockTag), uint64_t(first_id)));
+      const double dx = p.block_translation_sigma * r.gaussian();
+      const double dy = p.block_translation_sigma * r.gaussian();
+      const double th = p.block_rotation_sigma_deg * M_PI / 180.0 * r.gaussian();
+      offsets[g] = Rigid2::about(sum[g] / double(std::max<size_t>(count[g], 1)), th,
+                                 Eigen::Vector2d(dx, dy));
+    }
+    for (size_t i = 0; i < n; ++i) block_of[i] = offsets[group[i]];
+    if (info) info->groups = size_t(groups);
+  }
+  // Sigma of the per-building part of each model.
+  double own_sigma = p.translation_sigma, own_rot_deg = p.rotation_sigma_deg;
+  if (p.model == PriorModel::kBlocks) {
+    own_sigma = p.block_residual_sigma;
+    own_rot_deg = p.block_residual_rotation_sigma_deg;
+  } else if (p.model == PriorModel::kGlobal) {
+    own_sigma = own_rot_deg = 0.0;
+  } else if (p.model == PriorModel::kMixed) {
+    own_sigma = p.mixed_translation_sigma;
+    own_rot_deg = p.mixed_rotation_sigma_deg;
+  }
+
   std::vector<PriorBuilding> prior;
   for (size_t i = 0; i < n; ++i) {
     PriorBuilding b;
@@ -58,16 +259,33 @@ std::vector<PriorBuilding> perturbBuildings(const Scene& scene, const PriorPertu
     b.tags = i < scene.building_tags.size() ? scene.building_tags[i] : OsmTags{{"building", "yes"}};
     b.centroid = vertexMean(buildings[i].outline);
     // Draw the offset even for removed buildings so removal does not shift other offsets.
-    b.dx = p.translation_sigma * rng.gaussian();
-    b.dy = p.translation_sigma * rng.gaussian();
-    b.dtheta = p.rotation_sigma_deg * M_PI / 180.0 * rng.gaussian();
+    b.dx = own_sigma * rng.gaussian();
+    b.dy = own_sigma * rng.gaussian();
+    b.dtheta = own_rot_deg * M_PI / 180.0 * rng.gaussian();
+    if (p.model == PriorModel::kIndependent) {
+      if (is_removed[i]) {
+        b.status = PriorBuilding::Status::kRemoved;
+      } else {
+        const Eigen::Matrix2d R = Pose2(0, 0, b.dtheta).rotation();
+        for (const auto& v : buildings[i].outline) {
+          b.outline.push_back(R * (v - b.centroid) + b.centroid + Eigen::Vector2d(b.dx, b.dy));
+        }
+      }
+      prior.push_back(b);
+      continue;
+    }
+    // global after block after own: one rigid map, applied to every vertex the same way (so
+    // vertices shared by buildings of one group stay bit-identical when own is zero).
+    const Rigid2 own = Rigid2::about(b.centroid, b.dtheta, Eigen::Vector2d(b.dx, b.dy));
+    const Rigid2 T = global * (block_of[i] * own);
+    b.dtheta = T.theta;
+    const Eigen::Vector2d d = T(b.centroid) - b.centroid;
+    b.dx = d.x();
+    b.dy = d.y();
     if (is_removed[i]) {
       b.status = PriorBuilding::Status::kRemoved;
     } else {
-      const Eigen::Matrix2d R = Pose2(0, 0, b.dtheta).rotation();
-      for (const auto& v : buildings[i].outline) {
-        b.outline.push_back(R * (v - b.centroid) + b.centroid + Eigen::Vector2d(b.dx, b.dy));
-      }
+      for (const auto& v : buildings[i].outline) b.outline.push_back(T(v));
     }
     prior.push_back(b);
   }
@@ -144,10 +362,17 @@ bool writePriorOsm(const std::string& path, const std::vector<PriorBuilding>& pr
     }
     ways << "  </way>\n";
   };
+  // Building vertices at identical coordinates are one node (neighbours moved together keep the
+  // nodes they share in the truth).
+  std::map<std::pair<double, double>, int64_t> building_nodes;
   for (const auto& b : prior) {
     if (b.status == PriorBuilding::Status::kRemoved || b.outline.size() < 3) continue;
     std::vector<int64_t> refs;
-    for (const auto& v : b.outline) refs.push_back(addNode(v));
+    for (const auto& v : b.outline) {
+      const auto it = building_nodes.find({v.x(), v.y()});
+      refs.push_back(it != building_nodes.end() ? it->second
+                                                : building_nodes[{v.x(), v.y()}] = addNode(v));
+    }
     refs.push_back(refs.front());
     OsmTags tags = b.tags;
     if (!tags.count("building")) tags["building"] = "yes";

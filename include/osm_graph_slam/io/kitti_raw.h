@@ -9,6 +9,11 @@
 
 namespace osm_graph_slam {
 
+/// pos_accuracy [m] at or above which an OXTS record carries no GNSS fix. The simulator's
+/// outages write it (with numsats = posmode = 0); kitti2bag then publishes STATUS_NO_FIX and
+/// offline_slam --kitti-raw ignores the position. Real KITTI records report a few centimetres.
+constexpr double kOxtsNoFixAccuracy = 1.0e4;
+
 /// One OXTS record (oxts/data/NNNNNNNNNN.txt), the 30 values of the KITTI raw devkit, in order.
 struct OxtsRecord {
   double lat = 0, lon = 0, alt = 0;     ///< deg, deg, m
@@ -24,6 +29,9 @@ struct OxtsRecord {
 
   static constexpr int kNumFields = 30;
   std::array<double, kNumFields> toArray() const;
+  /// False for a record without a GNSS position fix (pos_accuracy >= kOxtsNoFixAccuracy, or a
+  /// non-finite position): its INS fields (attitude, rates) stay valid, its position does not.
+  bool hasGnssFix() const;
   static OxtsRecord fromArray(const std::array<double, kNumFields>& v);
 };
 
@@ -63,6 +71,10 @@ struct KittiRawDrive {
   std::vector<StampNs> scan_stamps;     ///< velodyne_points/timestamps.txt
   std::vector<std::string> oxts_files;  ///< oxts/data/*.txt, sorted
   std::vector<StampNs> oxts_stamps;     ///< oxts/timestamps.txt
+  /// oxts_true/data/*.txt and its timestamps.txt when the drive has them (simulate_urban: the
+  /// exact records, while oxts/ holds what the GNSS/INS measured); empty otherwise.
+  std::vector<std::string> truth_oxts_files;
+  std::vector<StampNs> truth_oxts_stamps;
   Eigen::Isometry3d T_velo_imu = Eigen::Isometry3d::Identity();  ///< p_velo = T * p_imu
   Eigen::Isometry3d T_cam_velo = Eigen::Isometry3d::Identity();  ///< p_cam0 = T * p_velo
 };

@@ -28,6 +28,7 @@ sensor_msgs::PointCloud2 makeXyziCloud(const std::vector<float>& xyzi, const std
                                        const ros::Time& stamp);
 
 /// GPS fix of an OXTS record; covariance from pos_accuracy (horizontal) and twice that vertically.
+/// A record without a fix (OxtsRecord::hasGnssFix) gives STATUS_NO_FIX, covariance unknown.
 sensor_msgs::NavSatFix makeNavSatFix(const OxtsRecord& oxts, const std::string& frame_id,
                                      const ros::Time& stamp);
 
