@@ -86,6 +86,13 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
   rp.seed = params.seed;
   if (!planRoute(graph, rp, route_, error)) return false;
   trajectory_ = Trajectory::fromRoute(route_, rp);
+  {
+    // GNSS/INS errors for every scan of the whole route (a shorter --scans drive is a prefix).
+    const size_t n = size_t(std::floor(trajectory_.duration() * params.lidar.rate_hz)) + 1;
+    std::vector<double> path(n);
+    for (size_t k = 0; k < n; ++k) path[k] = trajectory_.at(double(k) / params.lidar.rate_hz).s;
+    nav_errors_ = simulateNavErrors(params.nav, params.seed, 1.0 / params.lidar.rate_hz, path);
+  }
   if (params.clutter_enabled) {
     ClutterParams cp = params.clutter;
     cp.seed = params.seed;
@@ -158,6 +165,16 @@ OxtsRecord UrbanSimulator::oxtsAt(double t) const {
   return r;
 }
 
+OxtsRecord UrbanSimulator::measuredOxts(size_t k) const {
+  const OxtsRecord truth = oxtsAt(scanTime(k));
+  if (params_.nav.rtk || k >= nav_errors_.epochs.size()) return truth;
+  // During an outage the record holds the last fix (and says it has none).
+  size_t j = k;
+  while (j > 0 && nav_errors_.epochs[j].outage) --j;
+  const Eigen::Vector3d fix = basePose(scanTime(j)).translation() + nav_errors_.epochs[j].gnss;
+  return measuredOxtsRecord(truth, fix, nav_errors_.epochs[k], params_.nav, *enu_);
+}
+
 SimulatedScan UrbanSimulator::simulate(size_t k) const {
   return simulateScan(
       scene_.world, params_.lidar, [this](double t) { return sensorPose(t); }, scanTime(k),
@@ -177,7 +194,8 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   const fs::path drive = date_dir / drive_name;
   const fs::path gt_dir = fs::path(out_dir) / "ground_truth";
   std::error_code ec;
-  for (const auto& d : {drive / "velodyne_points" / "data", drive / "oxts" / "data", gt_dir}) {
+  for (const auto& d : {drive / "velodyne_points" / "data", drive / "oxts" / "data",
+                        drive / "oxts_true" / "data", gt_dir}) {
     fs::create_directories(d, ec);
     if (ec) return fail(error, "cannot create '" + d.string() + "': " + ec.message());
   }
@@ -215,8 +233,10 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
                        scan.cloud, error)) {
       return false;
     }
-    if (!writeOxtsFile((drive / "oxts" / "data" / (std::string(name) + ".txt")).string(), oxtsAt(t),
-                       error)) {
+    if (!writeOxtsFile((drive / "oxts" / "data" / (std::string(name) + ".txt")).string(),
+                       measuredOxts(k), error) ||
+        !writeOxtsFile((drive / "oxts_true" / "data" / (std::string(name) + ".txt")).string(),
+                       oxtsAt(t), error)) {
       return false;
     }
     velo_poses.push_back(sensorPose(t));
@@ -230,19 +250,22 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   }
   const std::string vdir = (drive / "velodyne_points").string();
   const std::string odir = (drive / "oxts").string();
-  bool ok = writeKittiTimestamps(vdir + "/timestamps.txt", stamps, error) &&
-            writeKittiTimestamps(vdir + "/timestamps_start.txt", starts, error) &&
-            writeKittiTimestamps(vdir + "/timestamps_end.txt", ends, error) &&
-            writeKittiTimestamps(odir + "/timestamps.txt", stamps, error) &&
-            writeKittiPoses((gt_dir / "poses_velo.txt").string(), velo_poses, error) &&
-            writeKittiPoses((gt_dir / "poses_imu.txt").string(), imu_poses, error) &&
-            writeFileAtomically((gt_dir / "times.txt").string(), times.str(), error);
+  bool ok =
+      writeKittiTimestamps(vdir + "/timestamps.txt", stamps, error) &&
+      writeKittiTimestamps(vdir + "/timestamps_start.txt", starts, error) &&
+      writeKittiTimestamps(vdir + "/timestamps_end.txt", ends, error) &&
+      writeKittiTimestamps(odir + "/timestamps.txt", stamps, error) &&
+      writeKittiTimestamps((drive / "oxts_true" / "timestamps.txt").string(), stamps, error) &&
+      writeKittiPoses((gt_dir / "poses_velo.txt").string(), velo_poses, error) &&
+      writeKittiPoses((gt_dir / "poses_imu.txt").string(), imu_poses, error) &&
+      writeFileAtomically((gt_dir / "times.txt").string(), times.str(), error);
   if (!ok) return false;
 
+  PriorMapInfo prior_info;
   const std::vector<PriorBuilding> prior = [&] {
     PriorPerturbationParams pp = params_.prior;
     pp.seed = params_.seed;
-    return perturbBuildings(scene_, pp);
+    return perturbBuildings(scene_, pp, &prior_info);
   }();
   ok = writeBuildingsGeoJson((fs::path(out_dir) / "buildings_true.geojson").string(), scene_, *enu_,
                              error) &&
@@ -274,6 +297,21 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
     if (b.status == PriorBuilding::Status::kRemoved) ++stats.prior_removed;
     if (b.status == PriorBuilding::Status::kPhantom) ++stats.prior_phantom;
   }
+  double gnss_sq = 0.0;
+  size_t gnss_fixes = 0;
+  for (size_t k = 0; k < n && k < nav_errors_.epochs.size(); ++k) {
+    const NavEpochError& e = nav_errors_.epochs[k];
+    if (e.outage) {
+      stats.gnss_outage_s += 1.0 / params_.lidar.rate_hz;
+      if (k == 0 || !nav_errors_.epochs[k - 1].outage) ++stats.gnss_outages;
+      continue;
+    }
+    const double h = e.gnss.head<2>().norm();
+    gnss_sq += h * h;
+    stats.gnss_error_max_m = std::max(stats.gnss_error_max_m, h);
+    ++gnss_fixes;
+  }
+  stats.gnss_error_rms_m = gnss_fixes ? std::sqrt(gnss_sq / double(gnss_fixes)) : 0.0;
   stats.raycast_s = raycast_s;
   stats.generation_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
@@ -304,14 +342,68 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
        << "  \"mean_points_per_scan\": " << fmt("%.1f", stats.mean_points_per_scan) << ",\n"
        << "  \"building_hit_fraction\": " << fmt("%.4f", stats.building_fraction) << ",\n"
        << "  \"ground_hit_fraction\": " << fmt("%.4f", stats.ground_fraction) << ",\n"
-       << "  \"prior\": {\"translation_sigma_m\": " << fmt("%.3f", params_.prior.translation_sigma)
+       << "  \"prior\": {\"model\": \"" << priorModelName(params_.prior.model) << "\""
+       << ", \"translation_sigma_m\": " << fmt("%.3f", params_.prior.translation_sigma)
        << ", \"rotation_sigma_deg\": " << fmt("%.3f", params_.prior.rotation_sigma_deg)
        << ", \"removal_fraction\": " << fmt("%.3f", params_.prior.removal_fraction)
        << ", \"phantom_fraction\": " << fmt("%.3f", params_.prior.phantom_fraction)
        << ", \"perturbed\": " << stats.prior_perturbed << ", \"removed\": " << stats.prior_removed
-       << ", \"phantom\": " << stats.prior_phantom << "},\n"
+       << ", \"phantom\": " << stats.prior_phantom;
+  const PriorPerturbationParams& pr = params_.prior;
+  if (pr.model == PriorModel::kBlocks || pr.model == PriorModel::kMixed) {
+    info << ", \"block_size_m\": " << fmt("%.3f", pr.block_size)
+         << ", \"block_touch_distance_m\": " << fmt("%.3f", pr.block_touch_distance)
+         << ", \"block_translation_sigma_m\": " << fmt("%.3f", pr.block_translation_sigma)
+         << ", \"block_rotation_sigma_deg\": " << fmt("%.3f", pr.block_rotation_sigma_deg)
+         << ", \"block_residual_sigma_m\": " << fmt("%.3f", pr.block_residual_sigma)
+         << ", \"block_residual_rotation_sigma_deg\": "
+         << fmt("%.3f", pr.block_residual_rotation_sigma_deg)
+         << ", \"block_groups\": " << prior_info.groups;
+  }
+  if (pr.model == PriorModel::kGlobal || pr.model == PriorModel::kMixed) {
+    info << ", \"global_offset_min_m\": " << fmt("%.3f", pr.global_offset_min)
+         << ", \"global_offset_max_m\": " << fmt("%.3f", pr.global_offset_max)
+         << ", \"global_rotation_sigma_deg\": " << fmt("%.3f", pr.global_rotation_sigma_deg)
+         << ", \"global_offset_m\": [" << fmt("%.4f", prior_info.global_offset.x()) << ", "
+         << fmt("%.4f", prior_info.global_offset.y())
+         << "], \"global_rotation_deg\": " << fmt("%.4f", prior_info.global_rotation * 180 / M_PI);
+  }
+  if (pr.model == PriorModel::kMixed) {
+    info << ", \"mixed_translation_sigma_m\": " << fmt("%.3f", pr.mixed_translation_sigma)
+         << ", \"mixed_rotation_sigma_deg\": " << fmt("%.3f", pr.mixed_rotation_sigma_deg);
+  }
+  info << "},\n";
+  const NavErrorParams& nv = params_.nav;
+  info << "  \"gnss_ins\": {\"rtk\": " << (nv.rtk ? "true" : "false");
+  if (!nv.rtk) {
+    const Eigen::Vector3d first =
+        nav_errors_.epochs.empty() ? Eigen::Vector3d::Zero() : nav_errors_.epochs.front().gnss;
+    info << ", \"gnss_sigma_m\": " << fmt("%.3f", nv.gnss_sigma)
+         << ", \"gnss_sigma_vertical_m\": " << fmt("%.3f", nv.gnss_sigma_vertical)
+         << ", \"gnss_bias_sigma_m\": " << fmt("%.3f", nv.gnss_bias_sigma)
+         << ", \"gnss_bias_sigma_vertical_m\": " << fmt("%.3f", nv.gnss_bias_sigma_vertical)
+         << ", \"gnss_bias_tau_s\": " << fmt("%.1f", nv.gnss_bias_tau_s)
+         << ", \"gnss_outages_per_km\": " << fmt("%.3f", nv.gnss_outages_per_km)
+         << ", \"gnss_outage_duration_s\": " << fmt("%.1f", nv.gnss_outage_duration_s)
+         << ", \"gnss_outage_min_start_s\": " << fmt("%.1f", nv.gnss_outage_min_start_s)
+         << ", \"pos_accuracy_m\": " << fmt("%.3f", gnssReportedAccuracy(nv))
+         << ", \"imu_attitude_sigma_deg\": " << fmt("%.3f", nv.imu_attitude_sigma_deg)
+         << ", \"imu_heading_bias_deg\": " << fmt("%.3f", nv.imu_heading_bias_deg)
+         << ", \"imu_heading_sigma_deg\": " << fmt("%.3f", nv.imu_heading_sigma_deg)
+         << ", \"gyro_sigma_deg_s\": " << fmt("%.3f", nv.gyro_sigma_deg_s)
+         << ", \"accel_sigma_m_s2\": " << fmt("%.3f", nv.accel_sigma)
+         << ", \"heading_bias_drawn_deg\": " << fmt("%.4f", nav_errors_.heading_bias * 180.0 / M_PI)
+         << ", \"first_fix_error_enu_m\": [" << fmt("%.4f", first.x()) << ", "
+         << fmt("%.4f", first.y()) << ", " << fmt("%.4f", first.z())
+         << "], \"gnss_error_rms_m\": " << fmt("%.4f", stats.gnss_error_rms_m)
+         << ", \"gnss_error_max_m\": " << fmt("%.4f", stats.gnss_error_max_m)
+         << ", \"outages\": " << stats.gnss_outages
+         << ", \"outage_s\": " << fmt("%.1f", stats.gnss_outage_s);
+  }
+  info << "},\n"
        << "  \"ground_truth\": \"ground_truth/poses_velo.txt: velo_link in the ENU frame above, "
-          "KITTI 3x4 rows; poses_imu.txt: base_link (OXTS)\"\n}\n";
+          "KITTI 3x4 rows; poses_imu.txt: base_link (OXTS); the drive's oxts_true/: exact OXTS "
+          "records (oxts/: what the GNSS/INS measured)\"\n}\n";
   return writeFileAtomically((fs::path(out_dir) / "sim_info.json").string(), info.str(), error);
 }
 

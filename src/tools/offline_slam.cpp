@@ -88,16 +88,25 @@ class KittiRawSource : public DriveSource {
  public:
   bool open(const std::string& dir, const std::string& calib_dir, std::string* error) {
     if (!openKittiRawDrive(dir, calib_dir, drive_, error)) return false;
-    OxtsRecord first;
+    OxtsRecord first, fix;
     if (drive_.oxts_files.empty() || !readOxtsFile(drive_.oxts_files.front(), first, error)) {
       if (error) *error = "no usable first GPS fix: " + *error;
       return false;
     }
-    lat = first.lat;
-    lon = first.lon;
-    alt = first.alt;
+    // The map origin is the first record with a GNSS fix (a simulated outage has none).
+    fix = first;
+    for (size_t i = 1; !fix.hasGnssFix() && i < drive_.oxts_files.size(); ++i) {
+      if (!readOxtsFile(drive_.oxts_files[i], fix, error)) return false;
+    }
+    if (!fix.hasGnssFix()) {
+      if (error) *error = "no OXTS record of '" + dir + "' has a GNSS fix";
+      return false;
+    }
+    lat = fix.lat;
+    lon = fix.lon;
+    alt = fix.alt;
     initial_yaw = first.yaw;
-    enu_.emplace(first.lat, first.lon, first.alt);
+    enu_.emplace(fix.lat, fix.lon, fix.alt);
     // base_link is the OXTS/IMU frame (as kitti2bag's tf_static): p_base = inv(T_velo_imu) p_velo.
     sensor_to_base = drive_.T_velo_imu.inverse();
     return true;
@@ -112,9 +121,15 @@ class KittiRawSource : public DriveSource {
     if (readKittiBin(drive_.scan_files[i], *cloud, &scan.error)) scan.cloud = cloud;
     OxtsRecord r;
     if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
-      scan.truth = oxtsPose(r, *enu_);
-      scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();  // KITTI's OXTS is GNSS + INS
+      scan.truth = oxtsPose(r, *enu_);  // KITTI's OXTS is RTK GNSS + INS
+      if (r.hasGnssFix()) scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
+    }
+    // simulate_urban's exact records: the truth in the frame of the (measured) first fix.
+    if (!drive_.truth_oxts_files.empty()) {
+      scan.truth.reset();
+      if (i < drive_.truth_oxts_files.size() && readOxtsFile(drive_.truth_oxts_files[i], r))
+        scan.truth = oxtsPose(r, *enu_);
     }
     return true;
   }

@@ -31,6 +31,33 @@ void usage() {
                "  --elevation-bias-deg D (0)  --beam-elevation-sigma-deg D (0)\n"
                "  --beam-range-offset-sigma M (0)   intrinsic calibration errors\n"
                "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n");
+  const SimulationParams d;  // the defaults
+  const NavErrorParams& n = d.nav;
+  const PriorPerturbationParams& r = d.prior;
+  std::fprintf(
+      stderr,
+      "GNSS/INS errors (default consumer-grade; oxts_true/ always holds the exact records):\n"
+      "  --rtk                   exact GNSS/INS (RTK, as KITTI's OXTS): no errors at all\n"
+      "  --gnss-sigma M (%g)  --gnss-sigma-vertical M (%g)   white noise per axis\n"
+      "  --gnss-bias-sigma M (%g)  --gnss-bias-sigma-vertical M (%g)  --gnss-bias-tau S (%g)\n"
+      "                          first-order Gauss-Markov bias per axis\n"
+      "  --gnss-outages-per-km F (%g)  --gnss-outage-duration S (%g)   no fix (pos_accuracy %g)\n"
+      "  --imu-heading-bias-deg D (%g, sign from the seed)  --imu-heading-sigma-deg D (%g)\n"
+      "  --imu-attitude-sigma-deg D (%g)  --gyro-sigma-deg-s D (%g)  --accel-sigma M (%g)\n"
+      "prior-map error model:\n"
+      "  --prior-model independent|blocks|global|mixed (%s)\n"
+      "  --prior-block-size M (%g)  --prior-block-sigma M (%g)  --prior-block-rotation-sigma-deg D "
+      "(%g)\n"
+      "  --prior-block-residual-sigma M (%g)  --prior-block-residual-rotation-sigma-deg D (%g)\n"
+      "  --prior-global-offset MIN,MAX (%g,%g)  --prior-global-rotation-sigma-deg D (%g)\n"
+      "  --prior-mixed-sigma M (%g)  --prior-mixed-rotation-sigma-deg D (%g)\n",
+      n.gnss_sigma, n.gnss_sigma_vertical, n.gnss_bias_sigma, n.gnss_bias_sigma_vertical,
+      n.gnss_bias_tau_s, n.gnss_outages_per_km, n.gnss_outage_duration_s, kOxtsNoFixAccuracy,
+      n.imu_heading_bias_deg, n.imu_heading_sigma_deg, n.imu_attitude_sigma_deg, n.gyro_sigma_deg_s,
+      n.accel_sigma, priorModelName(r.model), r.block_size, r.block_translation_sigma,
+      r.block_rotation_sigma_deg, r.block_residual_sigma, r.block_residual_rotation_sigma_deg,
+      r.global_offset_min, r.global_offset_max, r.global_rotation_sigma_deg,
+      r.mixed_translation_sigma, r.mixed_rotation_sigma_deg);
 }
 
 }  // namespace
@@ -89,6 +116,65 @@ int main(int argc, char** argv) {
       p.prior.removal_fraction = std::atof(next().c_str());
     else if (a == "--prior-phantom")
       p.prior.phantom_fraction = std::atof(next().c_str());
+    else if (a == "--rtk")
+      p.nav.rtk = true;
+    else if (a == "--gnss-sigma")
+      p.nav.gnss_sigma = std::atof(next().c_str());
+    else if (a == "--gnss-sigma-vertical")
+      p.nav.gnss_sigma_vertical = std::atof(next().c_str());
+    else if (a == "--gnss-bias-sigma")
+      p.nav.gnss_bias_sigma = std::atof(next().c_str());
+    else if (a == "--gnss-bias-sigma-vertical")
+      p.nav.gnss_bias_sigma_vertical = std::atof(next().c_str());
+    else if (a == "--gnss-bias-tau")
+      p.nav.gnss_bias_tau_s = std::atof(next().c_str());
+    else if (a == "--gnss-outages-per-km")
+      p.nav.gnss_outages_per_km = std::atof(next().c_str());
+    else if (a == "--gnss-outage-duration")
+      p.nav.gnss_outage_duration_s = std::atof(next().c_str());
+    else if (a == "--imu-heading-bias-deg")
+      p.nav.imu_heading_bias_deg = std::atof(next().c_str());
+    else if (a == "--imu-heading-sigma-deg")
+      p.nav.imu_heading_sigma_deg = std::atof(next().c_str());
+    else if (a == "--imu-attitude-sigma-deg")
+      p.nav.imu_attitude_sigma_deg = std::atof(next().c_str());
+    else if (a == "--gyro-sigma-deg-s")
+      p.nav.gyro_sigma_deg_s = std::atof(next().c_str());
+    else if (a == "--accel-sigma")
+      p.nav.accel_sigma = std::atof(next().c_str());
+    else if (a == "--prior-model") {
+      const std::string m = next();
+      if (!parsePriorModel(m, p.prior.model)) {
+        std::fprintf(stderr,
+                     "simulate_urban: unknown --prior-model '%s' (independent, blocks, global, "
+                     "mixed)\n",
+                     m.c_str());
+        return 2;
+      }
+    } else if (a == "--prior-block-size")
+      p.prior.block_size = std::atof(next().c_str());
+    else if (a == "--prior-block-sigma")
+      p.prior.block_translation_sigma = std::atof(next().c_str());
+    else if (a == "--prior-block-rotation-sigma-deg")
+      p.prior.block_rotation_sigma_deg = std::atof(next().c_str());
+    else if (a == "--prior-block-residual-sigma")
+      p.prior.block_residual_sigma = std::atof(next().c_str());
+    else if (a == "--prior-block-residual-rotation-sigma-deg")
+      p.prior.block_residual_rotation_sigma_deg = std::atof(next().c_str());
+    else if (a == "--prior-global-offset") {
+      if (std::sscanf(next().c_str(), "%lf,%lf", &p.prior.global_offset_min,
+                      &p.prior.global_offset_max) != 2 ||
+          p.prior.global_offset_min > p.prior.global_offset_max) {
+        std::fprintf(stderr,
+                     "simulate_urban: --prior-global-offset expects MIN,MAX (MIN <= MAX)\n");
+        return 2;
+      }
+    } else if (a == "--prior-global-rotation-sigma-deg")
+      p.prior.global_rotation_sigma_deg = std::atof(next().c_str());
+    else if (a == "--prior-mixed-sigma")
+      p.prior.mixed_translation_sigma = std::atof(next().c_str());
+    else if (a == "--prior-mixed-rotation-sigma-deg")
+      p.prior.mixed_rotation_sigma_deg = std::atof(next().c_str());
     else if (a == "--dropout")
       p.lidar.dropout_probability = std::atof(next().c_str());
     else if (a == "--range-noise")
@@ -133,11 +219,14 @@ int main(int argc, char** argv) {
       "drive: %s\nscans: %zu\nroute_length_m: %.1f\nrevisits: %d\nmax_yaw_rate_deg_s: %.1f\n"
       "points_per_scan: mean %.0f min %.0f max %.0f\nhit_fractions: building %.3f ground %.3f "
       "clutter %.3f moving %.4f\nprior: %zu perturbed, %zu removed, %zu phantom\n"
+      "gnss: %s, horizontal error rms %.2f m max %.2f m, %d outages (%.0f s)\n"
       "generation_s: %.1f (ray casting %.1f)\nscans_per_s: %.1f\n",
       stats.drive_dir.c_str(), stats.scans, stats.route_length_m, stats.revisits,
       stats.max_yaw_rate_deg_s, stats.mean_points_per_scan, stats.min_points_per_scan,
       stats.max_points_per_scan, stats.building_fraction, stats.ground_fraction,
       stats.clutter_fraction, stats.moving_fraction, stats.prior_perturbed, stats.prior_removed,
-      stats.prior_phantom, stats.generation_s, stats.raycast_s, stats.scans_per_s);
+      stats.prior_phantom, p.nav.rtk ? "rtk" : "consumer-grade", stats.gnss_error_rms_m,
+      stats.gnss_error_max_m, stats.gnss_outages, stats.gnss_outage_s, stats.generation_s,
+      stats.raycast_s, stats.scans_per_s);
   return 0;
 }

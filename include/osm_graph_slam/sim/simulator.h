@@ -9,6 +9,7 @@
 
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/sim/lidar.h"
+#include "osm_graph_slam/sim/nav_errors.h"
 #include "osm_graph_slam/sim/prior_map.h"
 #include "osm_graph_slam/sim/route.h"
 #include "osm_graph_slam/sim/scene.h"
@@ -34,6 +35,8 @@ struct SimulationParams {
   LidarModel lidar = LidarModel::hdl64e();
   bool motion_distortion = false;
   PriorPerturbationParams prior;
+  /// GNSS/INS errors of the oxts/ records (default consumer-grade; nav.rtk = true: exact).
+  NavErrorParams nav;
   int max_scans = 0;                                    ///< 0: the whole route
   StampNs start_time_ns = 1577880000LL * 1000000000LL;  ///< 2020-01-01 12:00:00 UTC
   int drive_number = 1;
@@ -49,6 +52,10 @@ struct SimulationStats {
   double building_fraction = 0, ground_fraction = 0, clutter_fraction = 0, moving_fraction = 0;
   double generation_s = 0, raycast_s = 0, scans_per_s = 0;
   size_t prior_perturbed = 0, prior_removed = 0, prior_phantom = 0;
+  /// Over the written records with a fix: horizontal GNSS error RMS and max [m]; outages.
+  double gnss_error_rms_m = 0, gnss_error_max_m = 0;
+  int gnss_outages = 0;
+  double gnss_outage_s = 0;
   std::string drive_dir;
 };
 
@@ -73,7 +80,12 @@ class UrbanSimulator {
   Eigen::Isometry3d sensorPose(double t) const { return basePose(t) * T_imu_velo_; }
   /// p_velo = T_velo_imu * p_imu (calib_imu_to_velo.txt).
   const Eigen::Isometry3d& T_velo_imu() const { return T_velo_imu_; }
+  /// The true OXTS record at time t (written to oxts_true/).
   OxtsRecord oxtsAt(double t) const;
+  /// What the GNSS/INS reports at scan k (written to oxts/): oxtsAt with params().nav's errors.
+  OxtsRecord measuredOxts(size_t k) const;
+  /// The GNSS/INS errors of every scan of the route (all zero with nav.rtk).
+  const NavErrorSequence& navErrors() const { return nav_errors_; }
 
   SimulatedScan simulate(size_t k) const;
 
@@ -88,6 +100,7 @@ class UrbanSimulator {
   Route route_;
   Trajectory trajectory_;
   std::unique_ptr<EnuConverter> enu_;
+  NavErrorSequence nav_errors_;
   Eigen::Isometry3d T_velo_imu_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_imu_velo_ = Eigen::Isometry3d::Identity();
 };
