@@ -1,5 +1,6 @@
 #include "osm_graph_slam/eval/slam_evaluation.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
@@ -95,6 +96,14 @@ void buildingRow(std::ostringstream& os, const std::string& label, const Buildin
 SlamEvaluation evaluateSlam(const SlamEvaluationInput& input) {
   SlamEvaluation out;
   out.slam = evaluateTrajectory(input.estimate, input.ground_truth, input.options);
+  out.coverage = evaluateCoverage(input.estimate, input.ground_truth, input.coverage);
+  out.untracked_scans = input.untracked_scans;
+  out.lost_events = input.lost_events;
+  if (input.loops) {
+    std::vector<double> keyframes;
+    for (const auto& p : input.estimate) keyframes.push_back(p.stamp);
+    out.loops = evaluateLoops(*input.loops, keyframes, input.ground_truth, input.loop_options);
+  }
   out.baseline_label = input.baseline_label;
   if (input.baseline) {
     out.baseline = evaluateTrajectory(*input.baseline, input.ground_truth, input.options);
@@ -120,8 +129,43 @@ SlamEvaluation evaluateSlam(const SlamEvaluationInput& input) {
   return out;
 }
 
+namespace {
+
+json coverageJson(const SlamEvaluation& e) {
+  const Coverage& c = e.coverage;
+  json j = {{"ground_truth_span_s", c.ground_truth_span_s},
+            {"estimate_span_s", c.estimate_span_s},
+            {"fraction", c.fraction},
+            {"uncovered_s", c.uncovered_s},
+            {"longest_gap_s", c.longest_gap_s},
+            {"longest_gap_m", c.longest_gap_m},
+            {"longest_gap_start", c.longest_gap_start},
+            {"untracked_scans", nullptr},
+            {"lost_events", nullptr}};
+  if (e.untracked_scans) j["untracked_scans"] = *e.untracked_scans;
+  if (e.lost_events) j["lost_events"] = *e.lost_events;
+  return j;
+}
+
+json loopsJson(const LoopEvaluation& l) {
+  return {{"accepted", l.accepted},
+          {"false", l.false_loops},
+          {"unassociated", l.unassociated},
+          {"revisits", l.revisit_events},
+          {"revisit_keyframes", l.revisit_keyframes},
+          {"revisits_closed", l.events_closed},
+          {"recall", l.recall},
+          {"max_translation_error_m",
+           l.translation_errors.empty()
+               ? 0.0
+               : *std::max_element(l.translation_errors.begin(), l.translation_errors.end())}};
+}
+
+}  // namespace
+
 std::string evaluationToJson(const SlamEvaluation& e) {
-  json doc = {{"slam", trajectoryJson(e.slam)}};
+  json doc = {{"slam", trajectoryJson(e.slam)}, {"coverage", coverageJson(e)}};
+  if (e.loops) doc["loops"] = loopsJson(*e.loops);
   if (e.baseline) doc[e.baseline_label] = trajectoryJson(*e.baseline);
   if (e.ate_change_vs_baseline)
     doc["ate_change_vs_" + e.baseline_label] = *e.ate_change_vs_baseline;
@@ -132,6 +176,39 @@ std::string evaluationToJson(const SlamEvaluation& e) {
     doc["buildings_corrected_observed"] = buildingsJson(*e.corrected_observed);
   return doc.dump(2);
 }
+
+namespace {
+
+void coverageRows(std::ostringstream& os, const SlamEvaluation& e) {
+  const Coverage& c = e.coverage;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "coverage: %.1f %% of %.1f s (estimate %.1f s), longest gap %.1f s / %.1f m at "
+                "%.1f s",
+                100.0 * c.fraction, c.ground_truth_span_s, c.estimate_span_s, c.longest_gap_s,
+                c.longest_gap_m, c.longest_gap_start - c.ground_truth_start);
+  os << buf;
+  if (e.untracked_scans) os << ", " << *e.untracked_scans << " untracked scans";
+  if (e.lost_events) os << ", " << *e.lost_events << " lost track(s)";
+  os << "\n";
+  if (c.fraction < kCoverageWarning) {
+    std::snprintf(buf, sizeof(buf),
+                  "WARNING: the estimate covers only %.1f %% of the drive: the errors above "
+                  "describe the covered part only\n",
+                  100.0 * c.fraction);
+    os << buf;
+  }
+  if (e.loops) {
+    const LoopEvaluation& l = *e.loops;
+    std::snprintf(buf, sizeof(buf),
+                  "loops: %zu accepted, %zu false (> 1 m / 2 deg); %zu of %zu ground-truth "
+                  "revisits closed (recall %.0f %%)\n",
+                  l.accepted, l.false_loops, l.events_closed, l.revisit_events, 100.0 * l.recall);
+    os << buf;
+  }
+}
+
+}  // namespace
 
 std::string evaluationToTable(const SlamEvaluation& e) {
   std::ostringstream os;
@@ -145,6 +222,7 @@ std::string evaluationToTable(const SlamEvaluation& e) {
                   100.0 * *e.ate_change_vs_baseline);
     os << buf;
   }
+  coverageRows(os, e);
   if (e.prior || e.corrected) {
     os << "\nbuildings   matched  corner[m]  max[m]  heading[deg]  overlaps\n";
     if (e.prior) buildingRow(os, "prior (OSM)", *e.prior);  // same ids as corrected

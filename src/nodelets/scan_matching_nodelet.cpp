@@ -14,6 +14,7 @@
 #include "osm_graph_slam/ScanMatchingStatus.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/odometry/params_io.h"
+#include "osm_graph_slam/odometry/tracking_health.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
@@ -38,6 +39,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       fallback.registration.method = "fast_gicp";
       tracker_ = std::make_unique<KeyframeTracker>(fallback);
     }
+    health_ = std::make_unique<TrackingHealth>(params.lost_track_after);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
     status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);
@@ -53,6 +55,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     std::string error;
     if (!fromPointCloud2(*msg, *cloud, &error)) {
       NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      if (const auto event = health_->updateRejected(msg->header.stamp.toSec(), error))
+        NODELET_WARN("%s", event->message.c_str());
       return;
     }
     if (!msg->header.frame_id.empty() && msg->header.frame_id != base_link_frame_) {
@@ -60,6 +64,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                             msg->header.frame_id.c_str(), base_link_frame_.c_str());
     }
     const TrackResult result = tracker_->track(msg->header.stamp.toSec(), cloud);
+    // Lost and recovered are each one line, whatever the throttling.
+    if (const auto event = health_->update(msg->header.stamp.toSec(), result))
+      NODELET_WARN("%s", event->message.c_str());
     publishStatus(msg->header.stamp, result);
     if (!result.has_pose()) {
       NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f ignored: %s", msg->header.stamp.toSec(),
@@ -118,6 +125,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->relative_pose = toTransformMsg(result.relative_to_keyframe);
     msg->message = result.failed() ? std::string(toString(result.status)) + ": " + result.message
                                    : std::string(toString(result.status));
+    const TrackingStats health = health_->stats();
+    msg->tracking_state = toString(health_->state());
+    msg->failed_matches = static_cast<uint32_t>(health.failed_matches);
+    msg->lost_events = static_cast<uint32_t>(health.lost_events);
+    msg->time_since_keyframe = health_->timeSinceKeyframe();
     status_pub_.publish(boost::shared_ptr<const ScanMatchingStatus>(msg));
   }
 
@@ -125,6 +137,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   bool publish_tf_ = true;
   double warn_period_ = 5.0;
   std::unique_ptr<KeyframeTracker> tracker_;
+  std::unique_ptr<TrackingHealth> health_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher odom_pub_, keyframe_pub_, status_pub_;
   ros::Subscriber sub_;

@@ -19,6 +19,7 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("max_correction_trans", p.max_correction_trans);
   r.param("max_correction_angle", p.max_correction_angle);
   r.param("min_points", p.min_points);
+  r.param("lost_track_after", p.lost_track_after);
 }
 
 }  // namespace osm_graph_slam

@@ -33,6 +33,7 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
       osm_source_(std::move(osm_source)),
       prefilter_(params.prefilter),
       tracker_(params.tracker),
+      tracking_(params.tracker.lost_track_after),
       walls_(params.wall, logger_),
       segments_(params.segments) {
   GraphBackendParams backend = params.backend;
@@ -65,6 +66,7 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   ++timings_.scans;
   if (!sensor_cloud) {
     logger_->warnOnce("null_scan", "scan at " + std::to_string(stamp) + " has no cloud; skipped");
+    logTracking(tracking_.updateRejected(stamp, "no cloud"));
     return false;
   }
   CloudPrefilterResult filtered;
@@ -75,6 +77,7 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   if (!filtered.ok) {
     logger_->warnOnce("bad_scan", "scan at " + std::to_string(stamp) +
                                       " skipped: " + filtered.reason + " (logged once)");
+    logTracking(tracking_.updateRejected(stamp, filtered.reason));
     return false;
   }
   TrackResult result;
@@ -82,6 +85,7 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
     StageTimer t(timings_.tracking_ms);
     result = tracker_.track(stamp, filtered.cloud);
   }
+  logTracking(tracking_.update(stamp, result));
   if (!result.has_pose()) return false;
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
@@ -167,6 +171,17 @@ BackendUpdateReport SlamPipeline::finish() {
   return report;
 }
 
+void SlamPipeline::logTracking(const std::optional<TrackingEvent>& event) const {
+  // A recovery is as worth seeing as the loss (the default sink shows warnings only).
+  if (event) logger_->warn(event->message);
+}
+
+PipelineTimings SlamPipeline::timings() const {
+  PipelineTimings t = timings_;
+  t.tracking = tracking_.stats();
+  return t;
+}
+
 void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.global_priors += report.global_priors;
   timings_.global_rejected += report.global_rejected;
@@ -176,7 +191,7 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
 }
 
 std::string SlamPipeline::timingTable() const {
-  const PipelineTimings& t = timings_;
+  const PipelineTimings t = timings();
   const double scans = std::max<size_t>(1, t.scans);
   const double kfs = std::max<size_t>(1, t.keyframes);
   char buf[2048];
@@ -201,11 +216,20 @@ std::string SlamPipeline::timingTable() const {
                 t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans, t.keyframes,
                 t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors, t.global_rejected,
                 t.building_edges, t.overlap_edges, t.shared_walls);
-  return buf;
+  const TrackingStats& k = t.tracking;
+  char track[512];
+  std::snprintf(track, sizeof(track),
+                "tracking: %zu matched, %zu failed matches, %zu rejected scans; %zu lost track(s), "
+                "%zu scans while lost, longest %.1f s without a keyframe%s\n",
+                k.matched, k.failed_matches, k.rejected_scans, k.lost_events, k.scans_while_lost,
+                k.longest_no_keyframe_s,
+                k.lost_events ? "  <-- WARNING: part of the drive has no keyframe" : "");
+  return std::string(buf) + track;
 }
 
 std::string SlamPipeline::timingJson() const {
-  const PipelineTimings& t = timings_;
+  const PipelineTimings t = timings();
+  const TrackingStats& k = t.tracking;
   const nlohmann::json doc = {{"scans", t.scans},
                               {"keyframes", t.keyframes},
                               {"loops", t.loops},
@@ -219,7 +243,17 @@ std::string SlamPipeline::timingJson() const {
                                 {"segments", t.segments_ms},
                                 {"loops", t.loops_ms},
                                 {"osm", t.osm_ms},
-                                {"backend", t.backend_ms}}}};
+                                {"backend", t.backend_ms}}},
+                              {"tracking",
+                               {{"scans", k.scans},
+                                {"matched", k.matched},
+                                {"failed_matches", k.failed_matches},
+                                {"rejected_scans", k.rejected_scans},
+                                {"lost_events", k.lost_events},
+                                {"scans_while_lost", k.scans_while_lost},
+                                {"first_stamp", k.first_stamp},
+                                {"last_stamp", k.last_stamp},
+                                {"longest_no_keyframe_s", k.longest_no_keyframe_s}}}};
   return doc.dump(2);
 }
 

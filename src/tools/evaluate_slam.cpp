@@ -5,6 +5,12 @@
 //                 [--buildings-prior prior.osm] [--buildings-corrected corrected.geojson]
 //                 [--origin LAT,LON] [--alignment none|first|umeyama] [--planar]
 //                 [--max-dt 0.02] [--json] [--plot-dir DIR]
+//                 [--run-report timing.json] [--loops loops.txt] [--min-coverage F]
+//                 [--allowed-gap S]
+//
+// Coverage: the share of the drive (ground truth, widened by the span of the scans the run read
+// when --run-report gives offline_slam's timing.json) that has estimated poses; --min-coverage
+// makes a truncated run exit 3. --loops judges offline_slam's accepted loops and their recall.
 //
 // Trajectories: KITTI (12 or 13 columns) or TUM files. Buildings: .geojson or .osm/.osm.pbf.
 #include <cstdlib>
@@ -12,6 +18,9 @@
 #include <iostream>
 #include <map>
 #include <string>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "osm_graph_slam/eval/plot_data.h"
 #include "osm_graph_slam/eval/slam_evaluation.h"
@@ -30,7 +39,8 @@ int usage(const std::string& why) {
                "       [--baseline-label NAME] [--buildings-true FILE] [--buildings-prior FILE]\n"
                "       [--buildings-corrected FILE] [--origin LAT,LON]\n"
                "       [--alignment none|first|umeyama] [--planar] [--max-dt S] [--json]\n"
-               "       [--plot-dir DIR]\n";
+               "       [--plot-dir DIR] [--run-report timing.json] [--loops loops.txt]\n"
+               "       [--min-coverage F] [--allowed-gap S]\n";
   return 2;
 }
 
@@ -61,6 +71,28 @@ bool loadBuildings(const std::string& path, std::vector<Building>& out) {
     return false;
   }
   out = std::move(data.buildings);
+  return true;
+}
+
+/// Tracking counters and the scans' time span from offline_slam's timing.json.
+bool loadRunReport(const std::string& path, SlamEvaluationInput& in) {
+  std::ifstream f(path);
+  const nlohmann::json doc = nlohmann::json::parse(f, nullptr, false);
+  if (!f || doc.is_discarded() || !doc.is_object()) {
+    std::cerr << "evaluate_slam: --run-report '" << path << "' is not a readable JSON report\n";
+    return false;
+  }
+  const auto it = doc.find("tracking");
+  if (it == doc.end() || !it->is_object()) {
+    std::cerr << "evaluate_slam: --run-report '" << path
+              << "' has no \"tracking\" section (written by an older offline_slam?)\n";
+    return false;
+  }
+  const nlohmann::json& t = *it;
+  in.untracked_scans = t.value("failed_matches", size_t(0)) + t.value("rejected_scans", size_t(0));
+  in.lost_events = t.value("lost_events", size_t(0));
+  if (t.value("scans", size_t(0)) > 0)
+    in.coverage.input_span = {t.value("first_stamp", 0.0), t.value("last_stamp", 0.0)};
   return true;
 }
 
@@ -103,6 +135,20 @@ int main(int argc, char** argv) {
     return usage("unknown alignment '" + alignment + "'");
   }
 
+  if (args.count("allowed-gap")) in.coverage.allowed_gap = std::atof(args["allowed-gap"].c_str());
+  if (args.count("run-report") && !loadRunReport(args["run-report"], in)) return 1;
+  if (args.count("loops")) {
+    LoopClosureReadResult loops = readLoopClosures(args["loops"]);
+    if (!loops.ok) {
+      std::cerr << "evaluate_slam: " << loops.error << "\n";
+      return 1;
+    }
+    in.loops = std::move(loops.loops);
+    in.loop_options.max_time_difference = in.options.max_time_difference;
+  }
+  double min_coverage = 0.0;
+  if (args.count("min-coverage")) min_coverage = std::atof(args["min-coverage"].c_str());
+
   const std::pair<const char*, std::vector<Building>*> sets[] = {
       {"buildings-true", &in.buildings_true},
       {"buildings-prior", &in.buildings_prior},
@@ -144,6 +190,11 @@ int main(int argc, char** argv) {
                 << "/plot_data.json\n";
       return 1;
     }
+  }
+  if (evaluation.coverage.fraction < min_coverage) {
+    std::cerr << "evaluate_slam: coverage " << 100.0 * evaluation.coverage.fraction
+              << " % is below --min-coverage " << 100.0 * min_coverage << " %\n";
+    return 3;
   }
   return 0;
 }

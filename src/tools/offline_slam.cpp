@@ -25,6 +25,7 @@
 
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/io/loop_closure_file.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -249,6 +250,19 @@ void progress(size_t done, size_t total) {
             << "/" << total << (done == total ? "\n" : "") << std::flush;
 }
 
+/// The accepted loop closures with their keyframes named by stamp.
+std::vector<StampedLoopClosure> stampedLoops(const GraphBackend& backend) {
+  std::map<uint64_t, double> stamps;
+  for (const auto& kf : backend.keyframes()) stamps[kf.id] = kf.stamp;
+  std::vector<StampedLoopClosure> out;
+  for (const auto& loop : backend.loopClosures()) {
+    const auto from = stamps.find(loop.from_id), to = stamps.find(loop.to_id);
+    if (from == stamps.end() || to == stamps.end()) continue;
+    out.push_back({from->second, to->second, loop.relative_pose});
+  }
+  return out;
+}
+
 std::string argOr(const std::map<std::string, std::string>& args, const std::string& key,
                   const std::string& fallback) {
   const auto it = args.find(key);
@@ -394,16 +408,26 @@ int main(int argc, char** argv) {
     const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"]);
     if (!dumped.success) std::cerr << "offline_slam: dump failed: " << dumped.message << "\n";
   }
-  Trajectory truth;
+  Trajectory truth, truth_all_scans;
   for (const auto& sp : pipeline.backend().trajectory()) {
     auto it = truth_by_stamp.find(sp.stamp);
     if (it != truth_by_stamp.end()) truth.push_back({sp.stamp, it->second});
   }
+  for (const auto& [stamp, pose] : truth_by_stamp) truth_all_scans.push_back({stamp, pose});
   writeTumTrajectory(out + "/ground_truth_tum.txt", truth);
+  // The truth of every scan read: evaluate_slam's coverage sees a drive the keyframes stop short of.
+  writeTumTrajectory(out + "/ground_truth_scans_tum.txt", truth_all_scans);
+  writeLoopClosures(out + "/loops.txt", stampedLoops(pipeline.backend()));
   writeTumTrajectory(out + "/odometry_tum.txt", pipeline.backend().odomTrajectory());
   writeFileAtomically(out + "/timing.json", pipeline.timingJson() + "\n");
   writeFileAtomically(out + "/timing.txt", pipeline.timingTable());
 
+  const TrackingStats tracking = pipeline.timings().tracking;
+  if (tracking.lost_events > 0)
+    std::cerr << "offline_slam: WARNING: the track was lost " << tracking.lost_events
+              << " time(s): " << tracking.scans_while_lost << " of " << tracking.scans
+              << " scans came while no keyframe was made (longest "
+              << tracking.longest_no_keyframe_s << " s); see timing.txt\n";
   if (json) {
     std::cout << pipeline.timingJson() << "\n";
   } else {

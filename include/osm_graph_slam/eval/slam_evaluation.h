@@ -6,6 +6,8 @@
 #include <vector>
 
 #include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/eval/coverage.h"
+#include "osm_graph_slam/eval/loop_metrics.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 
 namespace osm_graph_slam {
@@ -17,6 +19,11 @@ struct SlamEvaluationInput {
   std::string baseline_label = "odometry";
   std::vector<Building> buildings_true, buildings_prior, buildings_corrected;  ///< ENU filled
   TrajectoryEvalOptions options;
+  CoverageOptions coverage;  ///< input_span from the run's report, when given
+  /// From the run's report (offline_slam timing.json "tracking"), when given.
+  std::optional<size_t> untracked_scans, lost_events;
+  std::optional<std::vector<StampedLoopClosure>> loops;  ///< the run's accepted loops
+  LoopEvalOptions loop_options;
 };
 
 struct BuildingSetEvaluation {
@@ -34,7 +41,13 @@ struct SlamEvaluation {
   std::optional<BuildingSetEvaluation> prior_observed, corrected_observed;
   /// Relative ATE change of SLAM against the baseline (negative = better), when both exist.
   std::optional<double> ate_change_vs_baseline;
+  Coverage coverage;  ///< of the SLAM estimate
+  std::optional<size_t> untracked_scans, lost_events;
+  std::optional<LoopEvaluation> loops;
 };
+
+/// Below this coverage fraction the table prints a warning line.
+inline constexpr double kCoverageWarning = 0.99;
 
 /// Tag the back-end puts on each corrected building: its number of robot<->building edges.
 inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";

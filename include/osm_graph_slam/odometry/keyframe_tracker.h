@@ -30,6 +30,9 @@ struct KeyframeTrackerParams {
   double max_correction_trans = 2.0;   ///< [m]
   double max_correction_angle = 0.35;  ///< [rad]
   int min_points = 50;                 ///< scans with fewer points are rejected without matching
+  /// [s] without a keyframe after which the track counts as lost (logged once, counted; see
+  /// TrackingHealth). Above keyframe_delta_time, so a track that keeps matching is never lost.
+  double lost_track_after = 3.0;
 };
 
 enum class TrackStatus {

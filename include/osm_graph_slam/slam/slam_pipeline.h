@@ -10,6 +10,7 @@
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/odometry/tracking_health.h"
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
@@ -37,6 +38,7 @@ struct PipelineTimings {
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
+  TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
   double scansPerSecond() const { return wall_time_s > 0 ? scans / wall_time_s : 0.0; }
 };
 
@@ -64,12 +66,13 @@ class SlamPipeline {
   void addInputTime(double ms) { timings_.input_ms += ms; }
 
   const GraphBackend& backend() const { return *backend_; }
-  PipelineTimings timings() const { return timings_; }
+  PipelineTimings timings() const;
   std::string timingTable() const;
   std::string timingJson() const;
 
  private:
   void account(const BackendUpdateReport& report);
+  void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, double fitness,
                        const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
                        const std::optional<Eigen::Vector2d>& gnss_position);
@@ -79,6 +82,7 @@ class SlamPipeline {
   std::shared_ptr<OsmMapSource> osm_source_;
   CloudPrefilter prefilter_;
   KeyframeTracker tracker_;
+  TrackingHealth tracking_;
   WallPointExtractor walls_;
   LineSegmentExtractor segments_;
   std::unique_ptr<LoopDetector> loops_;

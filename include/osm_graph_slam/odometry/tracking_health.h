@@ -1,0 +1,60 @@
+#pragma once
+// Tracking health of the scan-matching odometry: counts what the tracker did with every scan and
+// notices when no keyframe was made for too long (the track is lost), so that a failure that
+// loses part of a drive is counted and logged once instead of passing silently. ROS-free; the
+// pipeline and the scan_matching nodelet feed it the tracker's results.
+#include <cstddef>
+#include <optional>
+#include <string>
+
+#include "osm_graph_slam/odometry/keyframe_tracker.h"
+
+namespace osm_graph_slam {
+
+enum class TrackingState { kOk, kLost };
+const char* toString(TrackingState state);
+
+struct TrackingStats {
+  size_t scans = 0;           ///< every scan offered (including rejected ones)
+  size_t matched = 0;         ///< registrations accepted
+  size_t failed_matches = 0;  ///< registrations failed or rejected (prediction kept)
+  size_t rejected_scans = 0;  ///< empty/too small clouds and out-of-order stamps
+  size_t keyframes = 0;
+  size_t lost_events = 0;                      ///< times the track was declared lost
+  size_t scans_while_lost = 0;                 ///< scans that arrived while the track was lost
+  double first_stamp = 0.0, last_stamp = 0.0;  ///< [s] of the scans offered (0 before any)
+  double longest_no_keyframe_s = 0.0;          ///< longest span without a keyframe, open end too
+};
+
+/// One line to log when the state changed (lost or recovered), with the scan number and stamp.
+struct TrackingEvent {
+  TrackingState state = TrackingState::kOk;
+  std::string message;
+};
+
+class TrackingHealth {
+ public:
+  /// lost_after: [s] without a keyframe after which the track counts as lost.
+  explicit TrackingHealth(double lost_after = 3.0);
+
+  /// Accounts the tracker's result for a scan taken at stamp [s].
+  std::optional<TrackingEvent> update(double stamp, const TrackResult& result);
+  /// A scan that never reached the tracker (no cloud, rejected by the prefilter).
+  std::optional<TrackingEvent> updateRejected(double stamp, const std::string& reason);
+
+  TrackingState state() const { return state_; }
+  /// [s] since the last keyframe at the last scan (0 before the first keyframe).
+  double timeSinceKeyframe() const;
+  TrackingStats stats() const;
+
+ private:
+  std::optional<TrackingEvent> checkGap(double stamp, const std::string& reason);
+
+  double lost_after_;
+  TrackingStats stats_;
+  TrackingState state_ = TrackingState::kOk;
+  std::optional<double> last_keyframe_stamp_;
+  size_t failures_in_row_ = 0;
+};
+
+}  // namespace osm_graph_slam
