@@ -198,6 +198,7 @@ bool generateDrive(std::string* error) {
   // keyframe's walls can set the initial heading by global matching.
   params.route.length = 400.0;
   params.max_scans = kScans;
+  params.nav.rtk = true;  // exact GNSS/INS, as the test's limits were measured with
   sim::UrbanSimulator simulator;
   if (!simulator.build(params, error)) return false;
   const fs::path out = P->dir / "sim";

@@ -128,7 +128,7 @@ inline Drive prepareDrive(const DriveOptions& o) {
   std::ostringstream sim_cmd;
   sim_cmd << "'" << toolPath("simulate_urban") << "' --out '" << (d.dir / "sim").string()
           << "' --length " << o.length << " --scans " << o.scans << " --seed " << o.seed
-          << " --motion-distortion --kitti-calibration-error";
+          << " --motion-distortion --kitti-calibration-error --rtk";  // exact GNSS/INS
   if (have_extract) sim_cmd << " --osm '" << o.osm << "'";
   const std::string key = sim_cmd.str() + "\nsimulate_urban " +
                           fileStamp(toolPath("simulate_urban")) + "\nkitti2bag " +

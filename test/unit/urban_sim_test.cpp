@@ -96,7 +96,8 @@ TEST(UrbanSim, SameSeedSameBytesDifferentSeedDifferentWorld) {
     EXPECT_EQ(fileBytes(entry.path()), fileBytes(b / rel)) << rel << " differs between runs";
     ++files;
   }
-  EXPECT_EQ(files, 19u);  // 3 scans, 3 OXTS, 4 timestamps, 2 calib, 3 truth poses, 4 map/info
+  // 3 scans, 3 OXTS, 3 exact OXTS (oxts_true), 5 timestamps, 2 calib, 3 truth poses, 4 map/info
+  EXPECT_EQ(files, 23u);
 
   UrbanSimulator other;
   ASSERT_TRUE(other.build(smallCity(8)));
@@ -300,6 +301,7 @@ TEST(UrbanSim, OutputIsAKittiRawDriveThatKitti2BagConverts) {
   fs::remove_all(dir);
   SimulationParams p = smallCity(5);
   p.max_scans = 3;
+  p.nav.rtk = true;  // exact GNSS/INS: the first OXTS fix is the true pose
   UrbanSimulator sim;
   ASSERT_TRUE(sim.build(p));
   SimulationStats stats;
