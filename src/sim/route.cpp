@@ -162,7 +162,8 @@ std::vector<DeadEndStreet> findDeadEnds(const RoadGraph& core, const RoadGraph& 
 }
 
 /// The longest straight run of core edges (every vertex turning at most max_turn and the whole
-/// run within 2 max_turn of its first heading), up to long_straight_max_length.
+/// run within 2 max_turn of its first heading), at most long_straight_max_length (unless its
+/// first edge is longer).
 std::vector<int> longestStraight(const RoadGraph& g, const ManoeuvreParams& mp) {
   const double max_turn = mp.long_straight_max_turn_deg * M_PI / 180.0;
   std::vector<int> best;
@@ -187,7 +188,9 @@ std::vector<int> longestStraight(const RoadGraph& g, const ManoeuvreParams& mp) 
           }
         }
         if (next < 0) break;
-        length += (g.nodes[next] - g.nodes[v]).norm();
+        const double edge = (g.nodes[next] - g.nodes[v]).norm();
+        if (length + edge > mp.long_straight_max_length) break;
+        length += edge;
         chain.push_back(next);
       }
       if (length > best_length + 1e-9) {
@@ -415,7 +418,7 @@ bool planRoute(const RoadGraph& g, const RouteParams& params, Route& route, std:
   }
   const double spacing = std::max(mp.spacing, 0.7 * params.length / double(pending.size() + 1));
   double next_trigger = length + spacing;
-  constexpr double kGiveUp = 2000.0;  // [m] of walking without a place for the manoeuvre
+  constexpr double kGiveUp = 1000.0;  // [m] of walking without a place for the manoeuvre
   // Incoming heading at the last waypoint.
   auto incoming = [&]() {
     const size_t k = route.waypoints.size();
@@ -459,10 +462,10 @@ bool planRoute(const RoadGraph& g, const RouteParams& params, Route& route, std:
     switch (kind) {
       case ManoeuvreKind::kSharpTurn: {
         const auto [heading, in_length] = incoming();
-        if (in_length < 8.0) return Outcome::kNotHere;
+        if (in_length < 4.0) return Outcome::kNotHere;
         std::vector<int> candidates;
         for (int v : g.adjacency[cur]) {
-          if (v == prev || (g.nodes[v] - g.nodes[cur]).norm() < 8.0) continue;
+          if (v == prev || (g.nodes[v] - g.nodes[cur]).norm() < 4.0) continue;
           const double turn =
               std::abs(wrapAngle(headingOf(g.nodes[cur], g.nodes[v]) - heading)) * 180.0 / M_PI;
           if (turn >= mp.sharp_turn_min_deg && turn <= mp.sharp_turn_max_deg)
@@ -656,7 +659,9 @@ Trajectory Trajectory::fromRoute(const Route& route, const RouteParams& params) 
     limits.direction = 1.0;
     yaw = h0 + k * length;
   };
-  std::vector<size_t> begin_sample(n, 0), end_sample(n, 0);  // per vertex of w
+  // Per vertex of w: samples where it begins (the fillet's start), where its stop or three-point
+  // turn ends and where it ends (after the fillet).
+  std::vector<size_t> begin_sample(n, 0), action_end_sample(n, 0), end_sample(n, 0);
   double yaw_unwrapped = headingOf(w[0], w[1]);
   Eigen::Vector2d cursor = w[0];
   push(cursor, yaw_unwrapped, 0.0);
@@ -670,6 +675,7 @@ Trajectory Trajectory::fromRoute(const Route& route, const RouteParams& params) 
     begin_sample[i] = s.size() - 1;
     cursor = line_end;
     if (i + 1 < n && action[i] == WaypointAction::kStop) standstill(mp.stop_duration);
+    action_end_sample[i] = s.size() - 1;
     if (i + 1 < n && action[i] == WaypointAction::kUTurn) {
       // Three-point turn to the left: forward left, reverse right, forward left (60 deg each):
       // back on the line at w[i], heading reversed, within +-radius/2 of it.
@@ -684,6 +690,7 @@ Trajectory Trajectory::fromRoute(const Route& route, const RouteParams& params) 
       standstill(0.0);
       limits = normal;
       cursor = s.back().position;
+      action_end_sample[i] = s.size() - 1;
     } else if (i + 1 < n && radius[i] > 0.0) {
       const bool sharp = action[i] == WaypointAction::kSharpTurn;
       if (sharp) {
@@ -761,7 +768,10 @@ Trajectory Trajectory::fromRoute(const Route& route, const RouteParams& params) 
   for (ManoeuvreEvent ev : route.manoeuvres) {
     if (ev.first_waypoint >= dedup_index.size() || ev.last_waypoint >= dedup_index.size()) continue;
     const TrajectoryState& a = traj.samples_[begin_sample[dedup_index[ev.first_waypoint]]];
-    const TrajectoryState& b = traj.samples_[end_sample[dedup_index[ev.last_waypoint]]];
+    const size_t last = dedup_index[ev.last_waypoint];
+    const bool at_vertex = ev.type == "stop" || ev.type == "u_turn";
+    const TrajectoryState& b =
+        traj.samples_[at_vertex ? action_end_sample[last] : end_sample[last]];
     ev.t_begin = a.t;
     ev.s_begin = a.s;
     ev.t_end = b.t;

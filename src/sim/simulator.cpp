@@ -1,6 +1,7 @@
 #include "osm_graph_slam/sim/simulator.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -11,6 +12,7 @@
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
+#include "osm_graph_slam/sim/sim_random.h"
 
 namespace fs = std::filesystem;
 
@@ -36,6 +38,64 @@ std::string fmt(const char* f, double v) {
 std::string dateFolder(StampNs stamp) {
   const std::string s = formatKittiTimestamp(stamp);  // YYYY-MM-DD ...
   return s.substr(0, 4) + "_" + s.substr(5, 2) + "_" + s.substr(8, 2);
+}
+
+/// sim_info.json lines: the manoeuvres asked for and driven, and the motion extremes.
+std::string manoeuvresJson(const RouteParams& rp, const Route& route, const Trajectory& traj) {
+  const ManoeuvreParams& mp = rp.manoeuvres;
+  std::ostringstream o;
+  o << "  \"manoeuvres\": {\"requested\": \"" << manoeuvreList(mp) << "\"";
+  if (mp.any()) {
+    o << ", \"sharp_turn_speed_m_s\": " << fmt("%.2f", mp.sharp_turn_speed)
+      << ", \"sharp_turn_radius_m\": " << fmt("%.2f", mp.sharp_turn_radius)
+      << ", \"sharp_turn_max_yaw_rate_deg_s\": "
+      << fmt("%.1f", mp.sharp_turn_max_yaw_rate * 180.0 / M_PI)
+      << ", \"sharp_turn_accel_m_s2\": " << fmt("%.2f", mp.sharp_turn_accel)
+      << ", \"u_turn_radius_m\": " << fmt("%.2f", mp.u_turn_radius)
+      << ", \"stop_duration_s\": " << fmt("%.1f", mp.stop_duration)
+      << ", \"skipped\": " << route.manoeuvres_skipped << ", \"events\": [";
+    const auto& events = traj.manoeuvres();
+    for (size_t i = 0; i < events.size(); ++i) {
+      const ManoeuvreEvent& e = events[i];
+      o << (i ? ",\n    " : "\n    ") << "{\"type\": \"" << e.type << "\""
+        << (e.fallback ? ", \"fallback\": \"u_turn\"" : "")
+        << ", \"t_begin_s\": " << fmt("%.2f", e.t_begin)
+        << ", \"t_end_s\": " << fmt("%.2f", e.t_end)
+        << ", \"s_begin_m\": " << fmt("%.1f", e.s_begin)
+        << ", \"s_end_m\": " << fmt("%.1f", e.s_end) << ", \"length_m\": " << fmt("%.1f", e.length)
+        << "}";
+    }
+    o << "]";
+  }
+  o << "},\n";
+  o << "  \"motion\": {\"max_yaw_rate_deg_s\": " << fmt("%.2f", traj.maxYawRate() * 180.0 / M_PI)
+    << ", \"max_accel_m_s2\": " << fmt("%.2f", traj.maxAccel())
+    << ", \"max_decel_m_s2\": " << fmt("%.2f", traj.maxDecel())
+    << ", \"max_lateral_accel_m_s2\": " << fmt("%.2f", traj.maxLateralAccel()) << "},\n";
+  return o.str();
+}
+
+/// sim_info.json lines: the scans left out (indices of the 10 Hz sequence and their stamps).
+std::string droppedScansJson(const ScanDropParams& d, const std::vector<bool>& dropped,
+                             StampNs start_ns, double rate_hz) {
+  std::ostringstream o, indices, times, stamps;
+  size_t count = 0;
+  for (size_t k = 0; k < dropped.size(); ++k) {
+    if (!dropped[k]) continue;
+    const double t = double(k) / rate_hz;
+    indices << (count ? ", " : "") << k;
+    times << (count ? ", " : "") << fmt("%.1f", t);
+    stamps << (count ? ", " : "") << start_ns + StampNs(std::llround(t * 1e9));
+    ++count;
+  }
+  o << "  \"dropped_scans\": {\"fraction\": " << fmt("%.3f", d.fraction)
+    << ", \"burst_length\": " << d.burst_length << ", \"burst_time_s\": "
+    << (std::isnan(d.burst_time) ? std::string("\"seeded\"") : fmt("%.2f", d.burst_time))
+    << ", \"count\": " << count << ", \"indices\": [" << indices.str() << "], \"times_s\": ["
+    << times.str() << "], \"stamps_ns\": [" << stamps.str()
+    << "], \"note\": \"indices in the 10 Hz sequence of the route; the written files are "
+       "numbered consecutively, the timestamps show the gaps\"},\n";
+  return o.str();
 }
 
 }  // namespace
@@ -81,10 +141,11 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
     city.seed = params.seed;
     scene_ = proceduralCity(city);
   }
-  const RoadGraph graph = RoadGraph::fromPolylines(scene_.roads).drivableCore();
+  const RoadGraph roads = RoadGraph::fromPolylines(scene_.roads);
+  const RoadGraph graph = roads.drivableCore();
   RouteParams rp = params.route;
   rp.seed = params.seed;
-  if (!planRoute(graph, rp, route_, error)) return false;
+  if (!planRoute(graph, rp, route_, error, &roads)) return false;
   trajectory_ = Trajectory::fromRoute(route_, rp);
   {
     // GNSS/INS errors for every scan of the whole route (a shorter --scans drive is a prefix).
@@ -105,6 +166,36 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
 size_t UrbanSimulator::numScans() const {
   const size_t n = size_t(std::floor(trajectory_.duration() * params_.lidar.rate_hz)) + 1;
   return params_.max_scans > 0 ? std::min(n, size_t(params_.max_scans)) : n;
+}
+
+std::vector<bool> UrbanSimulator::droppedScans() const {
+  const size_t n = numScans();
+  std::vector<bool> dropped(n, false);
+  const ScanDropParams& d = params_.scan_drop;
+  if (d.fraction > 0.0) {
+    for (size_t k = 1; k < n; ++k) {
+      // One stream per scan: the same scans are missing whatever --scans cuts off.
+      SimRng rng(hashCombine(hashCombine(params_.seed, 0x64726f70ULL), k));
+      dropped[k] = rng.uniform() < d.fraction;
+    }
+  }
+  if (d.burst_length > 0 && n > 1) {
+    const size_t len = std::min(size_t(d.burst_length), n - 1);
+    size_t first;
+    if (std::isnan(d.burst_time)) {
+      SimRng rng(hashCombine(params_.seed, 0x6275727374ULL));
+      // The whole burst within 30-70 % of the drive when it fits.
+      const size_t lo = std::max<size_t>(1, size_t(0.3 * double(n)));
+      const size_t end = size_t(0.7 * double(n));
+      const size_t hi = end >= lo + len ? end - len : lo;
+      first = lo + size_t(rng.uniformInt(0, int(hi - lo)));
+    } else {
+      first = size_t(std::max(0.0, std::round(d.burst_time * params_.lidar.rate_hz)));
+    }
+    first = std::clamp<size_t>(first, 1, n - len);
+    for (size_t k = first; k < first + len; ++k) dropped[k] = true;
+  }
+  return dropped;
 }
 
 Eigen::Isometry3d UrbanSimulator::basePose(double t) const {
@@ -211,6 +302,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   }
 
   const size_t n = numScans();
+  const std::vector<bool> dropped = droppedScans();
   std::vector<StampNs> stamps, starts, ends;
   std::vector<Eigen::Isometry3d> velo_poses, imu_poses;
   std::ostringstream times;
@@ -218,6 +310,11 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   size_t min_pts = SIZE_MAX, max_pts = 0;
   std::array<double, 8> label_counts{};
   for (size_t k = 0; k < n; ++k) {
+    if (dropped[k]) {  // no file, no stamp, no OXTS, no ground truth: numbering goes on
+      if (progress) progress(k + 1, n);
+      continue;
+    }
+    const size_t file_index = stamps.size();
     const double t = scanTime(k);
     const StampNs stamp = params_.start_time_ns + StampNs(std::llround(t * 1e9));
     const StampNs half = StampNs(std::llround(0.5e9 / params_.lidar.rate_hz));
@@ -228,7 +325,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
     const SimulatedScan scan = simulate(k);
     raycast_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];
-    std::snprintf(name, sizeof(name), "%010zu", k);
+    std::snprintf(name, sizeof(name), "%010zu", file_index);
     if (!writeKittiBin((drive / "velodyne_points" / "data" / (std::string(name) + ".bin")).string(),
                        scan.cloud, error)) {
       return false;
@@ -277,14 +374,16 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   stats.primitives = scene_.world.primitives.size();
   stats.moving_objects = scene_.world.moving.size();
   stats.walls = scene_.world.numWalls();
-  stats.scans = n;
+  const size_t written = stamps.size();
+  stats.scans = written;
+  stats.dropped_scans = n - written;
   stats.route_length_m = trajectory_.length();
   stats.duration_s = trajectory_.duration();
   stats.revisits = countRevisits(trajectory_);
   stats.max_yaw_rate_deg_s = trajectory_.maxYawRate() * 180.0 / M_PI;
   stats.max_lateral_accel = trajectory_.maxLateralAccel();
-  stats.mean_points_per_scan = n ? points / double(n) : 0.0;
-  stats.min_points_per_scan = n ? double(min_pts) : 0.0;
+  stats.mean_points_per_scan = written ? points / double(written) : 0.0;
+  stats.min_points_per_scan = written ? double(min_pts) : 0.0;
   stats.max_points_per_scan = double(max_pts);
   const double total = std::max(points, 1.0);
   stats.building_fraction = label_counts[size_t(SimLabel::kBuilding)] / total;
@@ -332,10 +431,12 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
        << ", \"beam_range_offset_sigma_m\": " << fmt("%.3f", params_.lidar.beam_range_offset_sigma)
        << "},\n"
        << "  \"drive_dir\": \"" << fs::relative(drive, out_dir).string() << "\",\n"
-       << "  \"scans\": " << n << ",\n"
+       << "  \"scans\": " << written << ",\n"
        << "  \"route_length_m\": " << fmt("%.2f", stats.route_length_m) << ",\n"
        << "  \"duration_s\": " << fmt("%.2f", stats.duration_s) << ",\n"
        << "  \"revisits\": " << stats.revisits << ",\n"
+       << manoeuvresJson(params_.route, route_, trajectory_)
+       << droppedScansJson(params_.scan_drop, dropped, params_.start_time_ns, params_.lidar.rate_hz)
        << "  \"buildings\": " << stats.buildings << ",\n"
        << "  \"clutter_primitives\": " << stats.primitives << ",\n"
        << "  \"moving_objects\": " << stats.moving_objects << ",\n"

@@ -1,5 +1,6 @@
 // simulate_urban: a simulated urban LiDAR drive (KITTI raw layout + ground truth + perturbed OSM
 // prior). See doc/simulator.md.
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -30,7 +31,12 @@ void usage() {
                "  --dropout P (0.02)  --range-noise M (0.02)\n"
                "  --elevation-bias-deg D (0)  --beam-elevation-sigma-deg D (0)\n"
                "  --beam-range-offset-sigma M (0)   intrinsic calibration errors\n"
-               "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n");
+               "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n"
+               "  --manoeuvres LIST       none (default), all, or a comma list of\n"
+               "                          sharp_turn,u_turn,stop,dead_end,long_straight\n"
+               "  --drop-scans F          each scan missing with probability F (default 0)\n"
+               "  --dropout-burst N[@T]   N consecutive scans missing, from T s (default:\n"
+               "                          a seeded time in the middle of the drive)\n");
   const SimulationParams d;  // the defaults
   const NavErrorParams& n = d.nav;
   const PriorPerturbationParams& r = d.prior;
@@ -177,7 +183,28 @@ int main(int argc, char** argv) {
       p.prior.mixed_rotation_sigma_deg = std::atof(next().c_str());
     else if (a == "--dropout")
       p.lidar.dropout_probability = std::atof(next().c_str());
-    else if (a == "--range-noise")
+    else if (a == "--manoeuvres") {
+      std::string why;
+      if (!parseManoeuvreList(next(), p.route.manoeuvres, &why)) {
+        std::fprintf(stderr, "simulate_urban: --manoeuvres: %s\n", why.c_str());
+        return 2;
+      }
+    } else if (a == "--drop-scans") {
+      p.scan_drop.fraction = std::atof(next().c_str());
+      if (!(p.scan_drop.fraction >= 0.0 && p.scan_drop.fraction < 1.0)) {
+        std::fprintf(stderr, "simulate_urban: --drop-scans expects a fraction in [0, 1)\n");
+        return 2;
+      }
+    } else if (a == "--dropout-burst") {
+      const std::string v = next();
+      char at = 0;
+      const int fields = std::sscanf(v.c_str(), "%d%c%lf", &p.scan_drop.burst_length, &at,
+                                     &p.scan_drop.burst_time);
+      if (!((fields == 1 || (fields == 3 && at == '@')) && p.scan_drop.burst_length >= 0)) {
+        std::fprintf(stderr, "simulate_urban: --dropout-burst expects N or N@T (seconds)\n");
+        return 2;
+      }
+    } else if (a == "--range-noise")
       p.lidar.range_noise_sigma = std::atof(next().c_str());
     else if (a == "--elevation-bias-deg")
       p.lidar.elevation_bias_deg = std::atof(next().c_str());
@@ -204,12 +231,17 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "simulate_urban: %s\n", error.c_str());
     return 1;
   }
+  const std::vector<bool> dropped = sim.droppedScans();
   std::fprintf(stderr,
                "simulate_urban: %zu buildings, %zu clutter primitives, %zu moving objects; route "
-               "%.0f m, %.0f s, %zu scans\n",
+               "%.0f m, %.0f s, %zu scans (%zu dropped); manoeuvres %s (%zu driven), max yaw "
+               "rate %.1f deg/s, max accel %.2f m/s^2\n",
                sim.scene().world.buildings.size(), sim.scene().world.primitives.size(),
                sim.scene().world.moving.size(), sim.trajectory().length(),
-               sim.trajectory().duration(), sim.numScans());
+               sim.trajectory().duration(), sim.numScans(),
+               size_t(std::count(dropped.begin(), dropped.end(), true)),
+               manoeuvreList(p.route.manoeuvres).c_str(), sim.trajectory().manoeuvres().size(),
+               sim.trajectory().maxYawRate() * 180.0 / M_PI, sim.trajectory().maxAccel());
   SimulationStats stats;
   if (!sim.writeDataset(out, stats, stderrProgressBar("simulate_urban"), &error)) {
     std::fprintf(stderr, "\nsimulate_urban: %s\n", error.c_str());

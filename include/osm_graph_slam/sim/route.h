@@ -27,7 +27,7 @@ struct RoadGraph {
 /// Manoeuvres that break trackers (doc/simulator.md). All off by default: the route is then
 /// exactly the one without manoeuvres (bit-identical). Every manoeuvre is placed by a seeded random
 /// stream of its own, one every `spacing` metres of the walk (or more, spread over the first 70 %
-/// of the requested length); a manoeuvre that finds no place within 2 km of walking is skipped.
+/// of the requested length); a manoeuvre that finds no place within 1 km of walking is skipped.
 struct ManoeuvreParams {
   bool sharp_turn = false;  ///< slow 90 deg corner with a high yaw rate, then strong acceleration
   bool u_turn = false;      ///< three-point turn in the middle of a street
@@ -65,7 +65,7 @@ struct ManoeuvreParams {
   double dead_end_max_length = 250.0;       ///< [m]
   double dead_end_max_detour = 800.0;       ///< [m] drive at most this far to reach one
   double long_straight_max_turn_deg = 6.0;  ///< per road vertex, and 2x over the whole straight
-  double long_straight_max_length = 500.0;  ///< [m]
+  double long_straight_max_length = 400.0;  ///< [m]
 
   bool any() const { return sharp_turn || u_turn || stop || dead_end || long_straight; }
 };

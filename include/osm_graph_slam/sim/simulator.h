@@ -6,6 +6,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/sim/lidar.h"
@@ -19,6 +20,16 @@ class EnuConverter;
 }
 
 namespace osm_graph_slam::sim {
+
+/// Scans missing from the written drive, as in a bag that lost some (none by default). A dropped
+/// scan has no .bin, no OXTS record, no timestamp line and no ground-truth row: the files stay
+/// consecutively numbered and the stamps show the gap. The first scan is always kept.
+struct ScanDropParams {
+  double fraction = 0.0;  ///< each scan dropped independently with this probability
+  int burst_length = 0;   ///< N consecutive scans missing (0: no burst)
+  /// [s] since the start; NaN: a seeded time in the middle (30-70 %) of the drive.
+  double burst_time = std::numeric_limits<double>::quiet_NaN();
+};
 
 struct SimulationParams {
   uint64_t seed = 1;
@@ -37,6 +48,7 @@ struct SimulationParams {
   PriorPerturbationParams prior;
   /// GNSS/INS errors of the oxts/ records (default consumer-grade; nav.rtk = true: exact).
   NavErrorParams nav;
+  ScanDropParams scan_drop;
   int max_scans = 0;                                    ///< 0: the whole route
   StampNs start_time_ns = 1577880000LL * 1000000000LL;  ///< 2020-01-01 12:00:00 UTC
   int drive_number = 1;
@@ -44,7 +56,8 @@ struct SimulationParams {
 
 struct SimulationStats {
   size_t buildings = 0, primitives = 0, moving_objects = 0, walls = 0;
-  size_t scans = 0;
+  size_t scans = 0;  ///< written (numScans() minus the dropped ones)
+  size_t dropped_scans = 0;
   double route_length_m = 0, duration_s = 0;
   int revisits = 0;
   double max_yaw_rate_deg_s = 0, max_lateral_accel = 0;
@@ -72,6 +85,8 @@ class UrbanSimulator {
   const SimulationParams& params() const { return params_; }
   const EnuConverter& enu() const { return *enu_; }
   size_t numScans() const;
+  /// Per scan of numScans(): true if it is left out of the written drive (params().scan_drop).
+  std::vector<bool> droppedScans() const;
   double scanTime(size_t k) const { return double(k) / params_.lidar.rate_hz; }
 
   /// base_link (= IMU / OXTS frame, as in KITTI raw) pose in ENU at time t since start.
