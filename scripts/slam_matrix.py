@@ -50,17 +50,21 @@ SIM_DEFAULTS = {
     "gnss": "noisy",
     "manoeuvres": "none",
     "drop_scans": 0.0,
-    "dropout_burst": 1,
+    "dropout_burst": 0,  # N or "N@T": one burst of N consecutive missing scans (at T s)
 }
 DEFAULT_SIM_ARGS = "--motion-distortion --kitti-calibration-error"  # as scripts/demo.sh
 BASELINE_LABEL = "odom+loops"
 TOOLS = ("simulate_urban", "offline_slam", "evaluate_slam")
 
-# Time estimate of one drive (both cores for each tool): scans per metre of route (the routes
-# slow down in turns; measured: Karlsruhe 311 m -> 651 scans, 1503 m -> 3228; city 370 m -> 521),
-# simulate_urban and offline_slam scans per second.
-SCANS_PER_M = {"karlsruhe": 2.15, "city": 1.45}
-SCANS_PER_M_OTHER = 2.0
+# Time estimate of one drive (both cores for each tool): scans per requested metre and the fewest
+# scans of a route (the routes slow down in turns and end at a junction; simulate_urban seeds 1-3:
+# Karlsruhe 200 m -> 470-540 scans, 300 m -> 650-920, 1500 m -> 3420-3630; city 200/300 m ->
+# 460-700, 1500 m -> 2040-2160), simulate_urban and offline_slam scans per second.
+SCANS_PER_M = {"karlsruhe": 2.35, "city": 1.4}
+MIN_SCANS = {"karlsruhe": 500, "city": 560}
+SCANS_PER_M_OTHER, MIN_SCANS_OTHER = 2.0, 500
+MANOEUVRES_ALL_S = 230.0  # drive time [s] manoeuvres 'all' add (city 52 -> 276 s, Karlsruhe 65 -> 286 s)
+MANOEUVRE_S = 50.0  # ... and each single manoeuvre (measured 13-85 s)
 SIM_SCANS_PER_S = 10.0
 SLAM_SCANS_PER_S = 19.0
 DRIVE_OVERHEAD_S = 8.0
@@ -77,7 +81,7 @@ PRESETS = {
         "gnss": ["noisy"],
         "manoeuvres": ["none"],
         "drop_scans": [0.0],
-        "dropout_burst": [1],
+        "dropout_burst": [0],
         "design": "rotation",
         "per_cell_short": 3,
         "per_cell_long": 1,
@@ -92,13 +96,14 @@ PRESETS = {
         "gnss": ["noisy"],
         "manoeuvres": ["none"],
         "drop_scans": [0.0],
-        "dropout_burst": [1],
+        "dropout_burst": [0],
         "design": "rotation",
         "per_cell_short": 2,
         "per_cell_long": 2,
     },
-    # The front-end under manoeuvres and dropped scans, with the plain drive as control:
-    # 2 worlds x {none, all} x {no drops, 5 % in bursts of 5}, 300 m: 8 drives.
+    # The front-end under manoeuvres and missing scans: per world the plain drive (the control),
+    # each stressor alone, and all of them together; 300 m requested (manoeuvres 'all' make the
+    # route 1.0-1.6 km): 10 drives.
     "stress": {
         "worlds": ["karlsruhe", "city"],
         "seeds": [1],
@@ -106,10 +111,17 @@ PRESETS = {
         "prior_models": ["independent"],
         "sensors": ["hdl64e"],
         "gnss": ["noisy"],
-        "manoeuvres": ["none", "all"],
-        "drop_scans": [0.0, 0.05],
-        "dropout_burst": [5],
+        "manoeuvres": ["none"],
+        "drop_scans": [0.0],
+        "dropout_burst": [0],
         "design": "product",
+        "scenarios": [
+            {},
+            {"drop_scans": 0.05},
+            {"dropout_burst": 20},
+            {"manoeuvres": "all"},
+            {"manoeuvres": "all", "drop_scans": 0.05, "dropout_burst": 20},
+        ],
     },
 }
 LONG_DRIVE_M = 1000  # rotation design: drives of at least this length get per_cell_long pairs
@@ -181,8 +193,15 @@ class Drive:
         self.gnss = gnss
         self.manoeuvres = manoeuvres
         self.drop_scans = float(drop_scans)
-        # The burst length means nothing without drops: one drive, not one per burst length.
-        self.dropout_burst = int(dropout_burst) if self.drop_scans > 0 else SIM_DEFAULTS["dropout_burst"]
+        self.dropout_burst = parse_burst(dropout_burst)
+
+    def replaced(self, **changes):
+        fields = {"world": self.world, "seed": self.seed, "length": self.length,
+                  "prior_model": self.prior_model, "sensor": self.sensor, "gnss": self.gnss,
+                  "manoeuvres": self.manoeuvres, "drop_scans": self.drop_scans,
+                  "dropout_burst": self.dropout_burst}
+        fields.update(changes)
+        return Drive(**fields)
 
     def key(self):
         return (self.world, self.seed, self.length, self.prior_model, self.sensor, self.gnss,
@@ -205,7 +224,9 @@ class Drive:
         if self.manoeuvres != SIM_DEFAULTS["manoeuvres"]:
             parts.append("man-" + self.manoeuvres.replace(",", "+"))
         if self.drop_scans > 0:
-            parts.append("drop%sx%d" % (fmt_num(self.drop_scans), self.dropout_burst))
+            parts.append("drop" + fmt_num(self.drop_scans))
+        if self.dropout_burst != SIM_DEFAULTS["dropout_burst"]:
+            parts.append("burst" + str(self.dropout_burst).replace("@", "at"))
         return re.sub(r"[^A-Za-z0-9_.+-]", "-", "_".join(parts))
 
     def sim_flags(self):
@@ -229,8 +250,8 @@ class Drive:
             flags += ["--manoeuvres", self.manoeuvres]
         if self.drop_scans > 0:
             flags += ["--drop-scans", fmt_num(self.drop_scans)]
-            if self.dropout_burst != SIM_DEFAULTS["dropout_burst"]:
-                flags += ["--dropout-burst", str(self.dropout_burst)]
+        if self.dropout_burst != SIM_DEFAULTS["dropout_burst"]:
+            flags += ["--dropout-burst", str(self.dropout_burst)]
         return flags
 
     def axes(self):
@@ -240,12 +261,31 @@ class Drive:
                 "drop_scans": self.drop_scans, "dropout_burst": self.dropout_burst}
 
     def estimated_scans(self):
-        return self.length * SCANS_PER_M.get(self.world.label, SCANS_PER_M_OTHER)
+        label = self.world.label
+        scans = max(MIN_SCANS.get(label, MIN_SCANS_OTHER),
+                    self.length * SCANS_PER_M.get(label, SCANS_PER_M_OTHER))
+        if self.manoeuvres == "all":
+            scans += MANOEUVRES_ALL_S * 10.0
+        elif self.manoeuvres != "none":
+            scans += MANOEUVRE_S * 10.0 * len(self.manoeuvres.split(","))
+        return scans
 
     def estimated_seconds(self):
         """Wall time with both cores: simulate, two offline_slam passes, evaluate."""
         scans = self.estimated_scans()
         return scans / SIM_SCANS_PER_S + 2 * scans / SLAM_SCANS_PER_S + DRIVE_OVERHEAD_S
+
+
+BURST = re.compile(r"^(\d+)(@\d+(\.\d*)?)?$")
+
+
+def parse_burst(value):
+    """simulate_urban --dropout-burst N[@T]: N (int) or 'N@T'; 0 = no burst."""
+    text = str(value).strip()
+    m = BURST.match(text)
+    if not m:
+        raise MatrixError("--dropout-burst takes N or N@T (scans, seconds), not '%s'" % text)
+    return int(text) if not m.group(2) else text
 
 
 def diagonal_combinations(lists):
@@ -266,11 +306,12 @@ def diagonal_combinations(lists):
     return out
 
 
-def build_grid(axes, design, per_cell_short=1, per_cell_long=1):
+def build_grid(axes, design, per_cell_short=1, per_cell_long=1, scenarios=None):
     """The drives of a matrix. design 'product': every combination of the axes. 'rotation':
     every world x seed x length x (gnss, manoeuvres, drops) cell gets per_cell (prior model,
     sensor) pairs in diagonal rotation, the rotation running on across the cells of one length,
-    so every pair appears and every prior model and sensor meets each world and each length."""
+    so every pair appears and every prior model and sensor meets each world and each length.
+    scenarios (dicts of Drive fields): each drive once per scenario, with its values."""
     def cells(lengths):
         return itertools.product(axes["worlds"], axes["seeds"], lengths, axes["gnss"],
                                  axes["manoeuvres"], axes["drop_scans"], axes["dropout_burst"])
@@ -293,6 +334,8 @@ def build_grid(axes, design, per_cell_short=1, per_cell_long=1):
                     drives.append(Drive(w, s, l, p, sensor, g, m, d, b))
     else:
         raise MatrixError("unknown design '%s'" % design)
+    if scenarios:
+        drives = [d.replaced(**sc) for d in drives for sc in scenarios]
     # One drive per parameter set, in table order: world, length, seed, then the rest.
     unique = list(dict.fromkeys(drives))
     worlds = list(dict.fromkeys(axes["worlds"]))
@@ -311,13 +354,16 @@ def split_values(values, convert, split=True):
 
 
 def axes_from_args(args):
-    """(axes, design, per_cell_short, per_cell_long): the preset's axes, explicit ones replacing
-    theirs; without a preset the product of the given axes (defaults for the others)."""
+    """(axes, design, per_cell_short, per_cell_long, scenarios): the preset's axes, explicit
+    ones replacing theirs (and their values in the preset's scenarios); without a preset the
+    product of the given axes (defaults for the others)."""
+    scenarios = None
     if args.preset:
         p = PRESETS[args.preset]
         axes = {a: list(p[a]) for a in AXES}
         axes["worlds"] = [parse_world(w, REPO) for w in axes["worlds"]]
         design, short, long_ = p["design"], p.get("per_cell_short", 1), p.get("per_cell_long", 1)
+        scenarios = [dict(sc) for sc in p.get("scenarios", [])]
     else:
         axes = {"worlds": [World("city")], "seeds": [1], "lengths": [300],
                 "prior_models": [SIM_DEFAULTS["prior_model"]], "sensors": [SIM_DEFAULTS["sensor"]],
@@ -355,15 +401,17 @@ def axes_from_args(args):
         # a manoeuvre list has commas of its own: one value per --manoeuvres
         "manoeuvres": split_values(args.manoeuvres, str, split=False),
         "drop_scans": split_values(args.drop_scans, number(float, "--drop-scans", 0.0)),
-        "dropout_burst": split_values(args.dropout_burst, number(int, "--dropout-burst", 1)),
+        "dropout_burst": split_values(args.dropout_burst, parse_burst),
     }
     for a, values in explicit.items():
         if values:
             axes[a] = list(dict.fromkeys(values))
+            for sc in scenarios or []:
+                sc.pop(a, None)
     for d in axes["drop_scans"]:
         if d >= 1.0:
             raise MatrixError("--drop-scans is a fraction below 1, not '%s'" % d)
-    return axes, design, short, long_
+    return axes, design, short, long_, scenarios
 
 
 # --- reading the results -----------------------------------------------------------------------
@@ -708,8 +756,8 @@ def format_table(rows, summary=None):
     extra = []
     if any(r.get("manoeuvres", SIM_DEFAULTS["manoeuvres"]) != SIM_DEFAULTS["manoeuvres"] for r in rows):
         extra.append(("manoeuvres", 16))
-    if any((r.get("drop_scans") or 0) > 0 for r in rows):
-        extra.append(("drops", 8))
+    if any((r.get("drop_scans") or 0) > 0 or r.get("dropout_burst") not in (None, 0) for r in rows):
+        extra.append(("drops", 10))
     head = [h.ljust(w) if h in ("world", "prior", "sensor", "gnss", "manoeuvres", "drops") else h.rjust(w)
             for h, w in AXIS_COLUMNS + extra]
     head += [h.rjust(w) for _, h, w, _, _ in COLUMNS] + ["status"]
@@ -726,8 +774,9 @@ def format_table(rows, summary=None):
             if name == "manoeuvres":
                 cells.append(cut(str(r.get("manoeuvres", "")), w).ljust(w))
             else:
-                d = r.get("drop_scans") or 0
-                text = "%sx%d" % (fmt_num(float(d)), r.get("dropout_burst", 1)) if d > 0 else "-"
+                d, burst = r.get("drop_scans") or 0, r.get("dropout_burst") or 0
+                parts = ([fmt_num(float(d))] if d > 0 else []) + (["b%s" % burst] if burst else [])
+                text = "+".join(parts) or "-"
                 cells.append(cut(text, w).ljust(w))
         metrics = r.get("metrics") or {}
         for key, _, w, fmt, _ in COLUMNS:
@@ -1133,11 +1182,17 @@ def load_result(drive, out):
 def evaluate_options(bin_dir):
     """Which of the newer evaluate_slam options this build knows (from its usage text)."""
     try:
-        p = subprocess.run([os.path.join(bin_dir, "evaluate_slam"), "--help"], stdin=subprocess.DEVNULL,
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=30)
-        text = p.stdout.decode("utf-8", "replace")
-    except (OSError, subprocess.SubprocessError):
+        p = subprocess.Popen([os.path.join(bin_dir, "evaluate_slam"), "--help"], stdin=subprocess.DEVNULL,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    except OSError:
         return set()
+    try:
+        text = p.communicate(timeout=30)[0].decode("utf-8", "replace")
+    except BaseException:  # a timeout or Ctrl-C: stop its whole group, then go on / re-raise
+        Context._stop(p)
+        if sys.exc_info()[0] is subprocess.TimeoutExpired:
+            return set()
+        raise
     return {o for o in ("--run-report", "--loops", "--min-coverage") if o in text}
 
 
@@ -1156,7 +1211,11 @@ def plan(drives, out, force=False, retry_failed=False):
     return to_run, stored
 
 
-def run_matrix(drives, ctx, to_run, jobs, runner=run_drive, log=print):
+def print_flushed(text):
+    print(text, flush=True)  # progress lines appear at once also when stdout is a file
+
+
+def run_matrix(drives, ctx, to_run, jobs, runner=run_drive, log=print_flushed):
     """Runs the drives of to_run (longest first, `jobs` at a time); returns {drive: row}."""
     results = {}
     if not to_run:
@@ -1229,7 +1288,8 @@ def build_parser():
     g.add_argument("--manoeuvres", action="append", metavar="LIST",
                    help="one simulate_urban --manoeuvres value per option (none, all, sharp_turn,stop ...)")
     g.add_argument("--drop-scans", action="append", metavar="F", help="fraction of scans dropped")
-    g.add_argument("--dropout-burst", action="append", metavar="N", help="dropped scans per burst")
+    g.add_argument("--dropout-burst", action="append", metavar="N[@T]",
+                   help="one burst of N consecutive missing scans (at T s); 0 = none")
     ap.add_argument("--sim-args", default=DEFAULT_SIM_ARGS,
                     help="extra simulate_urban options for every drive (default: '%(default)s')")
     ap.add_argument("--bin", default=os.path.join(REPO, "build_ws", "devel", "lib", "osm_graph_slam"),
@@ -1255,7 +1315,7 @@ def build_parser():
     return ap
 
 
-def main(argv=None, log=print):
+def main(argv=None, log=print_flushed):
     args = build_parser().parse_args(argv)
     try:
         return _main(args, log)
@@ -1275,8 +1335,7 @@ def _main(args, log):
                                     args.sensor, args.gnss, args.manoeuvres, args.drop_scans,
                                     args.dropout_burst]):
         raise MatrixError("give --preset quick|default|stress or the axes (--world, --seed, --length, ...)")
-    axes, design, short, long_ = axes_from_args(args)
-    drives = build_grid(axes, design, short, long_)
+    drives = build_grid(*axes_from_args(args))
     try:
         sim_args = shlex.split(args.sim_args)
     except ValueError as e:

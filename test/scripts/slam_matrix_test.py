@@ -170,8 +170,16 @@ class GridTest(unittest.TestCase):
         drives = preset_drives("stress")
         self.assertTrue(any(d.manoeuvres != "none" for d in drives))
         self.assertTrue(any(d.drop_scans > 0 for d in drives))
+        self.assertTrue(any(d.dropout_burst for d in drives))
         self.assertTrue(any(d.manoeuvres == "none" and d.drop_scans == 0 for d in drives))
         self.assertEqual({d.world.label for d in drives}, {"karlsruhe", "city"})
+
+    def test_stress_scenarios_give_way_to_explicit_axes(self):
+        self.assertEqual(len(preset_drives("stress")), 10)
+        drives = preset_drives("stress", ["--manoeuvres", "sharp_turn"])
+        self.assertEqual(len(drives), 8)
+        self.assertEqual({d.manoeuvres for d in drives}, {"sharp_turn"})
+        self.assertEqual({(d.drop_scans, d.dropout_burst) for d in drives}, {(0, 0), (0.05, 0), (0, 20), (0.05, 20)})
 
     def test_explicit_axes_replace_the_presets(self):
         drives = preset_drives("default", ["--sensor", "os1_64", "--seed", "7,8"])
@@ -204,9 +212,13 @@ class GridTest(unittest.TestCase):
         self.assertEqual(d.sim_flags(), ["--seed", "2", "--length", "150", "--osm", "/x.osm", "--prior-model",
                                          "global", "--sensor", "os1_64", "--rtk", "--manoeuvres",
                                          "sharp_turn,stop", "--drop-scans", "0.05", "--dropout-burst", "5"])
-        self.assertEqual(d.name, "k_s2_150m_global_os1_64_rtk_man-sharp_turn+stop_drop0.05x5")
-        # a burst length without drops is the same drive as the default one
-        self.assertEqual(sm.Drive(city, 1, 300, dropout_burst=5), sm.Drive(city, 1, 300))
+        self.assertEqual(d.name, "k_s2_150m_global_os1_64_rtk_man-sharp_turn+stop_drop0.05_burst5")
+        d = sm.Drive(city, 1, 300, dropout_burst="20@30.5")
+        self.assertEqual(d.sim_flags()[-2:], ["--dropout-burst", "20@30.5"])
+        self.assertEqual(d.name, "city_s1_300m_independent_hdl64e_noisy_burst20at30.5")
+        self.assertEqual(sm.Drive(city, 1, 300, dropout_burst="0"), sm.Drive(city, 1, 300))
+        with self.assertRaises(sm.MatrixError):
+            sm.parse_burst("x@1")
 
     def test_world_specs(self):
         self.assertEqual(sm.parse_world("city").path, None)
