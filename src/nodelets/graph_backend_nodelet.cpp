@@ -105,6 +105,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     kf.odom_pose = fromPoseMsg(msg->odom_pose);
     kf.accum_distance = msg->accum_distance;
     kf.odom_fitness = msg->fitness;
+    kf.reanchored = msg->tracking_recovered;
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
     if (fromPointCloud2(msg->cloud, *cloud, &error)) {

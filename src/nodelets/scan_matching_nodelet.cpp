@@ -106,6 +106,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->odom_pose = toPoseMsg(kf.pose);
     msg->accum_distance = kf.accum_distance;
     msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
+    msg->tracking_recovered = result.reanchored;
+    msg->recovery_gap = result.gap;
     msg->cloud = cloud;
     keyframe_pub_.publish(boost::shared_ptr<const KeyFrame>(msg));
   }
@@ -126,7 +128,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->message = result.failed() ? std::string(toString(result.status)) + ": " + result.message
                                    : std::string(toString(result.status));
     const TrackingStats health = health_->stats();
-    msg->tracking_state = toString(health_->state());
+    msg->tracking_state = result.reanchored ? "recovered" : toString(health_->state());
     msg->failed_matches = static_cast<uint32_t>(health.failed_matches);
     msg->lost_events = static_cast<uint32_t>(health.lost_events);
     msg->time_since_keyframe = health_->timeSinceKeyframe();

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <exception>
 #include <sstream>
+#include <stdexcept>
+#include <vector>
 
 namespace osm_graph_slam {
 namespace {
@@ -34,12 +36,22 @@ const char* toString(TrackStatus status) {
       return "rejected_stamp";
     case TrackStatus::kRejectedCloud:
       return "rejected_cloud";
+    case TrackStatus::kReanchored:
+      return "reanchored";
   }
   return "unknown";
 }
 
 KeyframeTracker::KeyframeTracker(const KeyframeTrackerParams& params)
-    : params_(params), registration_(createRegistration(params.registration)) {}
+    : params_(params),
+      registration_(createRegistration(params.registration)),
+      fitness_gate_(params.fitness_ratio, params.fitness_ratio_floor) {
+  if (params_.guess != "constant_velocity" && params_.guess != "pre_tracker")
+    throw std::invalid_argument("unknown guess '" + params_.guess +
+                                "' (constant_velocity | pre_tracker)");
+  if (params_.guess == "pre_tracker" || params_.recovery)
+    pre_tracker_ = std::make_unique<PreTracker>(params_.pre_tracker, params_.registration);
+}
 
 KeyframeTracker::~KeyframeTracker() = default;
 
@@ -50,6 +62,9 @@ void KeyframeTracker::reset() {
   pose_ = prev_pose_ = Eigen::Isometry3d::Identity();
   last_stamp_ = prev_stamp_ = 0.0;
   poses_seen_ = 0;
+  failures_in_row_ = 0;
+  fitness_gate_.clear();
+  if (pre_tracker_) pre_tracker_->reset();
 }
 
 Eigen::Isometry3d KeyframeTracker::predict(double stamp) const {
@@ -68,6 +83,9 @@ bool KeyframeTracker::acceptMatch(const RegistrationResult& reg, const Eigen::Is
     why << "registration failed: " << reg.message;
   } else if (!(reg.fitness <= params_.max_fitness)) {
     why << "fitness " << reg.fitness << " above max_fitness " << params_.max_fitness;
+  } else if (!fitness_gate_.accepts(reg.fitness)) {
+    why << "fitness " << reg.fitness << " above " << params_.fitness_ratio
+        << " x the recent median (limit " << fitness_gate_.limit() << ")";
   } else {
     const Eigen::Isometry3d correction = guess.inverse() * reg.transform;
     const double dt = correction.translation().norm();
@@ -80,6 +98,44 @@ bool KeyframeTracker::acceptMatch(const RegistrationResult& reg, const Eigen::Is
   }
   *reason = why.str();
   return false;
+}
+
+bool KeyframeTracker::attempt(const PointCloudConstPtr& cloud, const Guess& guess,
+                              TrackResult& result, Eigen::Isometry3d& relative) {
+  const Eigen::Isometry3d guess_relative = keyframe_.pose.inverse() * guess.pose;
+  RegistrationResult reg;
+  try {
+    reg = registration_->align(cloud, guess_relative);
+  } catch (const std::exception& e) {
+    reg.message = std::string("exception: ") + e.what();
+  }
+  ++result.attempts;
+  std::string reason;
+  const bool accepted = acceptMatch(reg, guess_relative, &reason);
+  if (result.attempts == 1 || accepted) {
+    result.registration = reg;
+    result.message = reason;
+  }
+  if (!accepted) return false;
+  relative = reg.transform;
+  result.guess_source = guess.source;
+  return true;
+}
+
+std::optional<Eigen::Isometry3d> KeyframeTracker::preTracked(
+    const PointCloudConstPtr& cloud, const Eigen::Isometry3d& constant_velocity,
+    TrackResult& result) {
+  if (pre_tracked_ || !pre_tracker_) return pre_tracked_pose_;
+  pre_tracked_ = true;
+  // The scan-to-scan motion, starting from the constant-velocity one.
+  // The tracker's adaptive limit bounds it too: the pre-tracker may have no history of its own
+  // when it runs only to recover.
+  if (const auto e = pre_tracker_->estimate(cloud, pose_.inverse() * constant_velocity,
+                                            fitness_gate_.limit())) {
+    result.pre_tracker_ms = e->time_ms;
+    pre_tracked_pose_ = pose_ * e->motion;
+  }
+  return pre_tracked_pose_;
 }
 
 bool KeyframeTracker::needsKeyframe(const Eigen::Isometry3d& relative, double stamp) const {
@@ -138,6 +194,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     }
     last_stamp_ = prev_stamp_ = stamp;
     poses_seen_ = 1;
+    if (pre_tracker_) pre_tracker_->remember(cloud);
     result.status = TrackStatus::kFirstKeyframe;
     result.new_keyframe = true;
     result.pose = pose_;
@@ -145,20 +202,53 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     return result;
   }
 
-  const Eigen::Isometry3d predicted = predict(stamp);
-  const Eigen::Isometry3d guess = keyframe_.pose.inverse() * predicted;
-  try {
-    result.registration = registration_->align(cloud, guess);
-  } catch (const std::exception& e) {
-    result.registration = RegistrationResult();
-    result.registration.message = std::string("exception: ") + e.what();
+  const Eigen::Isometry3d constant_velocity = predict(stamp);
+  pre_tracked_ = false;
+  pre_tracked_pose_.reset();
+  Guess best{"constant_velocity", constant_velocity};
+  if (params_.guess == "pre_tracker")
+    if (const auto p = preTracked(cloud, constant_velocity, result)) best = {"pre_tracker", *p};
+
+  Eigen::Isometry3d relative = keyframe_.pose.inverse() * best.pose;
+  bool matched = attempt(cloud, best, result, relative);
+  const std::string first_failure = result.message;
+  if (!matched && params_.recovery) {
+    // Other guesses, most likely first; the best of them is kept if every one fails.
+    std::vector<Guess> retries;
+    if (best.source == std::string("constant_velocity")) {
+      if (const auto p = preTracked(cloud, constant_velocity, result)) {
+        best = {"pre_tracker", *p};
+        retries.push_back(best);
+      }
+    } else {
+      retries.push_back({"constant_velocity", constant_velocity});
+    }
+    retries.push_back({"zero_motion", pose_});
+    for (int k = 1; k <= params_.recovery_yaw_steps; ++k)
+      for (const double sign : {1.0, -1.0}) {
+        Guess g{"yaw_hypothesis", best.pose};
+        g.pose.linear() =
+            best.pose.linear() *
+            Eigen::AngleAxisd(sign * k * params_.recovery_yaw_step, Eigen::Vector3d::UnitZ())
+                .toRotationMatrix();
+        retries.push_back(g);
+      }
+    for (const Guess& g : retries)
+      if ((matched = attempt(cloud, g, result, relative))) break;
+    if (!matched) relative = keyframe_.pose.inverse() * best.pose;
   }
-  Eigen::Isometry3d relative = guess;
-  if (acceptMatch(result.registration, guess, &result.message)) {
-    relative = result.registration.transform;
+  if (matched) {
     result.status = TrackStatus::kMatched;
+    failures_in_row_ = 0;
+    fitness_gate_.add(result.registration.fitness);
   } else {
     result.status = TrackStatus::kMatchFailed;
+    result.guess_source = best.source;
+    result.message =
+        first_failure + (result.attempts > 1 ? " (and " + std::to_string(result.attempts - 1) +
+                                                   " retries from other guesses)"
+                                             : std::string());
+    ++failures_in_row_;
   }
 
   prev_pose_ = pose_;
@@ -169,12 +259,24 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
   result.pose = pose_;
   result.relative_to_keyframe = relative;
   result.keyframe_id = keyframe_.id;
+  if (pre_tracker_) pre_tracker_->remember(cloud);
   // Only a verified match may become a keyframe: a predicted pose would anchor later scans on
-  // a guess.
-  if (result.status == TrackStatus::kMatched && needsKeyframe(relative, stamp)) {
+  // a guess. The exception is re-anchoring after failures in a row, flagged for the back-end:
+  // without it the keyframe falls ever further behind and the rest of the drive is lost.
+  if (matched && needsKeyframe(relative, stamp)) {
     makeKeyframe(stamp, cloud);
     result.new_keyframe = true;
     result.keyframe_id = keyframe_.id;
+  } else if (!matched && params_.reanchor_after_failures > 0 &&
+             failures_in_row_ >= params_.reanchor_after_failures) {
+    result.gap = stamp - keyframe_.stamp;
+    makeKeyframe(stamp, cloud);
+    result.status = TrackStatus::kReanchored;
+    result.new_keyframe = result.reanchored = true;
+    result.keyframe_id = keyframe_.id;
+    result.message += "; re-anchored on the " + std::string(best.source) + " guess after " +
+                      std::to_string(failures_in_row_) + " failed matches";
+    failures_in_row_ = 0;
   }
   return result;
 }

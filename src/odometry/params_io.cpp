@@ -16,10 +16,24 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("keyframe_delta_time", p.keyframe_delta_time);
   r.param("constant_velocity_guess", p.constant_velocity_guess);
   r.param("max_fitness", p.max_fitness);
+  r.param("fitness_ratio", p.fitness_ratio);
+  r.param("fitness_ratio_floor", p.fitness_ratio_floor);
   r.param("max_correction_trans", p.max_correction_trans);
   r.param("max_correction_angle", p.max_correction_angle);
   r.param("min_points", p.min_points);
   r.param("lost_track_after", p.lost_track_after);
+  r.param("guess", p.guess);
+  r.param("pre_tracker_coarse_voxel", p.pre_tracker.coarse_voxel);
+  r.param("pre_tracker_fine_voxel", p.pre_tracker.fine_voxel);
+  r.param("pre_tracker_coarse_max_correspondence", p.pre_tracker.coarse_max_correspondence);
+  r.param("pre_tracker_fine_max_correspondence", p.pre_tracker.fine_max_correspondence);
+  r.param("pre_tracker_max_fitness", p.pre_tracker.max_fitness);
+  r.param("pre_tracker_fitness_ratio", p.pre_tracker.fitness_ratio);
+  r.param("pre_tracker_fitness_ratio_floor", p.pre_tracker.fitness_ratio_floor);
+  r.param("recovery", p.recovery);
+  r.param("recovery_yaw_step", p.recovery_yaw_step);
+  r.param("recovery_yaw_steps", p.recovery_yaw_steps);
+  r.param("reanchor_after_failures", p.reanchor_after_failures);
 }
 
 }  // namespace osm_graph_slam

@@ -32,6 +32,11 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
       ++stats_.failed_matches;
       ++failures_in_row_;
       break;
+    case TrackStatus::kReanchored:
+      ++stats_.failed_matches;
+      ++stats_.reanchors;
+      failures_in_row_ = 0;
+      break;
     case TrackStatus::kRejectedStamp:
     case TrackStatus::kRejectedCloud:
       return updateRejected(stamp, result.message);
@@ -50,9 +55,10 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
       char buf[256];
       std::snprintf(buf, sizeof(buf),
                     "tracking recovered at scan %zu (stamp %.3f): keyframe %llu after %.1f s "
-                    "without one",
+                    "without one%s",
                     stats_.scans - 1, stamp, static_cast<unsigned long long>(result.keyframe_id),
-                    gap);
+                    gap,
+                    result.reanchored ? " (re-anchored on a guess: a weak odometry link)" : "");
       event = TrackingEvent{TrackingState::kOk, buf};
     }
   }

@@ -314,8 +314,14 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
       kf.map_pose = prev.map_pose * delta;
       s.graph.addVertexSE3(vid, kf.map_pose);
-      const Matrix6d info =
-          odometryInformation(in.odom_fitness, params_.odometry, delta.translation());
+      Matrix6d info = odometryInformation(in.odom_fitness, params_.odometry, delta.translation());
+      if (in.reanchored) {
+        info.setZero();
+        info.diagonal().head<3>().setConstant(1.0 / std::pow(params_.reanchor_std_xyz, 2));
+        info.diagonal().tail<3>().setConstant(1.0 / std::pow(params_.reanchor_std_rot, 2));
+        logger_->info("keyframe " + std::to_string(in.id) +
+                      " was re-anchored after a lost track: weak odometry edge");
+      }
       s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta, info, EdgeOptions{0, {}});
       // Levels >= 1 (the joint phase) see the odometry joint_odometry_weight times stiffer: the
       // buildings then correct the drift smoothly instead of kinking single keyframes.

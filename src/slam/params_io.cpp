@@ -36,6 +36,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_max_std_yaw", p.odometry.max_std_yaw);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
   r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
+  r.param("reanchor_std_xyz", p.reanchor_std_xyz);
+  r.param("reanchor_std_rot", p.reanchor_std_rot);
   if (!(p.odometry.lateral_std_ratio > 0.0)) {
     if (error) *error = "odometry_lateral_std_ratio must be > 0";
     p.odometry.lateral_std_ratio = InformationParams{}.lateral_std_ratio;

@@ -85,16 +85,17 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
     StageTimer t(timings_.tracking_ms);
     result = tracker_.track(stamp, filtered.cloud);
   }
+  timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));
   if (!result.has_pose()) return false;
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
                     result.registration.converged ? result.registration.fitness : -1.0,
-                    gravity_roll_pitch, gnss_position);
+                    result.reanchored, gravity_roll_pitch, gnss_position);
   return true;
 }
 
-void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
+void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
                                    const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
                                    const std::optional<Eigen::Vector2d>& gnss_position) {
   ++timings_.keyframes;
@@ -104,6 +105,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness,
   input.odom_pose = kf.pose;
   input.accum_distance = kf.accum_distance;
   input.odom_fitness = fitness;
+  input.reanchored = reanchored;
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = gravity_roll_pitch;
   input.gnss_position = gnss_position;
@@ -219,10 +221,11 @@ std::string SlamPipeline::timingTable() const {
   const TrackingStats& k = t.tracking;
   char track[512];
   std::snprintf(track, sizeof(track),
-                "tracking: %zu matched, %zu failed matches, %zu rejected scans; %zu lost track(s), "
-                "%zu scans while lost, longest %.1f s without a keyframe%s\n",
-                k.matched, k.failed_matches, k.rejected_scans, k.lost_events, k.scans_while_lost,
-                k.longest_no_keyframe_s,
+                "tracking: %zu matched, %zu failed matches, %zu rejected scans, %zu re-anchored "
+                "keyframes; %zu lost track(s), %zu scans while lost, longest %.1f s without a "
+                "keyframe; pre-tracker %.0f ms%s\n",
+                k.matched, k.failed_matches, k.rejected_scans, k.reanchors, k.lost_events,
+                k.scans_while_lost, k.longest_no_keyframe_s, t.pre_tracker_ms,
                 k.lost_events ? "  <-- WARNING: part of the drive has no keyframe" : "");
   return std::string(buf) + track;
 }
@@ -243,13 +246,15 @@ std::string SlamPipeline::timingJson() const {
                                 {"segments", t.segments_ms},
                                 {"loops", t.loops_ms},
                                 {"osm", t.osm_ms},
-                                {"backend", t.backend_ms}}},
+                                {"backend", t.backend_ms},
+                                {"pre_tracker", t.pre_tracker_ms}}},
                               {"tracking",
                                {{"scans", k.scans},
                                 {"matched", k.matched},
                                 {"failed_matches", k.failed_matches},
                                 {"rejected_scans", k.rejected_scans},
                                 {"lost_events", k.lost_events},
+                                {"reanchors", k.reanchors},
                                 {"scans_while_lost", k.scans_while_lost},
                                 {"first_stamp", k.first_stamp},
                                 {"last_stamp", k.last_stamp},

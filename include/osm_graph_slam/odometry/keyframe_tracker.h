@@ -8,6 +8,8 @@
 #include <string>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/odometry/fitness_gate.h"
+#include "osm_graph_slam/odometry/pre_tracker.h"
 #include "osm_graph_slam/registration/registration.h"
 
 namespace osm_graph_slam {
@@ -26,6 +28,10 @@ struct KeyframeTrackerParams {
   bool constant_velocity_guess = true;  ///< false: guess = last pose (zero motion)
   /// A match whose fitness (mean squared inlier distance) exceeds this is rejected [m^2].
   double max_fitness = 1.0;
+  /// ... or exceeds this many times the median fitness of the last accepted matches (FitnessGate:
+  /// a registration in the wrong basin fits far worse than the recent true ones). 0 disables.
+  double fitness_ratio = 4.0;
+  double fitness_ratio_floor = 0.05;  ///< [m^2] the adaptive limit never goes below this
   /// A match that moves further than this from the constant-velocity prediction is rejected.
   double max_correction_trans = 2.0;   ///< [m]
   double max_correction_angle = 0.35;  ///< [rad]
@@ -33,6 +39,18 @@ struct KeyframeTrackerParams {
   /// [s] without a keyframe after which the track counts as lost (logged once, counted; see
   /// TrackingHealth). Above keyframe_delta_time, so a track that keeps matching is never lost.
   double lost_track_after = 3.0;
+  /// Initial guess of each match: constant_velocity (the previous motion extrapolated) or
+  /// pre_tracker (scan-to-previous-scan registration, PreTracker; timed separately).
+  std::string guess = "constant_velocity";
+  PreTrackerParams pre_tracker;
+  /// After a failed match, retry from the other guesses: the pre-tracker's, zero motion, and
+  /// yaw hypotheses at +-k*recovery_yaw_step about the best guess (k = 1..recovery_yaw_steps).
+  bool recovery = true;
+  double recovery_yaw_step = 0.26;  ///< [rad] (15 deg)
+  int recovery_yaw_steps = 2;
+  /// After this many failed matches in a row, re-anchor: the scan becomes a keyframe at the best
+  /// guess, flagged so that the back-end links it by a weak odometry edge. 0 disables.
+  int reanchor_after_failures = 5;
 };
 
 enum class TrackStatus {
@@ -41,6 +59,7 @@ enum class TrackStatus {
   kMatchFailed,    ///< registration failed/rejected: the prediction was kept (flag raised)
   kRejectedStamp,  ///< stamp not after the last one: ignored, state unchanged
   kRejectedCloud,  ///< empty/too small cloud: ignored, state unchanged
+  kReanchored,     ///< matches kept failing: a new keyframe at the best guess (a weak link)
 };
 
 const char* toString(TrackStatus status);
@@ -66,8 +85,15 @@ struct TrackResult {
   Eigen::Isometry3d relative_to_keyframe = Eigen::Isometry3d::Identity();
   uint64_t keyframe_id = 0;  ///< keyframe matched against (the new one if new_keyframe)
   bool new_keyframe = false;
+  /// The new keyframe was re-anchored on a guess after failed matches (not a verified match);
+  /// gap: [s] since the previous keyframe.
+  bool reanchored = false;
+  double gap = 0.0;
   RegistrationResult registration;
-  std::string message;  ///< reason when failed or rejected
+  std::string guess_source;     ///< guess of the accepted match (or of the kept prediction)
+  int attempts = 0;             ///< registrations tried against the keyframe
+  double pre_tracker_ms = 0.0;  ///< time of the pre-tracker's registration (0 when not run)
+  std::string message;          ///< reason when failed or rejected
 };
 
 class KeyframeTracker {
@@ -86,7 +112,18 @@ class KeyframeTracker {
   void reset();
 
  private:
+  struct Guess {
+    const char* source;
+    Eigen::Isometry3d pose;  ///< in odom
+  };
   Eigen::Isometry3d predict(double stamp) const;
+  /// Registers against the keyframe from `guess`; true (and result filled) when accepted.
+  bool attempt(const PointCloudConstPtr& cloud, const Guess& guess, TrackResult& result,
+               Eigen::Isometry3d& relative);
+  /// The pre-tracker's prediction of the scan's pose in odom (computed once per scan).
+  std::optional<Eigen::Isometry3d> preTracked(const PointCloudConstPtr& cloud,
+                                              const Eigen::Isometry3d& constant_velocity,
+                                              TrackResult& result);
   bool acceptMatch(const RegistrationResult& reg, const Eigen::Isometry3d& guess,
                    std::string* reason) const;
   bool needsKeyframe(const Eigen::Isometry3d& relative, double stamp) const;
@@ -94,6 +131,11 @@ class KeyframeTracker {
 
   KeyframeTrackerParams params_;
   std::unique_ptr<Registration> registration_;
+  std::unique_ptr<PreTracker> pre_tracker_;  ///< null unless a guess or the recovery uses it
+  bool pre_tracked_ = false;
+  std::optional<Eigen::Isometry3d> pre_tracked_pose_;
+  int failures_in_row_ = 0;
+  FitnessGate fitness_gate_;
   bool has_keyframe_ = false;
   Keyframe keyframe_;
   Eigen::Isometry3d pose_ = Eigen::Isometry3d::Identity();       ///< last pose in odom

@@ -20,8 +20,9 @@ struct TrackingStats {
   size_t failed_matches = 0;  ///< registrations failed or rejected (prediction kept)
   size_t rejected_scans = 0;  ///< empty/too small clouds and out-of-order stamps
   size_t keyframes = 0;
-  size_t lost_events = 0;                      ///< times the track was declared lost
-  size_t scans_while_lost = 0;                 ///< scans that arrived while the track was lost
+  size_t reanchors = 0;         ///< keyframes re-anchored on a guess after failed matches
+  size_t lost_events = 0;       ///< times the track was declared lost
+  size_t scans_while_lost = 0;  ///< scans that arrived while the track was lost
   double first_stamp = 0.0, last_stamp = 0.0;  ///< [s] of the scans offered (0 before any)
   double longest_no_keyframe_s = 0.0;          ///< longest span without a keyframe, open end too
 };

@@ -40,6 +40,10 @@ struct GraphBackendParams {
   bool use_osm = true;
   OsmMode mode = OsmMode::kNonRigid;
   InformationParams odometry;
+  /// Odometry edge to a keyframe the tracker re-anchored on a guess after failed matches: weak,
+  /// so that loops, GNSS and OSM matches can correct the jump across the gap.
+  double reanchor_std_xyz = 1.0;  ///< [m]
+  double reanchor_std_rot = 0.1;  ///< [rad] roll, pitch and yaw
   // --- attitude (OSM priors say nothing about roll and pitch) ---
   double imu_attitude_std = 0.01;  ///< [rad] roll/pitch prior of keyframes with an IMU attitude
   /// [rad] without an IMU, keyframes with a map prior keep odometry's roll/pitch this firmly, so

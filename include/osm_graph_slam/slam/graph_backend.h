@@ -31,7 +31,9 @@ struct KeyframeInput {
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
   double accum_distance = 0.0;
   double odom_fitness = -1.0;  ///< fitness of the match that made it (< 0: unknown)
-  PointCloudConstPtr cloud;    ///< filtered cloud in base_link (may be null)
+  /// The tracker re-anchored it on a guess after failed matches: a weak odometry edge.
+  bool reanchored = false;
+  PointCloudConstPtr cloud;  ///< filtered cloud in base_link (may be null)
   /// Roll and pitch of base_link against gravity (an IMU), if known [rad].
   std::optional<Eigen::Vector2d> gravity_roll_pitch;
   /// Where GNSS puts base_link at this keyframe's stamp, in the map frame (ENU from the map

@@ -37,8 +37,9 @@ struct PipelineTimings {
   double input_ms = 0;      ///< reading the scans (measured by the caller: addInputTime)
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
-  double wall_time_s = 0;  ///< from the first scan to finish()
-  TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
+  double pre_tracker_ms = 0;  ///< inside tracking_ms: the pre-tracker's registrations
+  double wall_time_s = 0;     ///< from the first scan to finish()
+  TrackingStats tracking;     ///< failed matches, lost tracks, the longest span without keyframe
   double scansPerSecond() const { return wall_time_s > 0 ? scans / wall_time_s : 0.0; }
 };
 
@@ -73,7 +74,7 @@ class SlamPipeline {
  private:
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
-  void processKeyframe(const Keyframe& kf, double fitness,
+  void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
                        const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
                        const std::optional<Eigen::Vector2d>& gnss_position);
 

@@ -1,0 +1,62 @@
+#pragma once
+// Pre-tracker (ART-SLAM thesis §3.1.5): the motion since the previous scan, from that scan
+// alone, heavily downsampled and registered at two scales (coarse, then finer). Scan-to-scan
+// motion is small (one sensor period), so it holds through sharp turns and strong accelerations
+// that a constant-velocity guess extrapolated from the previous motion does not. The tracker uses
+// it as its initial guess (guess: pre_tracker) or to recover after a failed match.
+#include <Eigen/Geometry>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/odometry/fitness_gate.h"
+#include "osm_graph_slam/registration/registration.h"
+
+namespace osm_graph_slam {
+
+struct PreTrackerParams {
+  double coarse_voxel = 1.5;               ///< [m] leaf of the coarse scale
+  double fine_voxel = 0.75;                ///< [m] leaf of the finer scale
+  double coarse_max_correspondence = 3.0;  ///< [m]
+  double fine_max_correspondence = 1.0;    ///< [m]
+  double max_fitness = 1.0;                ///< [m^2] a worse fine match gives no estimate
+  double fitness_ratio = 4.0;  ///< ... or one worse than this times the recent median (0: off)
+  double fitness_ratio_floor = 0.05;  ///< [m^2]
+};
+
+struct PreTrackerEstimate {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();  ///< current scan in previous's frame
+  double fitness = 0.0;
+  double time_ms = 0.0;
+};
+
+class PreTracker {
+ public:
+  PreTracker(const PreTrackerParams& params, const RegistrationParams& registration);
+  ~PreTracker();
+
+  /// Downsamples and keeps the scan; the next estimate() registers against it. Cheap (two voxel
+  /// grids): the registrations run only when estimate() is called.
+  void remember(const PointCloudConstPtr& cloud);
+  /// Motion of `cloud` relative to the remembered scan, starting from `guess`; nothing when no
+  /// scan is remembered or the match fails (fitness above max_fitness, the adaptive gate, or
+  /// `fitness_limit`: the caller's own plausibility bound while this gate has no history yet).
+  /// Does not remember `cloud`.
+  std::optional<PreTrackerEstimate> estimate(
+      const PointCloudConstPtr& cloud, const Eigen::Isometry3d& guess,
+      double fitness_limit = std::numeric_limits<double>::infinity());
+  bool ready() const { return previous_coarse_ != nullptr; }
+  void reset();
+
+ private:
+  PreTrackerParams params_;
+  std::unique_ptr<Registration> coarse_, fine_;
+  FitnessGate fitness_gate_;
+  PointCloudConstPtr previous_coarse_, previous_fine_;
+  PointCloudConstPtr current_coarse_, current_fine_;  ///< of the cloud last estimated
+  const PointCloud* current_source_ = nullptr;
+};
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,85 @@
+#include "osm_graph_slam/odometry/pre_tracker.h"
+
+#include <pcl/filters/approximate_voxel_grid.h>
+
+#include <chrono>
+
+namespace osm_graph_slam {
+namespace {
+
+PointCloudConstPtr downsample(const PointCloudConstPtr& cloud, double leaf) {
+  PointCloudPtr out(new PointCloud);
+  pcl::ApproximateVoxelGrid<PointT> grid;
+  const float l = static_cast<float>(leaf);
+  grid.setLeafSize(l, l, l);
+  grid.setInputCloud(cloud);
+  grid.filter(*out);
+  return out;
+}
+
+std::unique_ptr<Registration> scaleRegistration(RegistrationParams p, double max_correspondence) {
+  p.max_correspondence_distance = max_correspondence;
+  return createRegistration(p);
+}
+
+}  // namespace
+
+PreTracker::PreTracker(const PreTrackerParams& params, const RegistrationParams& registration)
+    : params_(params),
+      coarse_(scaleRegistration(registration, params.coarse_max_correspondence)),
+      fine_(scaleRegistration(registration, params.fine_max_correspondence)),
+      fitness_gate_(params.fitness_ratio, params.fitness_ratio_floor) {}
+
+PreTracker::~PreTracker() = default;
+
+void PreTracker::reset() {
+  previous_coarse_ = previous_fine_ = current_coarse_ = current_fine_ = nullptr;
+  current_source_ = nullptr;
+  fitness_gate_.clear();
+}
+
+void PreTracker::remember(const PointCloudConstPtr& cloud) {
+  if (!cloud || cloud->empty()) return;
+  if (cloud.get() == current_source_ && current_coarse_) {
+    previous_coarse_ = current_coarse_;  // estimated already: reuse its downsampled copies
+    previous_fine_ = current_fine_;
+  } else {
+    previous_coarse_ = downsample(cloud, params_.coarse_voxel);
+    previous_fine_ = downsample(cloud, params_.fine_voxel);
+  }
+  current_source_ = nullptr;
+  current_coarse_ = current_fine_ = nullptr;
+}
+
+std::optional<PreTrackerEstimate> PreTracker::estimate(const PointCloudConstPtr& cloud,
+                                                       const Eigen::Isometry3d& guess,
+                                                       double fitness_limit) {
+  if (!ready() || !cloud || cloud->empty()) return std::nullopt;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (cloud.get() != current_source_ || !current_coarse_) {
+    current_coarse_ = downsample(cloud, params_.coarse_voxel);
+    current_fine_ = downsample(cloud, params_.fine_voxel);
+    current_source_ = cloud.get();
+  }
+  PreTrackerEstimate out;
+  try {
+    coarse_->setTarget(previous_coarse_);
+    const RegistrationResult coarse = coarse_->align(current_coarse_, guess);
+    fine_->setTarget(previous_fine_);
+    const RegistrationResult fine =
+        fine_->align(current_fine_, coarse.converged ? coarse.transform : guess);
+    out.time_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (!fine.converged || !(fine.fitness <= params_.max_fitness) ||
+        !(fine.fitness <= fitness_limit) || !fitness_gate_.accepts(fine.fitness))
+      return std::nullopt;
+    fitness_gate_.add(fine.fitness);
+    out.motion = fine.transform;
+    out.fitness = fine.fitness;
+  } catch (const std::exception&) {
+    return std::nullopt;  // a degenerate cloud: no estimate, the tracker has other guesses
+  }
+  return out;
+}
+
+}  // namespace osm_graph_slam
