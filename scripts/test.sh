@@ -27,4 +27,9 @@ build_status=$?
 grep -E '^\[ *(OK|FAILED|SKIPPED|PASSED|RUN) *\]|^\[ROSTEST\]|^\[Testcase|FAILURE|error:|Error [0-9]' \
   "$WS/test.log" | grep -v '^\[ RUN' || true
 
+# Python tests of the scripts (slam_matrix.py); their JUnit XML joins the others.
+echo "[test] python tests (test/scripts)"
+/usr/bin/python3 "$ROOT/scripts/run_python_tests.py" "$WS/build/test_results/python/scripts.xml" \
+  > "$WS/python_tests.log" 2>&1 || grep -E "^(FAIL|ERROR):" "$WS/python_tests.log"
+
 /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$WS/build/test_results" --build-status "$build_status"
