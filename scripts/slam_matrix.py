@@ -995,6 +995,19 @@ def rejected_flags_hint(drive, log_path):
     return "simulate: simulate_urban rejected its arguments (printed its usage; see logs/simulate_urban.log)"
 
 
+def unwritable(folder):
+    """None when `folder` exists (made if needed) and takes a file; else the reason."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        probe = os.path.join(folder, ".slam_matrix_write_test")
+        with open(probe, "w"):
+            pass
+        os.remove(probe)
+    except OSError as e:
+        return str(e.strerror or e)
+    return None
+
+
 def run_drive(drive, ctx, force=False):
     """Runs one drive in ctx.out/<drive.name> and returns its row. Never raises for bad input or
     failing tools: the row's status says what went wrong."""
@@ -1003,14 +1016,9 @@ def run_drive(drive, ctx, force=False):
         return drive_row(drive, problem)
     d = os.path.join(ctx.out, drive.name)
     logs = os.path.join(d, "logs")
-    try:
-        os.makedirs(logs, exist_ok=True)
-        probe = os.path.join(logs, ".write_test")
-        with open(probe, "w"):
-            pass
-        os.remove(probe)
-    except OSError as e:
-        return drive_row(drive, "error: cannot write %s: %s" % (d, e.strerror or e))
+    problem = unwritable(logs)
+    if problem:
+        return drive_row(drive, "error: cannot write %s: %s" % (d, problem))
     steps = {}
     try:
         return _run_drive_steps(drive, ctx, d, logs, steps, force)
@@ -1349,14 +1357,9 @@ def _main(args, log):
         log(estimate_text(drives, args.jobs))
         return 0
 
-    try:
-        os.makedirs(out, exist_ok=True)
-        probe = os.path.join(out, ".slam_matrix_write_test")
-        with open(probe, "w"):
-            pass
-        os.remove(probe)
-    except OSError as e:
-        raise MatrixError("cannot write the output folder %s: %s" % (out, e.strerror or e)) from None
+    problem = unwritable(out)
+    if problem:
+        raise MatrixError("cannot write the output folder %s: %s" % (out, problem))
 
     to_run, stored = plan(drives, out, args.force, args.retry_failed)
     if args.no_run:
