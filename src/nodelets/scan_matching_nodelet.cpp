@@ -4,14 +4,17 @@
 #include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
+#include <mutex>
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/ScanMatchingStatus.h"
+#include "osm_graph_slam/odometry/imu_orientation_buffer.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/odometry/tracking_health.h"
@@ -44,10 +47,30 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
     status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);
     sub_ = nh.subscribe("filtered_points", 5, &ScanMatchingNodelet::onCloud, this);
+    // The IMU's orientation (or integrated rates) for the imu guesses and the recovery; its
+    // frame is taken to be base_link (kitti2bag and mulran2bag mount it there).
+    imu_sub_ = nh.subscribe("imu/data", 200, &ScanMatchingNodelet::onImu, this);
     NODELET_INFO("scan matching: %s, keyframe every %.2f m / %.3f rad / %.1f s, %s -> %s",
                  params.registration.method.c_str(), params.keyframe_delta_trans,
                  params.keyframe_delta_angle, params.keyframe_delta_time, odom_frame_.c_str(),
                  base_link_frame_.c_str());
+  }
+
+  void onImu(const sensor_msgs::ImuConstPtr& msg) {
+    const double stamp = msg->header.stamp.toSec();
+    std::lock_guard<std::mutex> lock(imu_mutex_);
+    if (msg->orientation_covariance[0] >= 0.0) {  // REP-145: -1 = no orientation
+      const auto& q = msg->orientation;
+      imu_.addOrientation(stamp, Eigen::Quaterniond(q.w, q.x, q.y, q.z));
+    } else {
+      const auto& w = msg->angular_velocity;
+      imu_.addAngularVelocity(stamp, Eigen::Vector3d(w.x, w.y, w.z));
+    }
+  }
+
+  std::optional<Eigen::Quaterniond> imuOrientationAt(double stamp) {
+    std::lock_guard<std::mutex> lock(imu_mutex_);
+    return imu_.orientationAt(stamp);
   }
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
@@ -63,7 +86,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(warn_period_, "filtered_points in frame '%s', expected '%s'",
                             msg->header.frame_id.c_str(), base_link_frame_.c_str());
     }
-    const TrackResult result = tracker_->track(msg->header.stamp.toSec(), cloud);
+    const double stamp = msg->header.stamp.toSec();
+    const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp));
     // Lost and recovered are each one line, whatever the throttling.
     if (const auto event = health_->update(msg->header.stamp.toSec(), result))
       NODELET_WARN("%s", event->message.c_str());
@@ -142,7 +166,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   std::unique_ptr<TrackingHealth> health_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher odom_pub_, keyframe_pub_, status_pub_;
-  ros::Subscriber sub_;
+  ros::Subscriber sub_, imu_sub_;
+  std::mutex imu_mutex_;
+  ImuOrientationBuffer imu_;
 };
 
 }  // namespace osm_graph_slam

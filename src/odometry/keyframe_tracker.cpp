@@ -46,10 +46,11 @@ KeyframeTracker::KeyframeTracker(const KeyframeTrackerParams& params)
     : params_(params),
       registration_(createRegistration(params.registration)),
       fitness_gate_(params.fitness_ratio, params.fitness_ratio_floor) {
-  if (params_.guess != "constant_velocity" && params_.guess != "pre_tracker")
+  if (params_.guess != "constant_velocity" && params_.guess != "pre_tracker" &&
+      params_.guess != "imu" && params_.guess != "pre_tracker_imu")
     throw std::invalid_argument("unknown guess '" + params_.guess +
-                                "' (constant_velocity | pre_tracker)");
-  if (params_.guess == "pre_tracker" || params_.recovery)
+                                "' (constant_velocity | pre_tracker | imu | pre_tracker_imu)");
+  if (params_.guess.rfind("pre_tracker", 0) == 0 || params_.recovery)
     pre_tracker_ = std::make_unique<PreTracker>(params_.pre_tracker, params_.registration);
 }
 
@@ -64,6 +65,7 @@ void KeyframeTracker::reset() {
   poses_seen_ = 0;
   failures_in_row_ = 0;
   fitness_gate_.clear();
+  last_imu_.reset();
   if (pre_tracker_) pre_tracker_->reset();
 }
 
@@ -158,7 +160,17 @@ void KeyframeTracker::makeKeyframe(double stamp, const PointCloudConstPtr& cloud
   registration_->setTarget(cloud);
 }
 
-TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud) {
+std::optional<Eigen::Isometry3d> KeyframeTracker::imuPredict(
+    const Eigen::Isometry3d& constant_velocity,
+    const std::optional<Eigen::Quaterniond>& imu_orientation) const {
+  if (!imu_orientation || !last_imu_) return std::nullopt;
+  Eigen::Isometry3d motion = pose_.inverse() * constant_velocity;
+  motion.linear() = (last_imu_->conjugate() * *imu_orientation).normalized().toRotationMatrix();
+  return pose_ * motion;
+}
+
+TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud,
+                                   const std::optional<Eigen::Quaterniond>& imu_orientation) {
   TrackResult result;
   result.keyframe_id = keyframe_.id;
   if (!std::isfinite(stamp)) {
@@ -194,6 +206,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     }
     last_stamp_ = prev_stamp_ = stamp;
     poses_seen_ = 1;
+    last_imu_ = imu_orientation;
     if (pre_tracker_) pre_tracker_->remember(cloud);
     result.status = TrackStatus::kFirstKeyframe;
     result.new_keyframe = true;
@@ -205,9 +218,13 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
   const Eigen::Isometry3d constant_velocity = predict(stamp);
   pre_tracked_ = false;
   pre_tracked_pose_.reset();
-  Guess best{"constant_velocity", constant_velocity};
-  if (params_.guess == "pre_tracker")
-    if (const auto p = preTracked(cloud, constant_velocity, result)) best = {"pre_tracker", *p};
+  const std::optional<Eigen::Isometry3d> imu = imuPredict(constant_velocity, imu_orientation);
+  const bool imu_guess = params_.guess == "imu" || params_.guess == "pre_tracker_imu";
+  // The pre-tracker starts from the best motion model at hand.
+  const Eigen::Isometry3d motion_model = imu_guess && imu ? *imu : constant_velocity;
+  Guess best{imu_guess && imu ? "imu" : "constant_velocity", motion_model};
+  if (params_.guess.rfind("pre_tracker", 0) == 0)
+    if (const auto p = preTracked(cloud, motion_model, result)) best = {"pre_tracker", *p};
 
   Eigen::Isometry3d relative = keyframe_.pose.inverse() * best.pose;
   bool matched = attempt(cloud, best, result, relative);
@@ -215,14 +232,15 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
   if (!matched && params_.recovery) {
     // Other guesses, most likely first; the best of them is kept if every one fails.
     std::vector<Guess> retries;
-    if (best.source == std::string("constant_velocity")) {
-      if (const auto p = preTracked(cloud, constant_velocity, result)) {
+    if (imu && !imu_guess) retries.push_back({"imu", *imu});
+    if (best.source != std::string("pre_tracker")) {
+      if (const auto p = preTracked(cloud, motion_model, result)) {
         best = {"pre_tracker", *p};
         retries.push_back(best);
       }
-    } else {
-      retries.push_back({"constant_velocity", constant_velocity});
     }
+    if (best.source != std::string("constant_velocity"))
+      retries.push_back({"constant_velocity", constant_velocity});
     retries.push_back({"zero_motion", pose_});
     for (int k = 1; k <= params_.recovery_yaw_steps; ++k)
       for (const double sign : {1.0, -1.0}) {
@@ -255,6 +273,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
   prev_stamp_ = last_stamp_;
   pose_ = keyframe_.pose * relative;
   last_stamp_ = stamp;
+  last_imu_ = imu_orientation;
   ++poses_seen_;
   result.pose = pose_;
   result.relative_to_keyframe = relative;

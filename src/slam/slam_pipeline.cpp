@@ -58,7 +58,8 @@ void SlamPipeline::setOrigin(double lat, double lon, double alt) {
 
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
                                const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                               const std::optional<Eigen::Vector2d>& gnss_position) {
+                               const std::optional<Eigen::Vector2d>& gnss_position,
+                               const std::optional<Eigen::Quaterniond>& imu_orientation) {
   if (!started_) {
     start_ = Clock::now();
     started_ = true;
@@ -83,7 +84,7 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   TrackResult result;
   {
     StageTimer t(timings_.tracking_ms);
-    result = tracker_.track(stamp, filtered.cloud);
+    result = tracker_.track(stamp, filtered.cloud, imu_orientation);
   }
   timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));

@@ -56,9 +56,10 @@ struct DriveScan {
   double stamp = 0.0;
   PointCloudPtr cloud;  ///< null: unreadable (error says why), the scan is skipped
   std::string error;
-  std::optional<Eigen::Vector2d> roll_pitch;  ///< base_link in ENU
-  std::optional<Eigen::Isometry3d> truth;     ///< base_link in ENU at the first fix
-  std::optional<Eigen::Vector2d> gnss;        ///< the GNSS fix in the same frame
+  std::optional<Eigen::Vector2d> roll_pitch;      ///< base_link in ENU
+  std::optional<Eigen::Quaterniond> orientation;  ///< base_link in ENU (INS / IMU), if any
+  std::optional<Eigen::Isometry3d> truth;         ///< base_link in ENU at the first fix
+  std::optional<Eigen::Vector2d> gnss;            ///< the GNSS fix in the same frame
 };
 
 /// A drive: origin, initial heading, sensor mounting and the scans in order.
@@ -125,6 +126,7 @@ class KittiRawSource : public DriveSource {
       scan.truth = oxtsPose(r, *enu_);  // KITTI's OXTS is RTK GNSS + INS
       if (r.hasGnssFix()) scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
+      scan.orientation = Eigen::Quaterniond(oxtsPose(r, *enu_).linear());
     }
     // simulate_urban's exact records: the truth in the frame of the (measured) first fix.
     if (!drive_.truth_oxts_files.empty()) {
@@ -178,7 +180,10 @@ class BagSource : public DriveSource {
     scan.stamp = static_cast<double>(c->stamp_ns) * 1e-9;
     scan.cloud = c->cloud;
     scan.error = c->error;
-    if (const auto q = reader_.orientationAt(c->stamp_ns)) scan.roll_pitch = rollPitchOf(*q);
+    if (const auto q = reader_.orientationAt(c->stamp_ns)) {
+      scan.roll_pitch = rollPitchOf(*q);
+      scan.orientation = *q;
+    }
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
     // The pipeline anchors its first keyframe here, whichever cloud that is.
     if (const auto f = reader_.fixAt(c->stamp_ns))
@@ -393,7 +398,8 @@ int main(int argc, char** argv) {
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
     pipeline.processScan(scan.stamp, scan.cloud,
-                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss);
+                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss,
+                         use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>());
     progress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();
@@ -415,7 +421,8 @@ int main(int argc, char** argv) {
   }
   for (const auto& [stamp, pose] : truth_by_stamp) truth_all_scans.push_back({stamp, pose});
   writeTumTrajectory(out + "/ground_truth_tum.txt", truth);
-  // The truth of every scan read: evaluate_slam's coverage sees a drive the keyframes stop short of.
+  // The truth of every scan read: evaluate_slam's coverage sees a drive the keyframes stop short
+  // of.
   writeTumTrajectory(out + "/ground_truth_scans_tum.txt", truth_all_scans);
   writeLoopClosures(out + "/loops.txt", stampedLoops(pipeline.backend()));
   writeTumTrajectory(out + "/odometry_tum.txt", pipeline.backend().odomTrajectory());

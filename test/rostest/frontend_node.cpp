@@ -185,7 +185,15 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   EXPECT_EQ(rx.filtered, kScans);
   ASSERT_EQ(rx.odom.size(), size_t(kScans));
   ASSERT_EQ(rx.status.size(), size_t(kScans));
-  for (const auto& s : rx.status) EXPECT_FALSE(s.failed) << s.message;
+  for (const auto& s : rx.status) {
+    EXPECT_FALSE(s.failed) << s.message;
+    // Tracking health travels with every status: a healthy replay reports ok and no failure.
+    EXPECT_EQ(s.tracking_state, "ok");
+    EXPECT_EQ(s.failed_matches, 0u);
+    EXPECT_EQ(s.lost_events, 0u);
+    EXPECT_LT(s.time_since_keyframe, 0.35);  // keyframes at scans 0 and 3, 10 Hz
+  }
+  for (const auto& k : rx.keyframes) EXPECT_FALSE(k.tracking_recovered);
   // 0.74 m per scan and a new keyframe every 2 m: keyframes at scans 0 and 3.
   ASSERT_EQ(rx.keyframes.size(), 2u);
   EXPECT_EQ(rx.keyframes[0].id, 0u);

@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 #include "frontend_test_utils.h"
+#include "osm_graph_slam/odometry/imu_orientation_buffer.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/odometry/pre_tracker.h"
 #include "osm_graph_slam/odometry/tracking_health.h"
@@ -57,14 +58,19 @@ struct DriveOutcome {
 /// Tracks the synthetic scene seen from `poses` (stamps 0.1 s apart unless `skip` says which
 /// indices never arrive) and compares every pose with the truth relative to the first.
 DriveOutcome drive(const KeyframeTrackerParams& params, const std::vector<Eigen::Isometry3d>& poses,
-                   const std::vector<bool>& skip = {}) {
+                   const std::vector<bool>& skip = {}, bool with_imu = false) {
   static const auto scene = test::syntheticScene(800);
   KeyframeTracker tracker(params);
   TrackingHealth health(params.lost_track_after);
   DriveOutcome out;
   for (size_t i = 0; i < poses.size(); ++i) {
     if (i < skip.size() && skip[i]) continue;
-    const TrackResult r = tracker.track(0.1 * i, test::transformed(*scene, poses[i].inverse()));
+    // An INS attitude: the true orientation with a constant heading bias (deltas are exact).
+    const Eigen::Quaterniond imu(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::Quaterniond(poses[i].linear()));
+    const TrackResult r =
+        tracker.track(0.1 * i, test::transformed(*scene, poses[i].inverse()),
+                      with_imu ? std::optional<Eigen::Quaterniond>(imu) : std::nullopt);
     health.update(0.1 * i, r);
     ++out.scans;
     out.matched += r.status == TrackStatus::kMatched || r.status == TrackStatus::kFirstKeyframe;
@@ -158,6 +164,49 @@ TEST(TrackingRecovery, FiveScanDropoutInAFastTurnIsRecoveredAndReported) {
   // Without recovery the same drive is not tracked (this test would not catch a regression
   // otherwise).
   EXPECT_GT(legacy.failed, 0u);
+
+  // With the IMU's rotation in the guess, the scan after the gap matches at the first attempt,
+  // recovery or not.
+  for (const std::string guess : {"imu", "pre_tracker_imu"}) {
+    KeyframeTrackerParams params = legacyParams();
+    params.guess = guess;
+    const DriveOutcome imu = drive(params, poses, skip, true);
+    EXPECT_EQ(imu.matched, imu.scans) << guess;
+    EXPECT_LT(imu.max_translation_error, 0.01) << guess;
+    EXPECT_EQ(imu.results[12].attempts, 1) << guess;
+    EXPECT_EQ(imu.results[12].guess_source, guess == "imu" ? "imu" : "pre_tracker") << guess;
+  }
+  // The imu guess without IMU data falls back to constant velocity (and then fails like it).
+  KeyframeTrackerParams no_data = legacyParams();
+  no_data.guess = "imu";
+  EXPECT_GT(drive(no_data, poses, skip, false).failed, 0u);
+}
+
+TEST(ImuOrientationBuffer, SlerpsOrientationsAndIntegratesRates) {
+  ImuOrientationBuffer orientations(0.1);
+  const Eigen::Quaterniond a(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()));
+  const Eigen::Quaterniond b(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
+  orientations.addOrientation(1.0, a);
+  orientations.addOrientation(1.1, b);
+  const auto mid = orientations.orientationAt(1.05);
+  ASSERT_TRUE(mid);
+  EXPECT_NEAR(Eigen::AngleAxisd(*mid).angle(), 0.3, 1e-9);
+  EXPECT_TRUE(orientations.orientationAt(1.15));  // within max_gap of the last sample
+  EXPECT_FALSE(orientations.orientationAt(1.3));  // too far
+  EXPECT_FALSE(orientations.orientationAt(0.8));
+
+  // Gyro only: 0.5 rad/s about z for 1 s at 100 Hz, then about x; deltas are what counts.
+  ImuOrientationBuffer gyro(0.1);
+  for (int i = 0; i <= 100; ++i) gyro.addAngularVelocity(i * 0.01, Eigen::Vector3d(0, 0, 0.5));
+  const auto q0 = gyro.orientationAt(0.0), q1 = gyro.orientationAt(1.0);
+  ASSERT_TRUE(q0 && q1);
+  const Eigen::AngleAxisd delta(q0->conjugate() * *q1);
+  EXPECT_NEAR(delta.angle(), 0.5, 1e-9);
+  EXPECT_NEAR(delta.axis().z(), 1.0, 1e-9);
+  // Out-of-order and non-finite samples are ignored.
+  gyro.addAngularVelocity(0.5, Eigen::Vector3d(1, 0, 0));
+  gyro.addAngularVelocity(1.01, Eigen::Vector3d(NAN, 0, 0));
+  EXPECT_EQ(gyro.size(), 101u);
 }
 
 TEST(TrackingRecovery, AJumpNoGuessExplainsIsReanchoredAndTheDriveGoesOn) {

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
@@ -39,8 +40,12 @@ struct KeyframeTrackerParams {
   /// [s] without a keyframe after which the track counts as lost (logged once, counted; see
   /// TrackingHealth). Above keyframe_delta_time, so a track that keeps matching is never lost.
   double lost_track_after = 3.0;
-  /// Initial guess of each match: constant_velocity (the previous motion extrapolated) or
-  /// pre_tracker (scan-to-previous-scan registration, PreTracker; timed separately).
+  /// Initial guess of each match: constant_velocity (the previous motion extrapolated),
+  /// pre_tracker (scan-to-previous-scan registration, PreTracker; timed separately), imu (the
+  /// rotation since the previous scan from the IMU orientation, translation from constant
+  /// velocity) or pre_tracker_imu (the pre-tracker started from the imu guess). Without an IMU
+  /// orientation for the scan, imu falls back to constant_velocity, pre_tracker_imu to
+  /// pre_tracker.
   std::string guess = "constant_velocity";
   PreTrackerParams pre_tracker;
   /// After a failed match, retry from the other guesses: the pre-tracker's, zero motion, and
@@ -102,7 +107,10 @@ class KeyframeTracker {
   ~KeyframeTracker();
 
   /// Processes one filtered scan (in base_link) taken at stamp [s]. Never throws on bad input.
-  TrackResult track(double stamp, const PointCloudConstPtr& cloud);
+  /// imu_orientation: base_link's orientation from an IMU at the scan's stamp, in any fixed frame
+  /// (an INS attitude, or integrated gyro rates: only its change between scans is used).
+  TrackResult track(double stamp, const PointCloudConstPtr& cloud,
+                    const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt);
 
   bool initialized() const { return has_keyframe_; }
   const Eigen::Isometry3d& pose() const { return pose_; }
@@ -117,6 +125,11 @@ class KeyframeTracker {
     Eigen::Isometry3d pose;  ///< in odom
   };
   Eigen::Isometry3d predict(double stamp) const;
+  /// The constant-velocity prediction with its rotation replaced by the IMU's, if both IMU
+  /// orientations (this scan's and the previous tracked scan's) are known.
+  std::optional<Eigen::Isometry3d> imuPredict(
+      const Eigen::Isometry3d& constant_velocity,
+      const std::optional<Eigen::Quaterniond>& imu_orientation) const;
   /// Registers against the keyframe from `guess`; true (and result filled) when accepted.
   bool attempt(const PointCloudConstPtr& cloud, const Guess& guess, TrackResult& result,
                Eigen::Isometry3d& relative);
@@ -136,6 +149,7 @@ class KeyframeTracker {
   std::optional<Eigen::Isometry3d> pre_tracked_pose_;
   int failures_in_row_ = 0;
   FitnessGate fitness_gate_;
+  std::optional<Eigen::Quaterniond> last_imu_;  ///< IMU orientation at the last tracked scan
   bool has_keyframe_ = false;
   Keyframe keyframe_;
   Eigen::Isometry3d pose_ = Eigen::Isometry3d::Identity();       ///< last pose in odom

@@ -57,9 +57,12 @@ class SlamPipeline {
   /// gravity_roll_pitch: base_link roll and pitch from an IMU at the scan's time, if any.
   /// gnss_position: base_link's GNSS position in the map frame at the scan's time, if any (the
   /// first keyframe is fixed there).
+  /// imu_orientation: base_link's orientation from an IMU/INS at the scan's time, if any (the
+  /// tracker's imu guesses use its change between scans).
   bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
                    const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
-                   const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt);
+                   const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
+                   const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt);
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
   /// Time the caller waited for input (files, a bag), so the report shows it next to the
