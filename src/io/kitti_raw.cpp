@@ -270,6 +270,28 @@ bool readKittiRigidCalib(const std::string& path, Eigen::Isometry3d& transform,
   return true;
 }
 
+bool readKittiTrackingCalib(const std::string& path, const std::string& key,
+                            Eigen::Isometry3d& transform, std::string* error) {
+  std::ifstream in(path);
+  if (!in) return fail(error, "cannot open calibration file '" + path + "'");
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto colon = line.find(':');
+    if (colon == std::string::npos || line.substr(0, colon) != key) continue;
+    std::vector<double> v;
+    if (!parseNumbers(line.substr(colon + 1), v) || v.size() != 12)
+      return fail(error, "malformed calibration file '" + path + "': '" + key +
+                             "' needs 12 numbers (row-major 3x4)");
+    transform = Eigen::Isometry3d::Identity();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) transform.linear()(r, c) = v[4 * r + c];
+      transform.translation()(r) = v[4 * r + 3];
+    }
+    return true;
+  }
+  return fail(error, "calibration file '" + path + "' has no '" + key + ":' entry");
+}
+
 bool writeKittiRigidCalib(const std::string& path, const Eigen::Isometry3d& transform,
                           std::string* error) {
   std::ostringstream out;

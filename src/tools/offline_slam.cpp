@@ -3,7 +3,9 @@
 // odometry-only keyframe trajectory, the ground truth of the keyframes (KITTI raw's GPS/INS, the
 // simulator's true poses; the bag's ground_truth topic) and a timing report.
 //
-//   offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag) --output DIR
+//   offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag
+//                 | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])
+//                   [--rate HZ] [--calib FILE]) --output DIR
 //                [--osm FILE.osm|.pbf | --overpass URL] [--no-osm] [--no-loops]
 //                [--config OVERRIDES.yaml (default config/kitti.yaml; simulated drives: sim.yaml)]
 //                [--max-scans N] [--json]
@@ -12,11 +14,19 @@
 //                [--ground-truth-topic ground_truth] [--base-frame base_link]
 // The first GPS fix is the map origin; the first IMU orientation (OXTS record) the initial
 // heading, and the IMU's roll/pitch at each keyframe an attitude prior (unless --no-imu).
+// --scans: a folder of KITTI .bin scans with one georeference for the first scan (a drive
+// without per-scan OXTS, e.g. kitti_raw_0005): stamps at --rate (10 Hz), no IMU; without a yaw
+// the heading comes from global matching (--initial-heading global_matching). --calib: the
+// LiDAR mounting (calib_imu_to_velo.txt, or a tracking-layout file with Tr_imu_to_velo), so that
+// base_link is the IMU frame as in KITTI raw; without it base_link is the LiDAR frame.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -42,7 +52,9 @@ namespace {
 
 int usage(const std::string& why) {
   std::cerr << "offline_slam: " << why << "\n"
-            << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)\n"
+            << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag\n"
+               "       | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])\n"
+               "         [--rate HZ] [--calib FILE])\n"
                "       --output DIR [--osm FILE | --overpass URL] [--config OVERRIDES.yaml]\n"
                "       [--no-osm] [--no-loops] [--max-scans N]\n"
                "       [--initial-heading imu|global_matching] [--no-imu] [--dump DIR] [--json]\n"
@@ -197,6 +209,78 @@ class BagSource : public DriveSource {
   std::optional<BagCloud> pending_;
 };
 
+/// A folder of KITTI .bin scans with one georeference for the first scan and no IMU: stamps at
+/// a fixed rate, the GNSS fix only at the first scan (the map origin), the heading if known.
+class ScanFolderSource : public DriveSource {
+ public:
+  bool open(const std::map<std::string, std::string>& args, std::string* error) {
+    const std::string dir = args.at("scans");
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec))
+      if (e.path().extension() == ".bin") files_.push_back(e.path().string());
+    std::sort(files_.begin(), files_.end());
+    if (files_.empty()) return fail(error, "no .bin scans in '" + dir + "'");
+    if (args.count("rate")) rate_ = std::atof(args.at("rate").c_str());
+    if (!(rate_ > 0.0)) return fail(error, "--rate must be > 0");
+    if (args.count("origin-oxts") == args.count("origin"))
+      return fail(
+          error,
+          "--scans needs exactly one of --origin-oxts FILE and --origin LAT,LON,ALT[,YAW_DEG]");
+    if (args.count("origin-oxts")) {
+      OxtsRecord r;
+      if (!readOxtsFile(args.at("origin-oxts"), r, error)) return false;
+      lat = r.lat, lon = r.lon, alt = r.alt;
+      initial_yaw = r.yaw;
+      first_roll_pitch_ = Eigen::Vector2d(r.roll, r.pitch);
+    } else {
+      double yaw_deg = std::numeric_limits<double>::quiet_NaN();
+      const int n =
+          std::sscanf(args.at("origin").c_str(), "%lf,%lf,%lf,%lf", &lat, &lon, &alt, &yaw_deg);
+      if (n < 3)
+        return fail(error,
+                    "--origin takes LAT,LON,ALT[,YAW_DEG] (yaw: ENU, 0 = east, counter-clockwise)");
+      if (n == 4) initial_yaw = yaw_deg * M_PI / 180.0;
+    }
+    if (args.count("calib")) {
+      // p_velo = T_velo_imu p_imu; base_link is the IMU frame: p_base = inv(T_velo_imu) p_velo.
+      Eigen::Isometry3d T_velo_imu;
+      std::string rigid_error;
+      if (!readKittiRigidCalib(args.at("calib"), T_velo_imu, &rigid_error) &&
+          !readKittiTrackingCalib(args.at("calib"), "Tr_imu_to_velo", T_velo_imu, error))
+        return false;
+      sensor_to_base = T_velo_imu.inverse();
+    } else {
+      std::cerr << "offline_slam: note: no --calib: base_link is the LiDAR frame\n";
+    }
+    return true;
+  }
+  size_t size() const override { return files_.size(); }
+  bool next(DriveScan& scan) override {
+    if (index_ >= files_.size()) return false;
+    const size_t i = index_++;
+    scan = DriveScan();
+    scan.stamp = kFirstStamp + double(i) / rate_;
+    auto cloud = std::make_shared<PointCloud>();
+    if (readKittiBin(files_[i], *cloud, &scan.error)) scan.cloud = cloud;
+    if (i == 0) {
+      scan.gnss = Eigen::Vector2d::Zero();  // the georeference is the origin
+      scan.roll_pitch = first_roll_pitch_;
+    }
+    return true;
+  }
+
+ private:
+  static bool fail(std::string* error, const std::string& why) {
+    if (error) *error = why;
+    return false;
+  }
+  static constexpr double kFirstStamp = 1.0;  ///< [s] (bags refuse stamp 0)
+  std::vector<std::string> files_;
+  double rate_ = 10.0;
+  size_t index_ = 0;
+  std::optional<Eigen::Vector2d> first_roll_pitch_;
+};
+
 /// Reads the scans on its own thread, a few ahead of the pipeline. On a cold disk reading a
 /// 2 MB HDL-64E scan takes about as long as processing it (35 vs 40 ms); this way they overlap.
 class ScanPrefetcher {
@@ -295,8 +379,8 @@ int main(int argc, char** argv) {
       return usage("unexpected argument '" + a + "'");
     }
   }
-  if (args.count("kitti-raw") == args.count("bag"))
-    return usage("exactly one of --kitti-raw and --bag is required");
+  if (args.count("kitti-raw") + args.count("bag") + args.count("scans") != 1)
+    return usage("exactly one of --kitti-raw, --bag and --scans is required");
   if (!args.count("output")) return usage("--output is required");
   if (args.count("osm") && args.count("overpass"))
     return usage("--osm and --overpass exclude each other");
@@ -329,6 +413,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     drive = std::move(kitti);
+  } else if (args.count("scans")) {
+    auto folder = std::make_unique<ScanFolderSource>();
+    if (!folder->open(args, &error)) {
+      std::cerr << "offline_slam: " << error << "\n";
+      return 1;
+    }
+    drive = std::move(folder);
   } else {
     BagDriveTopics topics;
     topics.cloud = argOr(args, "cloud-topic", topics.cloud);

@@ -57,6 +57,10 @@ bool readKittiRigidCalib(const std::string& path, Eigen::Isometry3d& transform,
                          std::string* error = nullptr);
 bool writeKittiRigidCalib(const std::string& path, const Eigen::Isometry3d& transform,
                           std::string* error = nullptr);
+/// Reads one "KEY: 12 values" (row-major 3x4) entry of a calibration file in the KITTI tracking
+/// layout (P0..P3, R0_rect, Tr_velo_to_cam, Tr_imu_to_velo), e.g. key "Tr_imu_to_velo".
+bool readKittiTrackingCalib(const std::string& path, const std::string& key,
+                            Eigen::Isometry3d& transform, std::string* error = nullptr);
 
 /// Reads a whole file of little-endian float32 values (a KITTI/MulRan .bin scan) without any
 /// conversion, so it can be copied bit-exactly. Fails if the size is not a multiple of 16 bytes.
