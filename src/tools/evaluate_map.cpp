@@ -1,0 +1,195 @@
+// evaluate_map: a run measured without ground truth (a real drive): wall points of all keyframes
+// at the optimised poses against the OSM prior's and the corrected building outlines (per
+// building), the largest shift of a building no keyframe saw, the map's sharpness (mean plane
+// variance) and, against a baseline run (e.g. without OSM), its sharpness and the trajectory
+// difference. A run is an offline_slam output folder written with --dump RUN/dump.
+//
+//   evaluate_map --run DIR [--baseline DIR] [--min-z Z] [--max-z Z] [--json]
+#include <pcl/io/pcd_io.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "osm_graph_slam/eval/map_agreement.h"
+#include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/graph_dump.h"
+
+using namespace osm_graph_slam;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  GraphDump dump;
+  Trajectory trajectory;  ///< optimised keyframe poses (map)
+  std::vector<PosedCloud> keyframes;
+  std::vector<Building> corrected;
+};
+
+bool loadRun(const std::string& dir, Run& run, std::string* error) {
+  const fs::path dump = fs::path(dir) / "dump";
+  if (!fs::exists(dump)) {
+    *error = dir + " has no dump/ folder: run offline_slam with --dump " + (dump.string());
+    return false;
+  }
+  if (!readGraphDump(dump.string(), run.dump, error)) return false;
+  const TrajectoryReadResult t = readTrajectory((fs::path(dir) / "trajectory_tum.txt").string());
+  if (!t.ok) {
+    *error = t.error;
+    return false;
+  }
+  run.trajectory = t.trajectory;
+  std::map<long long, Eigen::Isometry3d> pose_by_ms;  // keyframes named by stamp
+  for (const auto& p : run.trajectory) pose_by_ms[std::llround(p.stamp * 1000.0)] = p.pose;
+  for (const auto& kf : run.dump.keyframes) {
+    const auto it = pose_by_ms.find(std::llround(kf.stamp * 1000.0));
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06lu.pcd", static_cast<unsigned long>(kf.id));
+    PointCloudPtr cloud(new PointCloud);
+    if (it == pose_by_ms.end() ||
+        pcl::io::loadPCDFile((dump / "keyframes" / name).string(), *cloud) != 0)
+      continue;  // a keyframe without a cloud or pose adds no point
+    run.keyframes.emplace_back(it->second, cloud);
+  }
+  const fs::path corrected = fs::path(dir) / "buildings_corrected.geojson";
+  if (fs::exists(corrected) && run.dump.origin) {
+    BuildingFileResult b = readBuildingsGeoJson(corrected.string());
+    if (!b.ok) {
+      *error = b.error;
+      return false;
+    }
+    const EnuConverter enu(run.dump.origin->x(), run.dump.origin->y(), run.dump.origin->z());
+    for (auto& building : b.buildings) enu.project(building);
+    run.corrected = std::move(b.buildings);
+  }
+  return true;
+}
+
+int usage(const std::string& why) {
+  std::cerr << "evaluate_map: " << why << "\n"
+            << "usage: evaluate_map --run DIR [--baseline DIR] [--min-z Z] [--max-z Z] [--json]\n"
+               "  DIR: an offline_slam --output folder written with --dump DIR/dump\n";
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string run_dir, baseline_dir;
+  bool json = false;
+  WallAgreementOptions options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
+    if (a == "--run")
+      run_dir = value();
+    else if (a == "--baseline")
+      baseline_dir = value();
+    else if (a == "--min-z")
+      options.min_z = std::atof(value().c_str());
+    else if (a == "--max-z")
+      options.max_z = std::atof(value().c_str());
+    else if (a == "--json")
+      json = true;
+    else
+      return usage("unexpected argument '" + a + "'");
+  }
+  if (run_dir.empty()) return usage("--run DIR is required");
+  Run run, baseline;
+  std::string error;
+  if (!loadRun(run_dir, run, &error) ||
+      (!baseline_dir.empty() && !loadRun(baseline_dir, baseline, &error))) {
+    std::cerr << "evaluate_map: " << error << "\n";
+    return 1;
+  }
+  nlohmann::json doc = {{"keyframes", run.keyframes.size()}};
+  const MapSharpness sharp = evaluateMapSharpness(run.keyframes);
+  doc["sharpness"] = {{"points", sharp.points}, {"mean_plane_variance", sharp.mean_plane_variance}};
+  if (!run.corrected.empty()) {
+    const WallAgreement w =
+        evaluateWallAgreement(run.keyframes, run.dump.buildings, run.corrected, options);
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& b : w.observed)
+      rows.push_back({{"id", b.id},
+                      {"part", b.part},
+                      {"points", b.points},
+                      {"prior_median_m", b.prior_median},
+                      {"prior_p90_m", b.prior_p90},
+                      {"corrected_median_m", b.corrected_median},
+                      {"corrected_p90_m", b.corrected_p90},
+                      {"shift_m", b.shift}});
+    doc["walls"] = {{"observed_buildings", w.observed.size()},
+                    {"points", w.points},
+                    {"prior_median_m", w.prior_median},
+                    {"corrected_median_m", w.corrected_median},
+                    {"prior_p90_m", w.prior_p90},
+                    {"corrected_p90_m", w.corrected_p90},
+                    {"unobserved_buildings", w.unobserved},
+                    {"max_unobserved_shift_m", w.max_unobserved_shift},
+                    {"max_unobserved_shift_id", w.max_unobserved_shift_id},
+                    {"buildings", rows}};
+  }
+  if (!baseline_dir.empty()) {
+    const MapSharpness b = evaluateMapSharpness(baseline.keyframes);
+    std::map<long long, Eigen::Vector3d> base_by_ms;
+    for (const auto& p : baseline.trajectory)
+      base_by_ms[std::llround(p.stamp * 1000.0)] = p.pose.translation();
+    double max_d = 0, sum_d = 0;
+    size_t n = 0;
+    for (const auto& p : run.trajectory) {
+      const auto it = base_by_ms.find(std::llround(p.stamp * 1000.0));
+      if (it == base_by_ms.end()) continue;
+      const double d = (p.pose.translation() - it->second).norm();
+      max_d = std::max(max_d, d), sum_d += d, ++n;
+    }
+    doc["baseline"] = {
+        {"mean_plane_variance", b.mean_plane_variance},
+        {"sharpness_change",
+         b.mean_plane_variance > 0 ? sharp.mean_plane_variance / b.mean_plane_variance - 1.0 : 0.0},
+        {"common_keyframes", n},
+        {"trajectory_difference_max_m", max_d},
+        {"trajectory_difference_mean_m", n ? sum_d / n : 0.0}};
+  }
+  if (json) {
+    std::cout << doc.dump(2) << "\n";
+    return 0;
+  }
+  std::printf("keyframes %zu; map sharpness (mean plane variance) %.5f m^2 over %zu points\n",
+              run.keyframes.size(), sharp.mean_plane_variance, sharp.points);
+  if (doc.count("walls")) {
+    const auto& w = doc["walls"];
+    std::printf(
+        "\nbuilding        points  prior median/p90 [m]  corrected median/p90 [m]  shift [m]\n");
+    for (const auto& b : w["buildings"])
+      std::printf("%-14lld %7zu  %8.3f / %6.3f      %8.3f / %6.3f          %6.3f\n",
+                  b["id"].get<long long>(), b["points"].get<size_t>(),
+                  b["prior_median_m"].get<double>(), b["prior_p90_m"].get<double>(),
+                  b["corrected_median_m"].get<double>(), b["corrected_p90_m"].get<double>(),
+                  b["shift_m"].get<double>());
+    std::printf(
+        "observed %zu buildings (%zu wall points): median of medians prior %.3f m -> corrected "
+        "%.3f m"
+        " (p90 %.3f -> %.3f m)\nunobserved %zu buildings, largest shift %.3f m (id %lld)\n",
+        w["observed_buildings"].get<size_t>(), w["points"].get<size_t>(),
+        w["prior_median_m"].get<double>(), w["corrected_median_m"].get<double>(),
+        w["prior_p90_m"].get<double>(), w["corrected_p90_m"].get<double>(),
+        w["unobserved_buildings"].get<size_t>(), w["max_unobserved_shift_m"].get<double>(),
+        w["max_unobserved_shift_id"].get<long long>());
+  }
+  if (doc.count("baseline")) {
+    const auto& b = doc["baseline"];
+    std::printf(
+        "baseline: sharpness %.5f m^2 (this run %+.1f %%), trajectory difference max %.3f m, mean "
+        "%.3f m over %zu keyframes\n",
+        b["mean_plane_variance"].get<double>(), 100.0 * b["sharpness_change"].get<double>(),
+        b["trajectory_difference_max_m"].get<double>(),
+        b["trajectory_difference_mean_m"].get<double>(), b["common_keyframes"].get<size_t>());
+  }
+  return 0;
+}
