@@ -296,6 +296,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     kf.odom_pose = in.odom_pose;
     kf.accum_distance = in.accum_distance;
     kf.odom_fitness = in.odom_fitness;
+    kf.reanchored = in.reanchored;
     kf.gravity_roll_pitch = in.gravity_roll_pitch;
     kf.cloud = in.cloud;
     const int vid = static_cast<int>(in.id);

@@ -1,6 +1,7 @@
 #include "osm_graph_slam/slam/graph_dump.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -47,11 +48,21 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
     KeyframeInput kf;
     if (!(in >> kf.id >> kf.stamp >> kf.accum_distance) || !readPose(in, kf.odom_pose))
       return false;
-    double fitness, roll, pitch;
-    if (in >> fitness >> roll >> pitch) {  // older dumps lack these columns
-      kf.odom_fitness = fitness;
-      if (std::isfinite(roll) && std::isfinite(pitch)) kf.gravity_roll_pitch.emplace(roll, pitch);
+    // Optional columns (older dumps lack them): fitness, IMU roll and pitch ("nan" when there
+    // was none, which operator>> cannot read, so the tokens go through strtod), re-anchored.
+    std::vector<double> extra;
+    for (std::string token; in >> token;) {
+      char* end = nullptr;
+      const double v = std::strtod(token.c_str(), &end);
+      if (end == token.c_str() || *end != '\0') return false;
+      extra.push_back(v);
     }
+    if (extra.size() >= 3) {
+      kf.odom_fitness = extra[0];
+      if (std::isfinite(extra[1]) && std::isfinite(extra[2]))
+        kf.gravity_roll_pitch.emplace(extra[1], extra[2]);
+    }
+    if (extra.size() >= 4) kf.reanchored = extra[3] != 0.0;
     dump.keyframes.push_back(std::move(kf));
     return true;
   };

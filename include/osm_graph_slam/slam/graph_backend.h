@@ -72,6 +72,7 @@ struct KeyframeState {
   Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
   double odom_fitness = -1.0;
+  bool reanchored = false;  ///< linked by a weak odometry edge (the tracker re-anchored it)
   std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
   PointCloudConstPtr cloud;
   std::vector<LineSegment2> segments;  ///< base_link
