@@ -296,6 +296,10 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     result.message += "; re-anchored on the " + std::string(best.source) + " guess after " +
                       std::to_string(failures_in_row_) + " failed matches";
     failures_in_row_ = 0;
+    // The place may have changed (vegetation, open ground: true matches fit worse there); the
+    // adaptive gate learns the new fitness level from the next matches instead of rejecting
+    // them against the old one.
+    fitness_gate_.clear();
   }
   return result;
 }

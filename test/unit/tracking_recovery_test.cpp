@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <random>
 
 #include "frontend_test_utils.h"
 #include "osm_graph_slam/odometry/imu_orientation_buffer.h"
@@ -180,6 +181,35 @@ TEST(TrackingRecovery, FiveScanDropoutInAFastTurnIsRecoveredAndReported) {
   KeyframeTrackerParams no_data = legacyParams();
   no_data.guess = "imu";
   EXPECT_GT(drive(no_data, poses, skip, false).failed, 0u);
+}
+
+TEST(TrackingRecovery, TheFitnessGateRelearnsAfterAReanchor) {
+  // Noise-free scans (fitness ~0) and then noisy ones (true matches with fitness ~0.1 m^2, far
+  // above 4x the recent median): after one re-anchor the gate accepts the new level.
+  const auto clean = test::syntheticScene(800);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 0.12f);
+  KeyframeTrackerParams params;
+  KeyframeTracker tracker(params);
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  step.translation() << 0.4, 0.0, 0.0;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  int reanchors = 0, matched_late = 0;
+  for (int i = 0; i < 30; ++i) {
+    PointCloudPtr scan = test::transformed(*clean, pose.inverse());
+    if (i >= 8)
+      for (auto& p : scan->points)
+        p.getVector3fMap() += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+    const TrackResult r = tracker.track(0.1 * i, scan);
+    if (std::getenv("OGS_TRACE"))
+      std::printf("  scan %d %s fitness %.4f %s\n", i, toString(r.status), r.registration.fitness,
+                  r.message.c_str());
+    reanchors += r.reanchored;
+    if (i >= 20) matched_late += r.status == TrackStatus::kMatched;
+    pose = pose * step;
+  }
+  EXPECT_LE(reanchors, 1);
+  EXPECT_EQ(matched_late, 10) << "the gate kept rejecting the noisier place";
 }
 
 TEST(ImuOrientationBuffer, SlerpsOrientationsAndIntegratesRates) {
