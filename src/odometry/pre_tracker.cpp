@@ -33,19 +33,19 @@ PreTracker::PreTracker(const PreTrackerParams& params, const RegistrationParams&
 PreTracker::~PreTracker() = default;
 
 void PreTracker::reset() {
-  previous_coarse_ = previous_fine_ = current_coarse_ = current_fine_ = nullptr;
+  previous_ = previous_coarse_ = previous_fine_ = current_coarse_ = current_fine_ = nullptr;
   current_source_ = nullptr;
   fitness_gate_.clear();
 }
 
 void PreTracker::remember(const PointCloudConstPtr& cloud) {
   if (!cloud || cloud->empty()) return;
+  previous_ = cloud;
   if (cloud.get() == current_source_ && current_coarse_) {
     previous_coarse_ = current_coarse_;  // estimated already: reuse its downsampled copies
     previous_fine_ = current_fine_;
   } else {
-    previous_coarse_ = downsample(cloud, params_.coarse_voxel);
-    previous_fine_ = downsample(cloud, params_.fine_voxel);
+    previous_coarse_ = previous_fine_ = nullptr;
   }
   current_source_ = nullptr;
   current_coarse_ = current_fine_ = nullptr;
@@ -56,6 +56,10 @@ std::optional<PreTrackerEstimate> PreTracker::estimate(const PointCloudConstPtr&
                                                        double fitness_limit) {
   if (!ready() || !cloud || cloud->empty()) return std::nullopt;
   const auto t0 = std::chrono::steady_clock::now();
+  if (!previous_coarse_) {
+    previous_coarse_ = downsample(previous_, params_.coarse_voxel);
+    previous_fine_ = downsample(previous_, params_.fine_voxel);
+  }
   if (cloud.get() != current_source_ || !current_coarse_) {
     current_coarse_ = downsample(cloud, params_.coarse_voxel);
     current_fine_ = downsample(cloud, params_.fine_voxel);

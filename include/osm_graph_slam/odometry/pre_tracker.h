@@ -37,8 +37,8 @@ class PreTracker {
   PreTracker(const PreTrackerParams& params, const RegistrationParams& registration);
   ~PreTracker();
 
-  /// Downsamples and keeps the scan; the next estimate() registers against it. Cheap (two voxel
-  /// grids): the registrations run only when estimate() is called.
+  /// Keeps the scan; the next estimate() registers against it. Free: the scan is downsampled
+  /// only when an estimate is asked for (the tracker asks only to recover, by default).
   void remember(const PointCloudConstPtr& cloud);
   /// Motion of `cloud` relative to the remembered scan, starting from `guess`; nothing when no
   /// scan is remembered or the match fails (fitness above max_fitness, the adaptive gate, or
@@ -47,15 +47,16 @@ class PreTracker {
   std::optional<PreTrackerEstimate> estimate(
       const PointCloudConstPtr& cloud, const Eigen::Isometry3d& guess,
       double fitness_limit = std::numeric_limits<double>::infinity());
-  bool ready() const { return previous_coarse_ != nullptr; }
+  bool ready() const { return previous_ != nullptr; }
   void reset();
 
  private:
   PreTrackerParams params_;
   std::unique_ptr<Registration> coarse_, fine_;
   FitnessGate fitness_gate_;
-  PointCloudConstPtr previous_coarse_, previous_fine_;
-  PointCloudConstPtr current_coarse_, current_fine_;  ///< of the cloud last estimated
+  PointCloudConstPtr previous_;                         ///< the remembered scan
+  PointCloudConstPtr previous_coarse_, previous_fine_;  ///< its copies, made on demand
+  PointCloudConstPtr current_coarse_, current_fine_;    ///< of the cloud last estimated
   const PointCloud* current_source_ = nullptr;
 };
 
