@@ -390,7 +390,10 @@ def axes_from_args(args):
             return x
         return convert
 
-    worlds = [parse_world(w) for w in (args.world or [])] + [parse_world(w) for w in (args.osm or [])]
+    # --world takes a comma list like the other axes ("karlsruhe,city"); a file whose name holds
+    # a comma can still be given with --osm.
+    worlds = [parse_world(w) for spec in (args.world or []) for w in spec.split(",") if w.strip()]
+    worlds += [parse_world(w) for w in (args.osm or [])]
     explicit = {
         "worlds": worlds,
         "seeds": split_values(args.seed, number(int, "--seed", 0)),

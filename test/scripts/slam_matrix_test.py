@@ -196,6 +196,11 @@ class GridTest(unittest.TestCase):
         self.assertEqual(len(drives), 4)
         self.assertEqual({d.manoeuvres for d in drives}, {"sharp_turn,stop"})
 
+    def test_worlds_take_a_comma_list_like_the_other_axes(self):
+        args = sm.build_parser().parse_args(["--world", "karlsruhe,city", "--seed", "1"])
+        drives = sm.build_grid(*sm.axes_from_args(args))
+        self.assertEqual(sorted(d.world.label for d in drives), ["city", "karlsruhe"])
+
     def test_bad_axis_values_are_one_clear_error(self):
         for argv in (["--seed", "x"], ["--prior-model", "banana"], ["--length", "0"], ["--drop-scans", "1.5"]):
             status, text = run_main(["--world", "city", "--list"] + argv)
