@@ -309,7 +309,15 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       s.map_to_odom = initialMapToOdom(in.odom_pose, s.initial_yaw,
                                        in.gnss_position.value_or(Eigen::Vector2d::Zero()));
       kf.map_pose = s.map_to_odom * in.odom_pose;
-      s.graph.addVertexSE3(vid, kf.map_pose, true);
+      const bool free_first = gnssPriors() && in.gnss_position.has_value();
+      s.graph.addVertexSE3(vid, kf.map_pose, !free_first);
+      if (free_first) {
+        // Held where GNSS cannot say: height, attitude, the INS heading; x and y by the fixes.
+        Matrix6d info = Matrix6d::Zero();
+        info.diagonal() << 1e-6, 1e-6, 1.0 / (0.05 * 0.05), 1.0 / (0.01 * 0.01),
+            1.0 / (0.01 * 0.01), 1.0 / std::pow(params_.gnss_first_yaw_std, 2);
+        s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
+      }
     } else {
       const KeyframeState& prev = s.keyframes.rbegin()->second;
       const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
@@ -329,6 +337,11 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       if (params_.joint_odometry_weight > 1.0)
         s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta,
                            (params_.joint_odometry_weight - 1.0) * info, EdgeOptions{1, {}});
+    }
+    if (gnssPriors() && in.gnss_position) {
+      const double info = 1.0 / std::pow(params_.gnss_prior_std, 2);
+      s.graph.addPriorSE3XY(vid, *in.gnss_position, info * Eigen::Matrix2d::Identity(),
+                            EdgeOptions{0, RobustKernel::huber(params_.gnss_prior_kernel_width)});
     }
     if (in.gravity_roll_pitch) {
       kf.has_attitude = true;
@@ -428,6 +441,12 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
 Eigen::Matrix3d GraphBackend::localInformation(const LineMatchResult& match) const {
   return scaledInformation(match.information, params_.local_edge_std_xy,
                            params_.local_edge_std_theta, params_.matcher);
+}
+
+bool GraphBackend::gnssPriors() const {
+  // With the heading still unknown the first keyframe must stay fixed: global matching rotates
+  // the trajectory about it.
+  return params_.gnss_prior_std > 0.0 && params_.initial_yaw_known;
 }
 
 bool GraphBackend::keyframeCovered(const Eigen::Vector2d& position) const {

@@ -38,6 +38,9 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
   r.param("reanchor_std_xyz", p.reanchor_std_xyz);
   r.param("reanchor_std_rot", p.reanchor_std_rot);
+  r.param("gnss_prior_std", p.gnss_prior_std);
+  r.param("gnss_prior_kernel_width", p.gnss_prior_kernel_width);
+  r.param("gnss_first_yaw_std", p.gnss_first_yaw_std);
   if (!(p.odometry.lateral_std_ratio > 0.0)) {
     if (error) *error = "odometry_lateral_std_ratio must be > 0";
     p.odometry.lateral_std_ratio = InformationParams{}.lateral_std_ratio;

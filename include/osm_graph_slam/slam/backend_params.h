@@ -44,6 +44,13 @@ struct GraphBackendParams {
   /// so that loops, GNSS and OSM matches can correct the jump across the gap.
   double reanchor_std_xyz = 1.0;  ///< [m]
   double reanchor_std_rot = 0.1;  ///< [rad] roll, pitch and yaw
+  /// GNSS as evidence: [m] deviation of a position prior (level 0, Huber kernel) on every keyframe
+  /// with a GNSS fix, and the first keyframe no longer fixed at its (noisy) fix but held by a
+  /// prior on height, attitude and the known heading. 0 (default) keeps the first keyframe fixed
+  /// at its fix and uses no other fix. Needs a known initial heading (an IMU).
+  double gnss_prior_std = 0.0;
+  double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
+  double gnss_first_yaw_std = 0.01;      ///< [rad] the first keyframe's heading prior (INS)
   // --- attitude (OSM priors say nothing about roll and pitch) ---
   double imu_attitude_std = 0.01;  ///< [rad] roll/pitch prior of keyframes with an IMU attitude
   /// [rad] without an IMU, keyframes with a map prior keep odometry's roll/pitch this firmly, so

@@ -141,6 +141,8 @@ class GraphBackend {
   static constexpr int kBuildingVertexBase = 1 << 30;
 
  private:
+  /// GNSS position priors on keyframes (gnss_prior_std > 0), once the heading is known.
+  bool gnssPriors() const;
   struct Pending;
   struct State;
   void flushKeyframes(BackendUpdateReport& report);
