@@ -1,10 +1,8 @@
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 
 #include <pcl/common/transforms.h>
-#include <pcl/filters/approximate_voxel_grid.h>
 #include <pcl/filters/radius_outlier_removal.h>
 #include <pcl/filters/statistical_outlier_removal.h>
-#include <pcl/filters/voxel_grid.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -12,6 +10,8 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+
+#include "osm_graph_slam/cloud/voxel_filter.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -125,21 +125,7 @@ CloudPrefilterResult CloudPrefilter::filter(const PointCloud& input) const {
 }
 
 PointCloudPtr CloudPrefilter::voxelize(const PointCloudConstPtr& cloud) const {
-  PointCloudPtr out(new PointCloud);
-  const float leaf = static_cast<float>(params_.voxel_leaf_size);
-  if (params_.voxel_method == "exact") {
-    pcl::VoxelGrid<PointT> grid;
-    grid.setLeafSize(leaf, leaf, leaf);
-    grid.setInputCloud(cloud);
-    grid.filter(*out);
-  } else {
-    pcl::ApproximateVoxelGrid<PointT> grid;
-    grid.setLeafSize(leaf, leaf, leaf);
-    grid.setInputCloud(cloud);
-    grid.filter(*out);
-  }
-  out->header = cloud->header;
-  return out;
+  return voxelDownsample(cloud, params_.voxel_leaf_size, params_.voxel_method == "exact");
 }
 
 PointCloudPtr CloudPrefilter::removeOutliers(const PointCloudConstPtr& cloud,

@@ -1,12 +1,12 @@
 #include "osm_graph_slam/eval/map_agreement.h"
 
-#include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <map>
 
+#include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 
 namespace osm_graph_slam {
@@ -26,13 +26,7 @@ PointCloudPtr accumulate(const std::vector<PosedCloud>& keyframes, double voxel,
     }
   }
   if (voxel <= 0.0 || all->empty()) return all;
-  PointCloudPtr out(new PointCloud);
-  pcl::VoxelGrid<PointT> grid;
-  const float l = static_cast<float>(voxel);
-  grid.setLeafSize(l, l, l);
-  grid.setInputCloud(all);
-  grid.filter(*out);
-  return out;
+  return voxelDownsample(all, voxel, true);
 }
 
 double percentile(std::vector<double> v, double q) {

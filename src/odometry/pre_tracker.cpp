@@ -1,20 +1,14 @@
 #include "osm_graph_slam/odometry/pre_tracker.h"
 
-#include <pcl/filters/approximate_voxel_grid.h>
-
 #include <chrono>
+
+#include "osm_graph_slam/cloud/voxel_filter.h"
 
 namespace osm_graph_slam {
 namespace {
 
 PointCloudConstPtr downsample(const PointCloudConstPtr& cloud, double leaf) {
-  PointCloudPtr out(new PointCloud);
-  pcl::ApproximateVoxelGrid<PointT> grid;
-  const float l = static_cast<float>(leaf);
-  grid.setLeafSize(l, l, l);
-  grid.setInputCloud(cloud);
-  grid.filter(*out);
-  return out;
+  return voxelDownsample(cloud, leaf);
 }
 
 std::unique_ptr<Registration> scaleRegistration(RegistrationParams p, double max_correspondence) {
