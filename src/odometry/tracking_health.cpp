@@ -51,7 +51,16 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
   if (last_keyframe_stamp_) {
     const double gap = stamp - *last_keyframe_stamp_;
     stats_.longest_no_keyframe_s = std::max(stats_.longest_no_keyframe_s, gap);
-    if (state_ == TrackingState::kLost) {
+    if (result.reanchored && state_ != TrackingState::kLost) {
+      // Each re-anchor is a link the back-end only knows weakly: say where it happened.
+      char buf[512];
+      std::snprintf(buf, sizeof(buf),
+                    "tracking re-anchored at scan %zu (stamp %.3f): keyframe %llu placed on a "
+                    "guess %.1f s after the last verified one (%s)",
+                    stats_.scans - 1, stamp, static_cast<unsigned long long>(result.keyframe_id),
+                    gap, result.message.c_str());
+      event = TrackingEvent{TrackingState::kOk, buf};
+    } else if (state_ == TrackingState::kLost) {
       char buf[256];
       std::snprintf(buf, sizeof(buf),
                     "tracking recovered at scan %zu (stamp %.3f): keyframe %llu after %.1f s "

@@ -253,11 +253,12 @@ TEST(TrackingRecovery, AJumpNoGuessExplainsIsReanchoredAndTheDriveGoesOn) {
   jump.translation() << 0.0, 12.0, 0.0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   const int first_bad = 4, reanchor_at = first_bad + params.reanchor_after_failures - 1;
-  int reanchored_at = -1;
+  int reanchored_at = -1, events = 0;
+  std::string event_text;
   for (int i = 0; i < 15; ++i) {
     if (i == first_bad) pose = pose * jump;
     const TrackResult r = tracker.track(0.1 * i, test::transformed(*scene, pose.inverse()));
-    health.update(0.1 * i, r);
+    if (const auto e = health.update(0.1 * i, r)) ++events, event_text = e->message;
     if (std::getenv("OGS_TRACE"))
       std::printf("  scan %d %s %s attempts %d fitness %.4f %s\n", i, toString(r.status),
                   r.guess_source.c_str(), r.attempts, r.registration.fitness, r.message.c_str());
@@ -276,6 +277,8 @@ TEST(TrackingRecovery, AJumpNoGuessExplainsIsReanchoredAndTheDriveGoesOn) {
   }
   EXPECT_EQ(reanchored_at, reanchor_at);
   EXPECT_EQ(health.stats().reanchors, 1u);
+  EXPECT_EQ(events, 1) << "the re-anchor is one log line";
+  EXPECT_NE(event_text.find("re-anchored at scan 8"), std::string::npos) << event_text;
   EXPECT_EQ(health.stats().failed_matches, size_t(params.reanchor_after_failures));
   EXPECT_EQ(health.stats().lost_events, 0u);
 }
