@@ -23,7 +23,7 @@ struct PreTrackerParams {
   double fine_max_correspondence = 1.0;    ///< [m]
   double max_fitness = 1.0;                ///< [m^2] a worse fine match gives no estimate
   double fitness_ratio = 4.0;  ///< ... or one worse than this times the recent median (0: off)
-  double fitness_ratio_floor = 0.05;  ///< [m^2]
+  double fitness_ratio_floor = 0.2;  ///< [m^2] (see KeyframeTrackerParams)
 };
 
 struct PreTrackerEstimate {
