@@ -21,19 +21,6 @@ bool fail(std::string* error, const std::string& msg) {
   return false;
 }
 
-/// Sorted regular files of dir ending in ext.
-std::vector<std::string> listFiles(const std::string& dir, const std::string& ext) {
-  std::vector<std::string> files;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && entry.path().extension() == ext) {
-      files.push_back(entry.path().string());
-    }
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 /// Parses every whitespace-separated number of text; false if any token is not a number.
 bool parseNumbers(const std::string& text, std::vector<double>& values) {
   std::istringstream in(text);
@@ -135,6 +122,18 @@ OxtsRecord OxtsRecord::fromArray(const std::array<double, kNumFields>& v) {
   r.velmode = static_cast<int>(v[28]);
   r.orimode = static_cast<int>(v[29]);
   return r;
+}
+
+std::vector<std::string> listFiles(const std::string& dir, const std::string& ext) {
+  std::vector<std::string> files;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.is_regular_file() && entry.path().extension() == ext) {
+      files.push_back(entry.path().string());
+    }
+  }
+  std::sort(files.begin(), files.end());
+  return files;
 }
 
 bool parseKittiTimestamp(const std::string& text, StampNs& stamp) {

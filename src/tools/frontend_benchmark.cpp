@@ -15,6 +15,7 @@
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/io/kitti_bin.h"
+#include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 
 using namespace osm_graph_slam;
@@ -100,11 +101,7 @@ int main(int argc, char** argv) {
       return usage("unexpected argument '" + a + "'");
   }
   if (dir.empty()) return usage("--scans DIR is required (a folder of KITTI .bin scans)");
-  std::vector<fs::path> files;
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir, ec))
-    if (e.path().extension() == ".bin") files.push_back(e.path());
-  std::sort(files.begin(), files.end());
+  const std::vector<std::string> files = listFiles(dir, ".bin");
   if (files.empty()) return usage("no .bin scans in '" + dir + "'");
 
   // Prefilter once; every variant tracks the same clouds.
@@ -114,7 +111,7 @@ int main(int argc, char** argv) {
        i += stride) {
     PointCloud raw;
     std::string error;
-    if (!readKittiBin(files[i].string(), raw, &error)) {
+    if (!readKittiBin(files[i], raw, &error)) {
       std::cerr << "frontend_benchmark: " << error << " (skipped)\n";
       continue;
     }

@@ -13,6 +13,7 @@
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/io/kitti_bin.h"
+#include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 
 using namespace osm_graph_slam;
@@ -31,16 +32,6 @@ std::string defaultDataDir() {
   return "../shared/data";
 }
 
-std::vector<fs::path> binFiles(const fs::path& dir) {
-  std::vector<fs::path> files;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (entry.path().extension() == ".bin") files.push_back(entry.path());
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 double ms(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since)
       .count();
@@ -48,7 +39,7 @@ double ms(std::chrono::steady_clock::time_point since) {
 
 /// Runs prefilter + tracker over one sequence of scans; returns false if nothing could be read.
 bool runSequence(const fs::path& dir, const KeyframeTrackerParams& params, double rate_hz) {
-  const auto files = binFiles(dir);
+  const auto files = listFiles(dir.string(), ".bin");
   if (files.empty()) {
     std::cerr << "[demo] no .bin scans in " << dir << "\n";
     return false;
@@ -64,7 +55,7 @@ bool runSequence(const fs::path& dir, const KeyframeTrackerParams& params, doubl
   for (size_t i = 0; i < files.size(); ++i) {
     PointCloud raw;
     std::string error;
-    if (!readKittiBin(files[i].string(), raw, &error)) {
+    if (!readKittiBin(files[i], raw, &error)) {
       std::printf("%4zu skipped: %s\n", i, error.c_str());
       continue;
     }

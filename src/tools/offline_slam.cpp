@@ -215,10 +215,7 @@ class ScanFolderSource : public DriveSource {
  public:
   bool open(const std::map<std::string, std::string>& args, std::string* error) {
     const std::string dir = args.at("scans");
-    std::error_code ec;
-    for (const auto& e : fs::directory_iterator(dir, ec))
-      if (e.path().extension() == ".bin") files_.push_back(e.path().string());
-    std::sort(files_.begin(), files_.end());
+    files_ = listFiles(dir, ".bin");
     if (files_.empty()) return fail(error, "no .bin scans in '" + dir + "'");
     if (args.count("rate")) rate_ = std::atof(args.at("rate").c_str());
     if (!(rate_ > 0.0)) return fail(error, "--rate must be > 0");

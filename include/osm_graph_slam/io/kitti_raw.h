@@ -42,6 +42,9 @@ using StampNs = int64_t;
 bool parseKittiTimestamp(const std::string& text, StampNs& stamp);
 std::string formatKittiTimestamp(StampNs stamp);
 
+/// Sorted regular files of dir ending in ext (e.g. ".bin"); empty when dir is unreadable.
+std::vector<std::string> listFiles(const std::string& dir, const std::string& ext);
+
 /// Reads a KITTI raw timestamps.txt (one stamp per line).
 bool readKittiTimestamps(const std::string& path, std::vector<StampNs>& stamps,
                          std::string* error = nullptr);
