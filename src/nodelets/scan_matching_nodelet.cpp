@@ -1,5 +1,6 @@
 // ScanMatchingNodelet: filtered_points (base_link) -> KeyframeTracker -> odom, TF odom->base_link,
-// keyframe (new keyframes only) and scan_matching_status (every scan).
+// keyframe (new keyframes only), scan_matching_status (every scan) and tracking_health_marker
+// (an rviz text above the vehicle: OK / RECOVERED / LOST, on changes and with each keyframe).
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
@@ -7,6 +8,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/Marker.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
@@ -46,6 +48,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
     status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);
+    // Latched: rviz started later still shows the current tracking health.
+    marker_pub_ = nh.advertise<visualization_msgs::Marker>("tracking_health_marker", 1, true);
     sub_ = nh.subscribe("filtered_points", 5, &ScanMatchingNodelet::onCloud, this);
     // The IMU's orientation (or integrated rates) for the imu guesses and the recovery; its
     // frame is taken to be base_link (kitti2bag and mulran2bag mount it there).
@@ -80,6 +84,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
       if (const auto event = health_->updateRejected(msg->header.stamp.toSec(), error))
         NODELET_WARN("%s", event->message.c_str());
+      publishHealthMarker(msg->header.stamp, false);
       return;
     }
     if (!msg->header.frame_id.empty() && msg->header.frame_id != base_link_frame_) {
@@ -92,6 +97,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     if (const auto event = health_->update(msg->header.stamp.toSec(), result))
       NODELET_WARN("%s", event->message.c_str());
     publishStatus(msg->header.stamp, result);
+    publishHealthMarker(msg->header.stamp, result.new_keyframe);
     if (!result.has_pose()) {
       NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f ignored: %s", msg->header.stamp.toSec(),
                             result.message.c_str());
@@ -159,13 +165,38 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     status_pub_.publish(boost::shared_ptr<const ScanMatchingStatus>(msg));
   }
 
+  /// The tracking-health label as a text above base_link (frame-locked, so it follows the
+  /// vehicle between updates); the core decides what it says and when it is worth sending.
+  void publishHealthMarker(const ros::Time& stamp, bool new_keyframe) {
+    const auto label = health_display_.update(stamp.toSec(), *health_, new_keyframe);
+    if (!label) return;
+    boost::shared_ptr<visualization_msgs::Marker> m(new visualization_msgs::Marker);
+    m->header.stamp = stamp;
+    m->header.frame_id = base_link_frame_;
+    m->ns = "tracking_health";
+    m->id = 0;
+    m->type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+    m->action = visualization_msgs::Marker::ADD;
+    m->pose.position.z = 4.0;  // [m] above base_link
+    m->pose.orientation.w = 1.0;
+    m->scale.z = 1.2;  // [m] text height
+    m->color.r = label->r;
+    m->color.g = label->g;
+    m->color.b = label->b;
+    m->color.a = 1.0;
+    m->frame_locked = true;
+    m->text = label->text;
+    marker_pub_.publish(boost::shared_ptr<const visualization_msgs::Marker>(m));
+  }
+
   std::string odom_frame_, base_link_frame_;
   bool publish_tf_ = true;
   double warn_period_ = 5.0;
   std::unique_ptr<KeyframeTracker> tracker_;
   std::unique_ptr<TrackingHealth> health_;
+  TrackingHealthDisplay health_display_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
-  ros::Publisher odom_pub_, keyframe_pub_, status_pub_;
+  ros::Publisher odom_pub_, keyframe_pub_, status_pub_, marker_pub_;
   ros::Subscriber sub_, imu_sub_;
   std::mutex imu_mutex_;
   ImuOrientationBuffer imu_;

@@ -1,6 +1,7 @@
 #include "osm_graph_slam/odometry/tracking_health.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace osm_graph_slam {
@@ -22,6 +23,7 @@ TrackingStats TrackingHealth::stats() const {
 }
 
 std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackResult& result) {
+  recovery_gap_.reset();
   switch (result.status) {
     case TrackStatus::kFirstKeyframe:
     case TrackStatus::kMatched:
@@ -51,6 +53,7 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
   if (last_keyframe_stamp_) {
     const double gap = stamp - *last_keyframe_stamp_;
     stats_.longest_no_keyframe_s = std::max(stats_.longest_no_keyframe_s, gap);
+    if (result.reanchored || state_ == TrackingState::kLost) recovery_gap_ = gap;
     if (result.reanchored && state_ != TrackingState::kLost) {
       // Each re-anchor is a link the back-end only knows weakly: say where it happened.
       char buf[512];
@@ -78,6 +81,7 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
 
 std::optional<TrackingEvent> TrackingHealth::updateRejected(double stamp,
                                                             const std::string& reason) {
+  recovery_gap_.reset();
   ++stats_.scans;
   ++stats_.rejected_scans;
   if (stats_.scans == 1) stats_.first_stamp = stamp;
@@ -103,6 +107,68 @@ std::optional<TrackingEvent> TrackingHealth::checkGap(double stamp, const std::s
                 stats_.scans - 1, stamp, gap, lost_after_, failures_in_row_,
                 reason.empty() ? "none given" : reason.c_str());
   return TrackingEvent{TrackingState::kLost, buf};
+}
+
+const char* toString(TrackingHealthLevel level) {
+  switch (level) {
+    case TrackingHealthLevel::kOk:
+      return "ok";
+    case TrackingHealthLevel::kRecovered:
+      return "recovered";
+    case TrackingHealthLevel::kLost:
+      return "lost";
+  }
+  return "unknown";
+}
+
+TrackingHealthLabel trackingHealthLabel(TrackingHealthLevel level, double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0.0) seconds = 0.0;
+  TrackingHealthLabel label;
+  label.level = level;
+  char buf[64];
+  switch (level) {
+    case TrackingHealthLevel::kOk:
+      label.text = "tracking: OK";
+      label.r = 0.2f, label.g = 0.9f, label.b = 0.2f;
+      break;
+    case TrackingHealthLevel::kRecovered:
+      std::snprintf(buf, sizeof(buf), "tracking: RECOVERED (gap %.1f s)", seconds);
+      label.text = buf;
+      label.r = 1.0f, label.g = 0.85f, label.b = 0.0f;
+      break;
+    case TrackingHealthLevel::kLost:
+      std::snprintf(buf, sizeof(buf), "tracking: LOST %.1f s", seconds);
+      label.text = buf;
+      label.r = 1.0f, label.g = 0.15f, label.b = 0.15f;
+      break;
+  }
+  return label;
+}
+
+TrackingHealthDisplay::TrackingHealthDisplay(double hold, double period)
+    : hold_(hold), period_(period) {}
+
+std::optional<TrackingHealthLabel> TrackingHealthDisplay::update(double stamp,
+                                                                 const TrackingHealth& health,
+                                                                 bool new_keyframe) {
+  if (const auto gap = health.lastRecoveryGap()) recovered_at_ = stamp, recovered_gap_ = *gap;
+  TrackingHealthLabel label;
+  if (health.state() == TrackingState::kLost) {
+    recovered_at_.reset();
+    label = trackingHealthLabel(TrackingHealthLevel::kLost, health.timeSinceKeyframe());
+  } else if (recovered_at_ && stamp - *recovered_at_ < hold_) {
+    label = trackingHealthLabel(TrackingHealthLevel::kRecovered, recovered_gap_);
+  } else {
+    recovered_at_.reset();
+    label = trackingHealthLabel(TrackingHealthLevel::kOk, 0.0);
+  }
+  const bool publish = !last_published_ || label.level != label_.level || new_keyframe ||
+                       (label.level == TrackingHealthLevel::kLost &&
+                        std::abs(stamp - *last_published_) >= period_ - 1e-6);
+  label_ = label;
+  if (!publish) return std::nullopt;
+  last_published_ = stamp;
+  return label;
 }
 
 }  // namespace osm_graph_slam

@@ -44,6 +44,9 @@ class TrackingHealth {
   std::optional<TrackingEvent> updateRejected(double stamp, const std::string& reason);
 
   TrackingState state() const { return state_; }
+  /// [s] without a keyframe that the last scan's keyframe closed, when that keyframe was
+  /// re-anchored on a guess or ended a lost span (a recovery); nullopt otherwise.
+  std::optional<double> lastRecoveryGap() const { return recovery_gap_; }
   /// [s] since the last keyframe at the last scan (0 before the first keyframe).
   double timeSinceKeyframe() const;
   TrackingStats stats() const;
@@ -56,6 +59,46 @@ class TrackingHealth {
   TrackingState state_ = TrackingState::kOk;
   std::optional<double> last_keyframe_stamp_;
   size_t failures_in_row_ = 0;
+  std::optional<double> recovery_gap_;
+};
+
+/// What the rviz view shows of the tracking health (the scan_matching nodelet's
+/// tracking_health_marker): three levels, a short text and a colour.
+enum class TrackingHealthLevel { kOk, kRecovered, kLost };
+const char* toString(TrackingHealthLevel level);
+
+struct TrackingHealthLabel {
+  TrackingHealthLevel level = TrackingHealthLevel::kOk;
+  std::string text;
+  float r = 0.f, g = 0.f, b = 0.f;  ///< colour in [0, 1]
+};
+
+/// "tracking: OK" (green), "tracking: RECOVERED (gap 1.2 s)" (yellow), "tracking: LOST 4.0 s"
+/// (red). seconds: the span without a keyframe that the recovery closed, or how long the lost
+/// track has been without one; ignored for kOk. Negative or non-finite seconds print as 0.0.
+TrackingHealthLabel trackingHealthLabel(TrackingHealthLevel level, double seconds);
+
+/// Decides what the label shows and when it is worth publishing, scan by scan: a recovery stays
+/// on screen for `hold` s of stamps (it would flash for one scan otherwise), a lost track's
+/// counter is refreshed every `period` s, and otherwise the label is published only with a new
+/// keyframe or when its level changes.
+class TrackingHealthDisplay {
+ public:
+  explicit TrackingHealthDisplay(double hold = 5.0, double period = 1.0);
+
+  /// Call after TrackingHealth::update / updateRejected for the scan at stamp [s]; returns the
+  /// label to publish, or nullopt when the one on screen is still right.
+  std::optional<TrackingHealthLabel> update(double stamp, const TrackingHealth& health,
+                                            bool new_keyframe);
+  /// The label of the last update (kOk before any).
+  const TrackingHealthLabel& label() const { return label_; }
+
+ private:
+  double hold_, period_;
+  TrackingHealthLabel label_ = trackingHealthLabel(TrackingHealthLevel::kOk, 0.0);
+  std::optional<double> last_published_;
+  std::optional<double> recovered_at_;
+  double recovered_gap_ = 0.0;
 };
 
 }  // namespace osm_graph_slam
