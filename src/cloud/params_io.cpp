@@ -33,4 +33,22 @@ void readParams(const ParamReader& r, WallPointExtractorParams& p) {
   r.param("num_threads", p.num_threads);
 }
 
+void readParams(const ParamReader& r, FloorDetectorParams& p) {
+  r.param("enabled", p.enabled);
+  r.param("floor_z", p.floor_z);
+  r.param("floor_z_tolerance", p.floor_z_tolerance);
+  r.param("min_range", p.min_range);
+  r.param("max_range", p.max_range);
+  r.param("normal_neighbours", p.normal_neighbours);
+  r.param("max_normal_tilt_deg", p.max_normal_tilt_deg);
+  r.param("ransac_distance", p.ransac_distance);
+  r.param("ransac_iterations", p.ransac_iterations);
+  r.param("min_inliers", p.min_inliers);
+  r.param("max_floor_tilt_deg", p.max_floor_tilt_deg);
+  r.param("rough_radius", p.rough_radius);
+  r.param("rough_min_points", p.rough_min_points);
+  r.param("rough_max_rms", p.rough_max_rms);
+  r.param("warn_after_missing", p.warn_after_missing);
+}
+
 }  // namespace osm_graph_slam

@@ -39,6 +39,8 @@ EdgeSignature signatureOf(EdgeType type) {
       return {2, V::kSE3, V::kPointXY};
     case EdgeType::kSE2PointOnLine:
       return {2, V::kSE2, V::kSE2};
+    case EdgeType::kSE3PlanePair:
+      return {2, V::kSE3, V::kSE3};
   }
   return {0, V::kSE3, V::kSE3};
 }
@@ -120,6 +122,8 @@ const char* toString(EdgeType type) {
       return "SE3-XY";
     case EdgeType::kSE2PointOnLine:
       return "SE2 point-on-line";
+    case EdgeType::kSE3PlanePair:
+      return "SE3 plane pair";
   }
   return "?";
 }
@@ -147,6 +151,7 @@ int errorDimension(EdgeType type) {
     case EdgeType::kSE3SE2:
     case EdgeType::kPriorSE2:
     case EdgeType::kPriorSE3XYZ:
+    case EdgeType::kSE3PlanePair:
       return 3;
     case EdgeType::kPriorSE3XY:
     case EdgeType::kSE2PointXY:
@@ -162,6 +167,7 @@ int errorDimension(EdgeType type) {
 int measurementDimension(EdgeType type) {
   if (type == EdgeType::kSE3 || type == EdgeType::kPriorSE3) return 7;
   if (type == EdgeType::kSE2PointOnLine) return 5;
+  if (type == EdgeType::kSE3PlanePair) return 8;
   return errorDimension(type);
 }
 
@@ -395,6 +401,17 @@ int PoseGraph::addEdgeSE2PointOnLine(int point_owner, int line_owner, const Eige
   m << point, normal / norm, offset / norm;
   return addEdge(EdgeType::kSE2PointOnLine, {point_owner, line_owner}, m,
                  Eigen::Matrix<double, 1, 1>(information), options);
+}
+
+int PoseGraph::addEdgeSE3PlanePair(int first, int second, const Eigen::Vector4d& plane_in_first,
+                                   const Eigen::Vector4d& plane_in_second,
+                                   const Eigen::Matrix3d& information, const EdgeOptions& options) {
+  const double n1 = plane_in_first.head<3>().norm(), n2 = plane_in_second.head<3>().norm();
+  if (!(n1 > 1e-9) || !(n2 > 1e-9) || !std::isfinite(n1) || !std::isfinite(n2))
+    return fail("edge SE3 plane pair: zero normal");
+  Eigen::VectorXd m(8);
+  m << plane_in_first / n1, plane_in_second / n2;
+  return addEdge(EdgeType::kSE3PlanePair, {first, second}, m, information, options);
 }
 
 int PoseGraph::addEdgeSE2PointXY(int pose, int point, const Eigen::Vector2d& measurement,

@@ -261,6 +261,26 @@ struct SE3PointFunctor {
   }
 };
 
+// Plane measured in the first SE3 frame, carried into the second, against the plane measured
+// there: (n̂ₓ − nₓ, n̂ᵧ − nᵧ, d̂ − d). Floors are near level in base_link, so x and y of the unit
+// normals are its two free directions.
+struct SE3PlanePairFunctor {
+  Eigen::Vector4d first, second;
+  Eigen::Matrix3d sqrt_info;
+  template <typename T>
+  bool operator()(const T* xi, const T* xj, T* r) const {
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Eigen::Quaternion<T>> qi(xi + 3), qj(xj + 3);
+    const Vec3 n_world = qi * first.head<3>().cast<T>();
+    const Vec3 n_pred = qj.conjugate() * n_world;
+    const Vec3 dt(xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]);
+    T e[3] = {n_pred.x() - T(second.x()), n_pred.y() - T(second.y()),
+              T(first[3]) + n_world.dot(dt) - T(second[3])};
+    weigh<3>(sqrt_info, e, r);
+    return true;
+  }
+};
+
 // Converts ambient (7-column) SE3 Jacobians of an automatically differentiated cost into the
 // lifted tangent form expected by SE3LiftedManifold.
 class LiftedCost : public ceres::CostFunction {
@@ -529,6 +549,10 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
     case EdgeType::kSE2PointOnLine:
       return autoDiff<SE2PointOnLineFunctor, 1, 3, 3>(
           SE2PointOnLineFunctor{m.head<2>(), m.segment<2>(2), m[4], s(0, 0)});
+    case EdgeType::kSE3PlanePair:
+      return lifted(
+          autoDiff<SE3PlanePairFunctor, 3, 7, 7>(SE3PlanePairFunctor{m.head<4>(), m.tail<4>(), s}),
+          true, true);
   }
   return nullptr;
 }

@@ -129,6 +129,7 @@ Building BuildingState::corrected() const {
 struct GraphBackend::Pending {
   std::deque<KeyframeInput> keyframes;
   std::map<uint64_t, std::vector<LineSegment2>> segments;
+  std::map<uint64_t, Eigen::Vector4d> floors;
   std::deque<LoopClosureInput> loops;
   struct BuildingBatch {
     std::vector<Building> buildings;
@@ -143,8 +144,10 @@ struct GraphBackend::State {
   std::map<uint64_t, KeyframeState> keyframes;
   std::map<int64_t, BuildingState> buildings;
   std::map<uint64_t, std::vector<LineSegment2>> early_segments;  ///< keyframe not yet inserted
-  std::deque<LoopClosureInput> early_loops;                      ///< current keyframe not yet in
-  std::vector<std::pair<Eigen::Vector2d, double>> coverage;      ///< answered OSM queries
+  std::map<uint64_t, Eigen::Vector4d> early_floors;              ///< keyframe not yet inserted
+  std::optional<uint64_t> last_floor_keyframe;               ///< the newest keyframe with a floor
+  std::deque<LoopClosureInput> early_loops;                  ///< current keyframe not yet in
+  std::vector<std::pair<Eigen::Vector2d, double>> coverage;  ///< answered OSM queries
   std::optional<EnuConverter> origin;
   Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
   bool heading_initialized = false;
@@ -218,6 +221,11 @@ void GraphBackend::addLineSegments(uint64_t keyframe_id, std::vector<LineSegment
   pending_->segments[keyframe_id] = std::move(segments);
 }
 
+void GraphBackend::addFloor(uint64_t keyframe_id, const Eigen::Vector4d& coeffs) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  pending_->floors[keyframe_id] = coeffs;
+}
+
 void GraphBackend::addBuildings(std::vector<Building> buildings,
                                 const Eigen::Vector2d& query_center, double query_radius) {
   std::lock_guard<std::mutex> lock(queue_mutex_);
@@ -232,7 +240,7 @@ void GraphBackend::addLoopClosure(const LoopClosureInput& loop) {
 size_t GraphBackend::pendingInputs() const {
   std::lock_guard<std::mutex> lock(queue_mutex_);
   return pending_->keyframes.size() + pending_->segments.size() + pending_->loops.size() +
-         pending_->buildings.size();
+         pending_->buildings.size() + pending_->floors.size();
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -244,6 +252,7 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
   BackendUpdateReport report;
   std::lock_guard<std::mutex> state_lock(state_mutex_);
   flushKeyframes(report);
+  flushFloors(report);
   flushLoops(report);
   flushBuildings(report);
   if (params_.use_osm) processOsmPriors(report);
@@ -298,6 +307,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     kf.odom_fitness = in.odom_fitness;
     kf.reanchored = in.reanchored;
     kf.gravity_roll_pitch = in.gravity_roll_pitch;
+    if (in.floor) s.early_floors[in.id] = *in.floor;
     kf.cloud = in.cloud;
     const int vid = static_cast<int>(in.id);
     if (s.keyframes.empty()) {
@@ -309,6 +319,13 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       s.map_to_odom = initialMapToOdom(in.odom_pose, s.initial_yaw,
                                        in.gnss_position.value_or(Eigen::Vector2d::Zero()));
       kf.map_pose = s.map_to_odom * in.odom_pose;
+      if (in.gravity_roll_pitch) {
+        // Fixed with the IMU's roll and pitch, not odometry's (level at its start): otherwise
+        // the fixed first vertex and the attitude priors of the others disagree by the slope.
+        kf.map_pose = attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(),
+                                          in.gravity_roll_pitch->y());
+        s.map_to_odom = kf.map_pose * in.odom_pose.inverse();
+      }
       const bool free_first = gnssPriors() && in.gnss_position.has_value();
       s.graph.addVertexSE3(vid, kf.map_pose, !free_first);
       if (free_first) {
@@ -584,6 +601,71 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
       s.dirty = true;
     }
   }
+}
+
+void GraphBackend::flushFloors(BackendUpdateReport& report) {
+  std::map<uint64_t, Eigen::Vector4d> floors;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    floors.swap(pending_->floors);
+  }
+  State& s = *state_;
+  for (const auto& [id, coeffs] : floors) s.early_floors[id] = coeffs;
+  const uint64_t newest = s.keyframes.empty() ? 0 : s.keyframes.rbegin()->first;
+  for (auto it = s.early_floors.begin(); it != s.early_floors.end();) {
+    auto kf = s.keyframes.find(it->first);
+    if (kf != s.keyframes.end()) {
+      kf->second.floor = it->second;
+      linkFloor(kf->second, report);
+    } else if (it->first > newest || s.keyframes.empty()) {
+      break;  // its keyframe has not arrived yet (ids ascend)
+    } else {
+      logger_->warnOnce("floor_unknown",
+                        "floor for unknown keyframe " + std::to_string(it->first) + " dropped");
+    }
+    it = s.early_floors.erase(it);
+  }
+}
+
+void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
+  State& s = *state_;
+  const std::optional<uint64_t> prev_id = s.last_floor_keyframe;
+  if (prev_id && *prev_id >= kf.id) return;  // out of order: keep the newer chain
+  s.last_floor_keyframe = kf.id;
+  if (!params_.floor_edges || !prev_id) return;
+  const KeyframeState& prev = s.keyframes.at(*prev_id);
+  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance) {
+    ++report.floor_gaps;
+    return;
+  }
+  // The same ground only if the floors agree in the map frame (odometry links the two poses).
+  const Eigen::Vector3d n_prev = prev.map_pose.linear() * prev.floor->head<3>();
+  const Eigen::Vector3d n_this = kf.map_pose.linear() * kf.floor->head<3>();
+  const double bend =
+      std::acos(std::clamp(n_prev.normalized().dot(n_this.normalized()), -1.0, 1.0));
+  if (bend > params_.floor_slope_change_deg * M_PI / 180.0) {
+    ++report.floor_slope_changes;
+    logger_->info("keyframe " + std::to_string(kf.id) + ": the floor bends by " +
+                  std::to_string(bend * 180.0 / M_PI) + " deg (a change of slope): not tied to " +
+                  "keyframe " + std::to_string(prev.id));
+    return;
+  }
+  // Both floors are measured: the difference carries twice the variance of one.
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  info(0, 0) = info(1, 1) = 0.5 / std::pow(params_.floor_normal_std, 2);
+  // With gravity from the IMU on both, the floor only says the height: a floor fit tilts with
+  // the road's camber and curvature, gravity does not (sim: tilt error 0.038 -> 0.056 deg).
+  if (prev.gravity_roll_pitch && kf.gravity_roll_pitch && !params_.floor_attitude_with_imu)
+    info(0, 0) = info(1, 1) = 1e-9;
+  info(2, 2) = 0.5 / std::pow(params_.floor_distance_std, 2);
+  if (s.graph.addEdgeSE3PlanePair(
+          static_cast<int>(prev.id), static_cast<int>(kf.id), *prev.floor, *kf.floor, info,
+          EdgeOptions{0, RobustKernel::huber(params_.floor_kernel_width)}) < 0) {
+    logger_->warnOnce("floor_edge", "floor edge rejected: " + s.graph.lastError());
+    return;
+  }
+  ++report.floor_edges;
+  s.dirty = true;
 }
 
 void GraphBackend::addGlobalPrior(KeyframeState& kf, const LineMatchResult& global) {

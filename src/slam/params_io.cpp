@@ -47,6 +47,13 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
     ok = false;
   }
   r.param("imu_attitude_std", p.imu_attitude_std);
+  r.param("floor_edges", p.floor_edges);
+  r.param("floor_normal_std", p.floor_normal_std);
+  r.param("floor_distance_std", p.floor_distance_std);
+  r.param("floor_kernel_width", p.floor_kernel_width);
+  r.param("floor_slope_change_deg", p.floor_slope_change_deg);
+  r.param("floor_max_link_distance", p.floor_max_link_distance);
+  r.param("floor_attitude_with_imu", p.floor_attitude_with_imu);
   r.param("odometry_attitude_std", p.odometry_attitude_std);
   if (!readKernelName(r, "loop_kernel", p.loop_kernel, error)) ok = false;
   r.param("loop_kernel_width", p.loop_kernel_width);

@@ -13,6 +13,7 @@ namespace osm_graph_slam {
 bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string* error) {
   readParams(PrefixedParamReader(r, "prefiltering"), p.prefilter);
   readParams(PrefixedParamReader(r, "scan_matching"), p.tracker);
+  readParams(PrefixedParamReader(r, "floor_detection"), p.floor);
   readParams(PrefixedParamReader(r, "line_extraction/wall"), p.wall);
   readParams(PrefixedParamReader(r, "line_extraction/segments"), p.segments);
   readParams(PrefixedParamReader(r, "loop_detection"), p.loop);
@@ -23,8 +24,8 @@ bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string
 bool loadPipelineParams(const std::string& config_dir, const std::string& override_file,
                         SlamPipelineParams& params, std::string* error) {
   // Each config/<nodelet>.yaml holds that nodelet's keys at its top level.
-  for (const char* nodelet : {"prefiltering", "scan_matching", "line_extraction", "loop_detection",
-                              "osm_buffer", "graph_backend"}) {
+  for (const char* nodelet : {"prefiltering", "scan_matching", "floor_detection", "line_extraction",
+                              "loop_detection", "osm_buffer", "graph_backend"}) {
     const std::string path = config_dir + "/" + nodelet + ".yaml";
     const YamlParamReader file = YamlParamReader::fromFile(path);
     if (!file.ok()) {

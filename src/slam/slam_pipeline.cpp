@@ -34,6 +34,8 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
       prefilter_(params.prefilter),
       tracker_(params.tracker),
       tracking_(params.tracker.lost_track_after),
+      floor_(params.floor),
+      floor_health_(params.floor.warn_after_missing),
       walls_(params.wall, logger_),
       segments_(params.segments) {
   GraphBackendParams backend = params.backend;
@@ -110,6 +112,13 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = gravity_roll_pitch;
   input.gnss_position = gnss_position;
+  if (params_.floor.enabled) {
+    StageTimer t(timings_.floor_ms);
+    const FloorDetection floor = floor_.detect(*kf.cloud);
+    if (floor.found) input.floor = floor.coeffs;
+    const std::string message = floor_health_.update(kf.id, floor);
+    if (!message.empty()) logger_->warn(message);
+  }
   backend_->addKeyframe(input);
 
   std::vector<LineSegment2> segments;
@@ -182,6 +191,8 @@ void SlamPipeline::logTracking(const std::optional<TrackingEvent>& event) const 
 PipelineTimings SlamPipeline::timings() const {
   PipelineTimings t = timings_;
   t.tracking = tracking_.stats();
+  t.floors_found = floor_health_.found();
+  t.floors_missing = floor_health_.missing();
   return t;
 }
 
@@ -191,6 +202,8 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.building_edges += report.building_edges;
   timings_.overlap_edges = report.overlap_edges;  // re-derived at every update
   timings_.shared_walls = report.shared_walls;
+  timings_.floor_edges += report.floor_edges;
+  timings_.floor_slope_changes += report.floor_slope_changes;
 }
 
 std::string SlamPipeline::timingTable() const {
@@ -205,6 +218,7 @@ std::string SlamPipeline::timingTable() const {
                 "tracking         %10.0f   %13.2f   %17.2f\n"
                 "wall points      %10.0f   %13.2f   %17.2f\n"
                 "segments         %10.0f   %13.2f   %17.2f\n"
+                "floor detection  %10.0f   %13.2f   %17.2f\n"
                 "loop detection   %10.0f   %13.2f   %17.2f\n"
                 "osm buffer       %10.0f   %13.2f   %17.2f\n"
                 "graph back-end   %10.0f   %13.2f   %17.2f\n"
@@ -214,10 +228,11 @@ std::string SlamPipeline::timingTable() const {
                 t.input_ms, t.input_ms / scans, t.input_ms / kfs, t.prefilter_ms,
                 t.prefilter_ms / scans, t.prefilter_ms / kfs, t.tracking_ms, t.tracking_ms / scans,
                 t.tracking_ms / kfs, t.walls_ms, t.walls_ms / scans, t.walls_ms / kfs,
-                t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs, t.loops_ms,
-                t.loops_ms / scans, t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans, t.osm_ms / kfs,
-                t.backend_ms, t.backend_ms / scans, t.backend_ms / kfs, t.scans, t.keyframes,
-                t.loops, t.wall_time_s, t.scansPerSecond(), t.global_priors, t.global_rejected,
+                t.segments_ms, t.segments_ms / scans, t.segments_ms / kfs, t.floor_ms,
+                t.floor_ms / scans, t.floor_ms / kfs, t.loops_ms, t.loops_ms / scans,
+                t.loops_ms / kfs, t.osm_ms, t.osm_ms / scans, t.osm_ms / kfs, t.backend_ms,
+                t.backend_ms / scans, t.backend_ms / kfs, t.scans, t.keyframes, t.loops,
+                t.wall_time_s, t.scansPerSecond(), t.global_priors, t.global_rejected,
                 t.building_edges, t.overlap_edges, t.shared_walls);
   const TrackingStats& k = t.tracking;
   char track[512];
@@ -228,7 +243,11 @@ std::string SlamPipeline::timingTable() const {
                 k.matched, k.failed_matches, k.rejected_scans, k.reanchors, k.lost_events,
                 k.scans_while_lost, k.longest_no_keyframe_s, t.pre_tracker_ms,
                 k.lost_events ? "  <-- WARNING: part of the drive has no keyframe" : "");
-  return std::string(buf) + track;
+  char floor[256];
+  std::snprintf(floor, sizeof(floor),
+                "floor: found on %zu keyframes, none on %zu; %zu plane edges, %zu slope changes\n",
+                t.floors_found, t.floors_missing, t.floor_edges, t.floor_slope_changes);
+  return std::string(buf) + track + floor;
 }
 
 std::string SlamPipeline::timingJson() const {
@@ -245,6 +264,11 @@ std::string SlamPipeline::timingJson() const {
                                 {"building_edges", t.building_edges},
                                 {"overlap_edges", t.overlap_edges},
                                 {"shared_walls", t.shared_walls}}},
+                              {"floor",
+                               {{"found", t.floors_found},
+                                {"missing", t.floors_missing},
+                                {"plane_edges", t.floor_edges},
+                                {"slope_changes", t.floor_slope_changes}}},
                               {"ms",
                                {{"input", t.input_ms},
                                 {"prefilter", t.prefilter_ms},
@@ -254,6 +278,7 @@ std::string SlamPipeline::timingJson() const {
                                 {"loops", t.loops_ms},
                                 {"osm", t.osm_ms},
                                 {"backend", t.backend_ms},
+                                {"floor", t.floor_ms},
                                 {"pre_tracker", t.pre_tracker_ms}}},
                               {"tracking",
                                {{"scans", k.scans},

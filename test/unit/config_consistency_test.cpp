@@ -107,6 +107,12 @@ std::vector<StageConfig> stages() {
          readParams(r, p);
        },
        {"odom_frame", "base_link_frame", "publish_tf", "warn_throttle_period"}},
+      {"floor_detection",
+       [](const ParamReader& r) {
+         FloorDetectorParams p;
+         readParams(r, p);
+       },
+       {}},
       {"line_extraction",
        [](const ParamReader& r) {
          WallPointExtractorParams wall;

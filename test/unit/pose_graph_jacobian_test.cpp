@@ -115,6 +115,9 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
     const Block xy{VertexType::kPointXY, {4.0, -2.0}};
     const Eigen::VectorXd z7 = vec(randomSE3(rng)), z3 = vec(randomSE2(rng));
     const Eigen::Vector2d z2(1.0, 0.5);
+    Eigen::VectorXd planes(8);
+    planes << Eigen::Vector3d(0.05, -0.02, 1.0).normalized(), -0.9,
+        Eigen::Vector3d(-0.01, 0.03, 1.0).normalized(), -0.95;
     struct Case {
       EdgeType type;
       Eigen::VectorXd z;
@@ -131,6 +134,7 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
         {EdgeType::kPriorSE2, z3, {se2a}},
         {EdgeType::kSE2PointXY, z2, {se2a, xy}},
         {EdgeType::kSE3PointXY, z2, {se3a, xy}},
+        {EdgeType::kSE3PlanePair, planes, {se3a, se3b}},
     };
     for (const Case& c : cases) {
       const PoseGraph::Edge edge = makeEdge(c.type, c.z, rng);

@@ -40,6 +40,10 @@ enum class EdgeType {
   /// A point fixed in the first SE2 vertex lies on a line fixed in the second (1×1), e.g. the end
   /// of a building's wall on the wall it shares with its neighbour.
   kSE2PointOnLine,
+  /// Two SE3 poses stand on one plane (e.g. the floor, ART-SLAM §3.1.6): the plane measured in
+  /// the first frame, carried into the second by the estimates, must be the plane measured there
+  /// (3×3: the normal's x and y, the offset).
+  kSE3PlanePair,
 };
 
 const char* toString(VertexType type);
@@ -75,7 +79,8 @@ struct EdgeInfo {
   int level = 0;
   RobustKernel kernel;
   /// SE3: (tx, ty, tz, qx, qy, qz, qw); SE2/SE3SE2/PriorSE2: (x, y, θ); XY/point: (x, y);
-  /// XYZ: (x, y, z); yaw: (yaw); point-on-line: (px, py, nx, ny, c), see addEdgeSE2PointOnLine().
+  /// XYZ: (x, y, z); yaw: (yaw); point-on-line: (px, py, nx, ny, c), see addEdgeSE2PointOnLine();
+  /// plane pair: (a, b, c, d) in the first frame, then in the second, see addEdgeSE3PlanePair().
   Eigen::VectorXd measurement;
   Eigen::MatrixXd information;
 };
@@ -178,6 +183,12 @@ class PoseGraph {
   int addEdgeSE2PointOnLine(int point_owner, int line_owner, const Eigen::Vector2d& point,
                             const Eigen::Vector2d& normal, double offset, double information,
                             const EdgeOptions& options = {});
+  /// Planes a x + b y + c z + d = 0 ((a, b, c) unit) measured in the frames of two SE3 vertices
+  /// that stand on the same plane. e = (n̂ₓ − nₓ, n̂ᵧ − nᵧ, d̂ − d) in the second frame, where
+  /// (n̂, d̂) is the first plane carried there: n̂ = R₂ᵀR₁n₁, d̂ = d₁ + (R₁n₁)·(t₂ − t₁).
+  int addEdgeSE3PlanePair(int first, int second, const Eigen::Vector4d& plane_in_first,
+                          const Eigen::Vector4d& plane_in_second,
+                          const Eigen::Matrix3d& information, const EdgeOptions& options = {});
   /// Generic form used by file readers: measurement/information laid out as in EdgeInfo.
   int addEdge(EdgeType type, const std::vector<int>& vertices, const Eigen::VectorXd& measurement,
               const Eigen::MatrixXd& information, const EdgeOptions& options = {});

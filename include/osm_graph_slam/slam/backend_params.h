@@ -56,6 +56,19 @@ struct GraphBackendParams {
   /// [rad] without an IMU, keyframes with a map prior keep odometry's roll/pitch this firmly, so
   /// that planar priors are not satisfied by tilting the trajectory.
   double odometry_attitude_std = 0.02;
+  // --- floor (ART-SLAM §3.1.6): consecutive keyframes' floors are one plane, unless it bends ---
+  bool floor_edges = true;           ///< plane-pair edges between keyframes with a floor
+  double floor_normal_std = 0.005;   ///< [rad] of the floor normal (per keyframe)
+  double floor_distance_std = 0.02;  ///< [m] of the floor's offset (per keyframe)
+  double floor_kernel_width = 2.0;   ///< Huber width [deviations]
+  /// Floors whose map-frame normals (through the current estimates) differ by more than this are
+  /// a change of slope (a ramp, a crest, a kerb): no edge between them [deg].
+  double floor_slope_change_deg = 1.5;
+  /// Two floors further apart than this along the path are not tied (the road bends between) [m].
+  double floor_max_link_distance = 10.0;
+  /// Floor edges between keyframes that both have an IMU attitude also tie roll and pitch
+  /// (false: only the height; gravity knows the attitude better than a floor fit).
+  bool floor_attitude_with_imu = false;
   // --- loops ---
   std::string loop_kernel = "cauchy";  ///< none | huber | cauchy
   double loop_kernel_width = 1.0;

@@ -40,6 +40,9 @@ struct KeyframeInput {
   /// origin) [m], if known. The first keyframe is fixed there: the origin is the first fix, and
   /// when the first scans never became keyframes (dropped, empty) the vehicle has moved since.
   std::optional<Eigen::Vector2d> gnss_position;
+  /// The floor plane (a, b, c, d) under base_link, if the floor detector found one (it may also
+  /// come later through addFloor()).
+  std::optional<Eigen::Vector4d> floor;
 };
 
 struct LoopClosureInput {
@@ -59,6 +62,9 @@ struct BackendUpdateReport {
   size_t building_edges_gated = 0;  ///< removed by the consistency gate
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   size_t shared_walls = 0;  ///< building pairs tied by a shared wall in this update
+  /// Floor plane-pair edges added; consecutive floors not tied because the slope changed or
+  /// they lie too far apart.
+  size_t floor_edges = 0, floor_slope_changes = 0, floor_gaps = 0;
   bool heading_initialized_now = false;
   OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
@@ -74,6 +80,7 @@ struct KeyframeState {
   double odom_fitness = -1.0;
   bool reanchored = false;  ///< linked by a weak odometry edge (the tracker re-anchored it)
   std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
+  std::optional<Eigen::Vector4d> floor;               ///< in base_link, as received
   PointCloudConstPtr cloud;
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
@@ -112,6 +119,8 @@ class GraphBackend {
   void setInitialHeading(double yaw);
   void addKeyframe(KeyframeInput keyframe);
   void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
+  /// The floor plane (a, b, c, d) under a keyframe's base_link (floor_detection).
+  void addFloor(uint64_t keyframe_id, const Eigen::Vector4d& coeffs);
   /// Buildings (ENU filled) answering a query of radius query_radius around query_center.
   void addBuildings(std::vector<Building> buildings, const Eigen::Vector2d& query_center,
                     double query_radius);
@@ -148,6 +157,8 @@ class GraphBackend {
   void flushKeyframes(BackendUpdateReport& report);
   void flushLoops(BackendUpdateReport& report);
   void flushBuildings(BackendUpdateReport& report);
+  void flushFloors(BackendUpdateReport& report);
+  void linkFloor(KeyframeState& kf, BackendUpdateReport& report);
   void processOsmPriors(BackendUpdateReport& report);
   bool keyframeCovered(const Eigen::Vector2d& position) const;
   void addGlobalPrior(KeyframeState& kf, const LineMatchResult& global);

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/cloud/floor_detector.h"
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/loop/loop_detector.h"
@@ -19,6 +20,7 @@ namespace osm_graph_slam {
 struct SlamPipelineParams {
   CloudPrefilterParams prefilter;
   KeyframeTrackerParams tracker;
+  FloorDetectorParams floor;
   WallPointExtractorParams wall;
   LineSegmentExtractorParams segments;
   bool use_loops = true;
@@ -38,8 +40,10 @@ struct PipelineTimings {
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
   double pre_tracker_ms = 0;  ///< inside tracking_ms: the pre-tracker's registrations
-  double wall_time_s = 0;     ///< from the first scan to finish()
-  TrackingStats tracking;     ///< failed matches, lost tracks, the longest span without keyframe
+  double floor_ms = 0;        ///< floor detection (keyframes only)
+  size_t floors_found = 0, floors_missing = 0, floor_edges = 0, floor_slope_changes = 0;
+  double wall_time_s = 0;  ///< from the first scan to finish()
+  TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
   double scansPerSecond() const { return wall_time_s > 0 ? scans / wall_time_s : 0.0; }
 };
 
@@ -87,6 +91,8 @@ class SlamPipeline {
   CloudPrefilter prefilter_;
   KeyframeTracker tracker_;
   TrackingHealth tracking_;
+  FloorDetector floor_;
+  FloorHealth floor_health_;
   WallPointExtractor walls_;
   LineSegmentExtractor segments_;
   std::unique_ptr<LoopDetector> loops_;
