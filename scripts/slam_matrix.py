@@ -505,6 +505,9 @@ def parse_metrics(evaluation, timing_osm=None, timing_no_osm=None, sim_info=None
     m["rpe_osm"] = n(dig(ev, "slam", "rpe_trans_m", "mean"))
     m["rpe_no_osm"] = n(dig(base, "rpe_trans_m", "mean")) if base else None
     m["rpe_ratio"] = ratio(m["rpe_osm"], m["rpe_no_osm"])
+    m["height_drift"] = n(dig(ev, "slam", "height_drift_m", "mean"))
+    tilt = n(dig(ev, "slam", "tilt_rad", "mean"))
+    m["tilt_deg"] = None if tilt is None else math.degrees(tilt)
 
     m["bld_prior"] = n(dig(ev, "buildings_prior", "mean_corner_error_m"))
     m["bld_corrected"] = n(dig(ev, "buildings_corrected", "mean_corner_error_m"))
@@ -708,6 +711,8 @@ COLUMNS = [
     ("ate_no_osm", "ATE_no", 7, f3, "max"),
     ("ate_change_pct", "chg%", 7, fpct, "max"),
     ("rpe_ratio", "tRPE_r", 6, f2, "max"),
+    ("height_drift", "z_dr", 5, f3, "max"),
+    ("tilt_deg", "tilt", 5, f3, "max"),
     ("bld_prior", "B_prior", 7, f3, "max"),
     ("bld_corrected", "B_corr", 7, f3, "max"),
     ("seen_prior", "S_prior", 7, f3, "max"),

@@ -22,6 +22,8 @@ json trajectoryJson(const TrajectoryErrors& e) {
           {"ate_m", statsJson(e.ate)},
           {"rpe_trans_m", statsJson(e.rpe_trans)},
           {"rpe_rot_rad", statsJson(e.rpe_rot)},
+          {"height_drift_m", statsJson(e.height_drift)},
+          {"tilt_rad", statsJson(e.tilt)},
           {"kitti_segments", e.kitti_segments},
           {"kitti_trans_percent", e.kitti_trans_percent},
           {"kitti_rot_deg_per_100m", e.kitti_rot_deg_per_100m}};

@@ -141,9 +141,13 @@ TrajectoryErrors evaluateTrajectory(const Trajectory& estimate, const Trajectory
   }
   for (auto& pose : est) pose = align * pose;
 
-  std::vector<double> ate, rpe_t, rpe_r;
+  std::vector<double> ate, rpe_t, rpe_r, height, tilt;
+  const double z0 = est.front().translation().z() - gt.front().translation().z();
   for (size_t k = 0; k < est.size(); ++k) {
     ate.push_back((gt[k].inverse() * est[k]).translation().norm());  // eq. 4.6-4.7
+    height.push_back(std::abs(est[k].translation().z() - gt[k].translation().z() - z0));
+    const Eigen::Vector3d up_est = est[k].linear().row(2), up_gt = gt[k].linear().row(2);
+    tilt.push_back(std::acos(std::clamp(up_est.dot(up_gt), -1.0, 1.0)));
     if (k == 0) continue;
     const Eigen::Isometry3d est_rel = est[k - 1].inverse() * est[k];  // eq. 4.2
     const Eigen::Isometry3d gt_rel = gt[k - 1].inverse() * gt[k];
@@ -162,6 +166,8 @@ TrajectoryErrors evaluateTrajectory(const Trajectory& estimate, const Trajectory
   out.ate = computeErrorStats(ate);
   out.rpe_trans = computeErrorStats(rpe_t);
   out.rpe_rot = computeErrorStats(rpe_r);
+  out.height_drift = computeErrorStats(height);
+  out.tilt = computeErrorStats(tilt);
   kittiRelativeErrors(est, gt, options, out);
   return out;
 }

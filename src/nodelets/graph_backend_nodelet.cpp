@@ -22,6 +22,7 @@
 #include <thread>
 
 #include "osm_graph_slam/DumpGraph.h"
+#include "osm_graph_slam/FloorCoeffs.h"
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/LoopClosure.h"
@@ -82,6 +83,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     segments_sub_ = nh.subscribe("line_segments", 100, &GraphBackendNodelet::onSegments, this);
     buildings_sub_ = nh.subscribe("osm/buildings", 10, &GraphBackendNodelet::onBuildings, this);
     loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
+    floor_sub_ = nh.subscribe("floor_coeffs", 100, &GraphBackendNodelet::onFloor, this);
     origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
     if (use_imu_) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
     fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
@@ -149,6 +151,17 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> guard(stamp_mutex_);
     last_stamp_ = msg->header.stamp;
     keyframe_stamps_[msg->id] = msg->header.stamp;
+  }
+
+  void onFloor(const FloorCoeffsConstPtr& msg) {
+    if (!msg->found) return;  // floor_detection logs a floor lost for long
+    const Eigen::Vector4d coeffs(msg->coeffs[0], msg->coeffs[1], msg->coeffs[2], msg->coeffs[3]);
+    if (!coeffs.allFinite() || coeffs.head<3>().norm() < 1e-6) {
+      NODELET_WARN_THROTTLE(warn_period_, "floor of keyframe %lu is not a plane; ignored",
+                            static_cast<unsigned long>(msg->keyframe_id));
+      return;
+    }
+    backend_->addFloor(msg->keyframe_id, coeffs);
   }
 
   /// The keyframe's exact header stamp (the core keeps seconds as a double, which loses the
@@ -424,7 +437,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::vector<GnssFixSample> gnss_;  ///< until the first keyframe
   std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
   ros::Subscriber fix_sub_;
-  ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_;
+  ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_, floor_sub_;
   ros::ServiceServer save_srv_, dump_srv_;
   ros::WallTimer tf_timer_;
 };

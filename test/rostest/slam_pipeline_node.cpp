@@ -37,6 +37,7 @@
 
 #include "osm_graph_slam/BuildingArray.h"
 #include "osm_graph_slam/DumpGraph.h"
+#include "osm_graph_slam/FloorCoeffs.h"
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/LoopClosure.h"
@@ -84,6 +85,7 @@ struct Inbox {
   ros::WallTime last_path_time;
   BuildingArray::ConstPtr slam_buildings;
   int loops = 0;
+  std::vector<FloorCoeffs::ConstPtr> floors;
 
   template <typename F>
   auto locked(F f) {
@@ -151,6 +153,13 @@ void subscribe() {
       return 0;
     });
   }));
+  P->subs.push_back(
+      nh.subscribe<FloorCoeffs>("floor_coeffs", 50, [&in](const FloorCoeffs::ConstPtr& m) {
+        in.locked([&] {
+          in.floors.push_back(m);
+          return 0;
+        });
+      }));
   P->subs.push_back(nh.subscribe<LineSegmentArray>(
       "line_segments", 50, [&in](const LineSegmentArray::ConstPtr& m) {
         in.locked([&] { return in.segments[m->keyframe_id] = m->segments.size(); });
@@ -454,6 +463,13 @@ TEST_F(SlamPipeline, Drive) {
   size_t with_segments = 0;
   for (const auto& [id, n] : in.segments) with_segments += n >= 3 ? 1 : 0;
   EXPECT_GE(with_segments, in.keyframes.size() * 3 / 4) << "few keyframes with wall segments";
+  // floor_detection answers every keyframe; the simulated road is 0.93 m below base_link and
+  // tilts by at most ~3 deg.
+  EXPECT_EQ(in.floors.size(), in.keyframes.size());
+  size_t floors_ok = 0;
+  for (const auto& f : in.floors)
+    floors_ok += f->found && std::abs(f->coeffs[3] - 0.93) < 0.1 && f->coeffs[2] > 0.99 ? 1 : 0;
+  EXPECT_GE(floors_ok, in.floors.size() * 9 / 10) << "few keyframes with the simulated floor";
   ASSERT_TRUE(in.osm_buildings);
   EXPECT_EQ(in.osm_buildings->header.frame_id, "map");
   EXPECT_GE(in.osm_buildings->buildings.size(), 5u);

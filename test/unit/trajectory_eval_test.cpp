@@ -155,3 +155,20 @@ TEST(TrajectoryEval, RealKittiGroundTruthAgainstNoisyCopy) {
   EXPECT_NEAR(e.ate.rmse, 0.1 * std::sqrt(3.0), 0.004);
   EXPECT_GT(e.kitti_segments, 1000u);
 }
+
+TEST(TrajectoryEval, HeightDriftIgnoresTheStartOffsetAndTiltIgnoresYaw) {
+  const Trajectory gt = makeDrive(101);
+  Trajectory est = gt;
+  for (size_t i = 0; i < est.size(); ++i) {
+    // 2 m altitude error at the origin (GNSS), 1 cm of height drift per pose, a 0.5 deg roll
+    // error, and a 3 deg yaw error that must not count as tilt.
+    est[i].pose.translation().z() += 2.0 + 0.01 * double(i);
+    est[i].pose.linear() = Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitZ()) * gt[i].pose.linear() *
+                           Eigen::AngleAxisd(0.5 * M_PI / 180.0, Eigen::Vector3d::UnitX());
+  }
+  const TrajectoryErrors e = evaluateTrajectory(est, gt);
+  EXPECT_NEAR(e.height_drift.max, 1.0, 1e-9);
+  EXPECT_NEAR(e.height_drift.mean, 0.5, 1e-9);
+  EXPECT_NEAR(e.tilt.mean, 0.5 * M_PI / 180.0, 1e-9);
+  EXPECT_NEAR(e.tilt.max, 0.5 * M_PI / 180.0, 1e-9);
+}

@@ -34,6 +34,11 @@ struct TrajectoryErrors {
   ErrorStats ate;         ///< [m]
   ErrorStats rpe_trans;   ///< [m] between consecutive associated poses
   ErrorStats rpe_rot;     ///< [rad]
+  /// |Δz − Δz₀| [m]: height error less the first pose's (the origin's GNSS altitude error, which
+  /// no LiDAR can see), i.e. the height drift since the start.
+  ErrorStats height_drift;
+  /// Angle between the estimated and the true up axis [rad]: the roll/pitch error.
+  ErrorStats tilt;
   size_t kitti_segments = 0;
   double kitti_trans_percent = 0.0;  ///< mean translational drift [%] (0 when no segment fits)
   double kitti_rot_deg_per_100m = 0.0;
