@@ -38,12 +38,17 @@ std::vector<Variant> variants() {
   KeyframeTrackerParams legacy;
   legacy.recovery = false;
   legacy.reanchor_after_failures = 0;
-  KeyframeTrackerParams recovery;  // the defaults
+  KeyframeTrackerParams recovery;  // the defaults (imu: without IMU data, constant velocity)
   KeyframeTrackerParams pre = recovery;
   pre.guess = "pre_tracker";
+  KeyframeTrackerParams light = pre;  // the cheap pre-tracker: half the points at each scale
+  light.pre_tracker.coarse_voxel = 3.0;
+  light.pre_tracker.fine_voxel = 1.5;
+  light.pre_tracker.fine_max_correspondence = 2.0;
   return {{"constant_velocity (no recovery: reference)", legacy},
-          {"constant_velocity + recovery (default)", recovery},
-          {"pre_tracker + recovery", pre}};
+          {"default (no IMU here: constant velocity) + recovery", recovery},
+          {"pre_tracker + recovery", pre},
+          {"pre_tracker 3.0/1.5 m voxels + recovery", light}};
 }
 
 Outcome run(const Variant& v, const std::vector<std::pair<double, PointCloudConstPtr>>& scans) {

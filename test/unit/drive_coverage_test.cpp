@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "frontend_test_utils.h"
 #include "osm_graph_slam/eval/coverage.h"
 #include "osm_graph_slam/eval/loop_metrics.h"
 #include "osm_graph_slam/eval/slam_evaluation.h"
@@ -16,15 +17,6 @@
 using namespace osm_graph_slam;
 
 namespace {
-
-TrackResult result(TrackStatus status, bool new_keyframe, uint64_t keyframe_id = 0) {
-  TrackResult r;
-  r.status = status;
-  r.new_keyframe = new_keyframe;
-  r.keyframe_id = keyframe_id;
-  if (status == TrackStatus::kMatchFailed) r.message = "fitness 3.2 above max_fitness 1";
-  return r;
-}
 
 Eigen::Isometry3d at(double x, double y, double yaw = 0.0) {
   Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
@@ -53,14 +45,14 @@ Trajectory keyframes(const Trajectory& truth, double t0, double t1, double every
 
 TEST(TrackingHealth, LossAndRecoveryAreEachOneEventAndCounted) {
   TrackingHealth h(3.0);
-  EXPECT_FALSE(h.update(0.0, result(TrackStatus::kFirstKeyframe, true)));
+  EXPECT_FALSE(h.update(0.0, test::trackResult(TrackStatus::kFirstKeyframe, true)));
   for (int i = 1; i <= 10; ++i)
-    EXPECT_FALSE(h.update(i / 10.0, result(TrackStatus::kMatched, false)));
+    EXPECT_FALSE(h.update(i / 10.0, test::trackResult(TrackStatus::kMatched, false)));
   // From 1.1 s on every match fails: lost once the last keyframe (0.0 s) is more than 3 s old.
   int events = 0;
   std::string lost_message;
   for (int i = 11; i <= 80; ++i) {
-    const auto e = h.update(i / 10.0, result(TrackStatus::kMatchFailed, false));
+    const auto e = h.update(i / 10.0, test::trackResult(TrackStatus::kMatchFailed, false));
     if (e) ++events, lost_message = e->message;
     if (i == 30) {
       EXPECT_EQ(h.state(), TrackingState::kOk) << "3.0 s is still within the limit";
@@ -72,11 +64,11 @@ TEST(TrackingHealth, LossAndRecoveryAreEachOneEventAndCounted) {
   EXPECT_NE(lost_message.find("fitness 3.2"), std::string::npos) << lost_message;
   EXPECT_NE(lost_message.find("21 failed matches in a row"), std::string::npos) << lost_message;
   // A new keyframe recovers it: one event naming the gap.
-  const auto back = h.update(8.1, result(TrackStatus::kMatched, true, 1));
+  const auto back = h.update(8.1, test::trackResult(TrackStatus::kMatched, true, 1));
   ASSERT_TRUE(back);
   EXPECT_EQ(back->state, TrackingState::kOk);
   EXPECT_NE(back->message.find("after 8.1 s"), std::string::npos) << back->message;
-  EXPECT_FALSE(h.update(8.2, result(TrackStatus::kRejectedCloud, false)));
+  EXPECT_FALSE(h.update(8.2, test::trackResult(TrackStatus::kRejectedCloud, false)));
 
   const TrackingStats s = h.stats();
   EXPECT_EQ(s.scans, 83u);
@@ -93,8 +85,8 @@ TEST(TrackingHealth, LossAndRecoveryAreEachOneEventAndCounted) {
 
 TEST(TrackingHealth, AnOpenGapAtTheEndCounts) {
   TrackingHealth h(3.0);
-  h.update(0.0, result(TrackStatus::kFirstKeyframe, true));
-  h.update(10.0, result(TrackStatus::kMatchFailed, false));
+  h.update(0.0, test::trackResult(TrackStatus::kFirstKeyframe, true));
+  h.update(10.0, test::trackResult(TrackStatus::kMatchFailed, false));
   EXPECT_EQ(h.state(), TrackingState::kLost);
   EXPECT_NEAR(h.stats().longest_no_keyframe_s, 10.0, 1e-9);
   EXPECT_NEAR(h.timeSinceKeyframe(), 10.0, 1e-9);

@@ -140,6 +140,17 @@ Eigen::Isometry3d truePose(int i, double slope) {
 /// The road plane in base_link of a keyframe standing on it: level, 0.93 m below.
 const Eigen::Vector4d kFloorUnder(0.0, 0.0, 1.0, 0.93);
 
+/// Keyframe i (2 m apart, a good match) at the given odometry pose.
+KeyframeInput keyframeAt(int i, const Eigen::Isometry3d& odom_pose) {
+  KeyframeInput kf;
+  kf.id = uint64_t(i);
+  kf.stamp = 1.0 + i;
+  kf.odom_pose = odom_pose;
+  kf.accum_distance = 2.0 * i;
+  kf.odom_fitness = 0.05;
+  return kf;
+}
+
 /// Keyframes along a 2 deg climb whose odometry adds 1 cm of height per step (the KITTI elevation
 /// bias pattern), with or without floors; returns the final height error [m].
 double finalHeightError(bool floors, bool floor_edges = true, double floor_distance_std = -1.0) {
@@ -157,12 +168,7 @@ double finalHeightError(bool floors, bool floor_edges = true, double floor_dista
       step.translation().z() += 0.01;
       odom = odom * step;
     }
-    KeyframeInput kf;
-    kf.id = uint64_t(i);
-    kf.stamp = 1.0 + i;
-    kf.odom_pose = odom;
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = keyframeAt(i, odom);
     if (floors && i % 2 == 0) kf.floor = kFloorUnder;  // half arrive with the keyframe ...
     backend.addKeyframe(kf);
     if (floors && i % 2 == 1) backend.addFloor(uint64_t(i), kFloorUnder);  // ... half later
@@ -199,13 +205,7 @@ TEST(FloorEdges, ASlopeChangeIsNotTied) {
   GraphBackend backend(params);
   // Flat for 5 keyframes, then a 4 deg ramp: the floor bends between keyframes 4 and 5.
   for (int i = 0; i < 10; ++i) {
-    const double slope = i < 5 ? 0.0 : 4.0 * kDeg;
-    KeyframeInput kf;
-    kf.id = uint64_t(i);
-    kf.stamp = 1.0 + i;
-    kf.odom_pose = truePose(i, slope);
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = keyframeAt(i, truePose(i, i < 5 ? 0.0 : 4.0 * kDeg));
     kf.floor = kFloorUnder;
     backend.addKeyframe(kf);
   }
@@ -224,12 +224,7 @@ TEST(FloorEdges, WithAnImuAttitudeTheyTieTheHeightOnly) {
   params.initial_yaw_known = true;
   GraphBackend backend(params);
   for (int i = 0; i < 3; ++i) {
-    KeyframeInput kf;
-    kf.id = uint64_t(i);
-    kf.stamp = 1.0 + i;
-    kf.odom_pose = truePose(i, 0.0);
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = keyframeAt(i, truePose(i, 0.0));
     kf.floor = kFloorUnder;
     kf.gravity_roll_pitch = Eigen::Vector2d::Zero();
     backend.addKeyframe(kf);

@@ -9,8 +9,20 @@
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/io/kitti_bin.h"
+#include "osm_graph_slam/odometry/keyframe_tracker.h"
 
 namespace osm_graph_slam::test {
+
+/// A tracker result as TrackingHealth sees it (a failed match carries a reason).
+inline TrackResult trackResult(TrackStatus status, bool new_keyframe, uint64_t keyframe_id = 0) {
+  TrackResult r;
+  r.status = status;
+  r.new_keyframe = new_keyframe;
+  r.keyframe_id = keyframe_id;
+  r.reanchored = status == TrackStatus::kReanchored;
+  if (status == TrackStatus::kMatchFailed) r.message = "fitness 3.2 above max_fitness 1";
+  return r;
+}
 
 inline PointCloudPtr loadScan(const std::string& path) {
   PointCloudPtr cloud(new PointCloud);

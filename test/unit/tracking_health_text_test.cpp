@@ -8,21 +8,12 @@
 #include <string>
 #include <vector>
 
+#include "frontend_test_utils.h"
 #include "osm_graph_slam/odometry/tracking_health.h"
 
 using namespace osm_graph_slam;
 
 namespace {
-
-TrackResult result(TrackStatus status, bool new_keyframe, uint64_t keyframe_id = 0) {
-  TrackResult r;
-  r.status = status;
-  r.new_keyframe = new_keyframe;
-  r.keyframe_id = keyframe_id;
-  r.reanchored = status == TrackStatus::kReanchored;
-  if (status == TrackStatus::kMatchFailed) r.message = "fitness 3.2 above max_fitness 1";
-  return r;
-}
 
 /// One scan through TrackingHealth and the display, as the nodelet does it.
 struct Feed {
@@ -31,7 +22,7 @@ struct Feed {
   std::vector<std::pair<double, std::string>> published;  ///< (stamp, text)
 
   void scan(double stamp, TrackStatus status, bool new_keyframe) {
-    health.update(stamp, result(status, new_keyframe));
+    health.update(stamp, test::trackResult(status, new_keyframe));
     if (const auto label = display.update(stamp, health, new_keyframe))
       published.emplace_back(stamp, label->text);
   }
@@ -72,24 +63,25 @@ TEST(TrackingHealthLabel, TextAndColourPerLevel) {
 
 TEST(TrackingHealthLabel, RecoveryGapOnlyOnTheRecoveringKeyframe) {
   TrackingHealth h(3.0);
-  h.update(0.0, result(TrackStatus::kFirstKeyframe, true));
+  h.update(0.0, test::trackResult(TrackStatus::kFirstKeyframe, true));
   EXPECT_FALSE(h.lastRecoveryGap()) << "the first keyframe recovers nothing";
-  h.update(0.5, result(TrackStatus::kMatched, true, 1));
+  h.update(0.5, test::trackResult(TrackStatus::kMatched, true, 1));
   EXPECT_FALSE(h.lastRecoveryGap()) << "a verified keyframe on time is no recovery";
-  for (int i = 6; i <= 10; ++i) h.update(i / 10.0, result(TrackStatus::kMatchFailed, false));
-  h.update(1.1, result(TrackStatus::kReanchored, true, 2));
+  for (int i = 6; i <= 10; ++i)
+    h.update(i / 10.0, test::trackResult(TrackStatus::kMatchFailed, false));
+  h.update(1.1, test::trackResult(TrackStatus::kReanchored, true, 2));
   ASSERT_TRUE(h.lastRecoveryGap());
   EXPECT_NEAR(*h.lastRecoveryGap(), 0.6, 1e-9);
-  h.update(1.2, result(TrackStatus::kMatched, false));
+  h.update(1.2, test::trackResult(TrackStatus::kMatched, false));
   EXPECT_FALSE(h.lastRecoveryGap()) << "only the scan that recovered carries the gap";
   // Lost (no keyframe for more than 3 s), then a verified keyframe ends the span.
-  h.update(4.5, result(TrackStatus::kMatchFailed, false));
+  h.update(4.5, test::trackResult(TrackStatus::kMatchFailed, false));
   EXPECT_EQ(h.state(), TrackingState::kLost);
   EXPECT_FALSE(h.lastRecoveryGap());
-  h.update(5.0, result(TrackStatus::kMatched, true, 3));
+  h.update(5.0, test::trackResult(TrackStatus::kMatched, true, 3));
   ASSERT_TRUE(h.lastRecoveryGap());
   EXPECT_NEAR(*h.lastRecoveryGap(), 3.9, 1e-9);
-  h.update(5.1, result(TrackStatus::kRejectedCloud, false));
+  h.update(5.1, test::trackResult(TrackStatus::kRejectedCloud, false));
   EXPECT_FALSE(h.lastRecoveryGap());
 }
 
