@@ -119,9 +119,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     }
     const std::optional<ImuSample> imu = imuAt(msg->header.stamp);
     if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
+    // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
+    // the first keyframe's, which anchors the map.
+    if (!first_keyframe_seen_ || gnssPriors()) kf.gnss_position = gnssPositionAt(msg->header.stamp);
     if (!first_keyframe_seen_) {
-      kf.gnss_position = gnssPositionAt(msg->header.stamp);  // only the first one is used
-      {
+      if (!gnssPriors()) {
         std::lock_guard<std::mutex> guard(gnss_mutex_);
         gnss_.clear();  // and no later fix is kept (onFix)
       }
@@ -217,7 +219,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX ||
         !std::isfinite(msg->latitude) || !std::isfinite(msg->longitude))
       return;
-    if (first_keyframe_seen_) return;  // only the first keyframe is anchored by GNSS
+    if (first_keyframe_seen_ && !gnssPriors()) return;  // only the first keyframe needs a fix
     std::lock_guard<std::mutex> guard(gnss_mutex_);
     const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0};
     // In stamp order, whatever order they arrive in (gnssFixAt searches by stamp).
@@ -228,6 +230,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                  fix);
     if (gnss_.size() > 2000) gnss_.erase(gnss_.begin());
   }
+
+  bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
 
   /// base_link's GNSS position at stamp in the map frame, once the map origin is known:
   /// interpolated between the fixes around it (at most gnss_max_gap apart), else the nearest fix
@@ -259,7 +263,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             msg->header.frame_id.c_str(), map_frame_.c_str());
       return;
     }
-    backend_->addBuildings(buildingsFromMsg(*msg),
+    // The message carries ENU outlines only: the prior's lat/lon (dump_graph's
+    // buildings_prior.geojson, which evaluate_map and replay_backend read) come from the origin.
+    const std::optional<EnuConverter> origin = backend_->origin();
+    backend_->addBuildings(buildingsFromMsg(*msg, origin ? &*origin : nullptr),
                            Eigen::Vector2d(msg->query_center.x, msg->query_center.y),
                            msg->query_radius);
   }
@@ -434,7 +441,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Subscriber imu_sub_;
   double gnss_max_gap_ = 1.5, gnss_max_dt_ = 0.05;
   std::mutex gnss_mutex_;
-  std::vector<GnssFixSample> gnss_;  ///< until the first keyframe
+  std::vector<GnssFixSample> gnss_;  ///< until the first keyframe (all, with GNSS priors)
   std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
   ros::Subscriber fix_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_, floor_sub_;

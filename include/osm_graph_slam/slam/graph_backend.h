@@ -86,6 +86,7 @@ struct KeyframeState {
   bool osm_processed = false;
   bool has_global_prior = false;
   bool has_attitude = false;  ///< a roll/pitch prior (IMU, or odometry's) was added
+  bool floor_tied = false;    ///< a floor edge ties it to a neighbour's floor
 };
 
 /// A building as the back-end knows it: the OSM prior and the current estimate.
