@@ -320,6 +320,62 @@ bool readFloat32Records(const std::string& path, std::vector<float>& values, std
   return true;
 }
 
+bool readImuToVeloCalib(const std::string& path, Eigen::Isometry3d& T_velo_imu,
+                        std::string* error) {
+  std::string rigid_error, tracking_error;
+  if (readKittiRigidCalib(path, T_velo_imu, &rigid_error)) return true;
+  if (readKittiTrackingCalib(path, "Tr_imu_to_velo", T_velo_imu, &tracking_error)) return true;
+  if (!fs::exists(path)) return fail(error, "cannot open calibration file '" + path + "'");
+  return fail(error, "calibration file '" + path +
+                         "' is neither calib_imu_to_velo.txt (R:, T:) nor a tracking-layout file "
+                         "with Tr_imu_to_velo (" +
+                         rigid_error + "; " + tracking_error + ")");
+}
+
+bool readScanFolderOrigin(const std::string& oxts_path, const std::string& origin_text,
+                          ScanFolderOrigin& origin, std::string* error) {
+  if (oxts_path.empty() == origin_text.empty())
+    return fail(error,
+                "--scans needs exactly one of --origin-oxts FILE and --origin "
+                "LAT,LON,ALT[,YAW_DEG]");
+  origin = ScanFolderOrigin();
+  if (!oxts_path.empty()) {
+    OxtsRecord r;
+    if (!readOxtsFile(oxts_path, r, error)) return false;
+    if (!r.hasGnssFix())
+      return fail(error, "OXTS file '" + oxts_path + "' has no GNSS fix (pos_accuracy " +
+                             formatDouble(r.pos_accuracy) + " m): no georeference");
+    origin.lat = r.lat;
+    origin.lon = r.lon;
+    origin.alt = r.alt;
+    origin.yaw = r.yaw;
+    origin.oxts = r;
+    return true;
+  }
+  // LAT,LON,ALT[,YAW_DEG]: each field one number, nothing else.
+  std::vector<double> v;
+  std::stringstream in(origin_text);
+  std::string field;
+  bool ok = true;
+  while (ok && std::getline(in, field, ',')) {
+    char* end = nullptr;
+    const double x = std::strtod(field.c_str(), &end);
+    ok = end != field.c_str() && *end == '\0' && std::isfinite(x);
+    v.push_back(x);
+  }
+  if (!ok || v.size() < 3 || v.size() > 4 || origin_text.back() == ',' || std::abs(v[0]) > 90.0 ||
+      std::abs(v[1]) > 180.0)
+    return fail(error,
+                "--origin takes LAT,LON,ALT[,YAW_DEG] (degrees; yaw: ENU, 0 = east, "
+                "counter-clockwise), not '" +
+                    origin_text + "'");
+  origin.lat = v[0];
+  origin.lon = v[1];
+  origin.alt = v[2];
+  if (v.size() == 4) origin.yaw = v[3] * M_PI / 180.0;
+  return true;
+}
+
 bool openKittiRawDrive(const std::string& drive_dir, const std::string& calib_dir,
                        KittiRawDrive& drive, std::string* error) {
   const fs::path root(drive_dir);

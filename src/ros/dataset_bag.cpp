@@ -4,10 +4,12 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/mulran.h"
@@ -178,6 +180,134 @@ BagConversionResult convertKittiOdometryToBag(const KittiOdometryBagOptions& o,
     }
     if (progress) progress(i + 1, seq.scan_files.size());
   }
+  if (!bag.commit(error)) return failed(r, error);
+  r.ok = true;
+  return r;
+}
+
+namespace {
+
+/// The stamp of the OXTS record at path when it sits in a KITTI raw oxts/data/ folder beside
+/// its timestamps.txt (oxts/data/0000000000.txt -> line 0 of oxts/timestamps.txt).
+std::optional<StampNs> oxtsRecordStamp(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  if (p.parent_path().filename() != "data") return std::nullopt;
+  const fs::path stamps_path = p.parent_path().parent_path() / "timestamps.txt";
+  const std::string stem = p.stem().string();
+  if (stem.empty() || stem.find_first_not_of("0123456789") != std::string::npos ||
+      !fs::exists(stamps_path))
+    return std::nullopt;
+  std::vector<StampNs> stamps;
+  if (!readKittiTimestamps(stamps_path.string(), stamps)) return std::nullopt;
+  const size_t index = std::stoul(stem);
+  if (index >= stamps.size()) return std::nullopt;
+  return stamps[index];
+}
+
+}  // namespace
+
+BagConversionResult convertScanFolderToBag(const ScanFolderBagOptions& o,
+                                           const ProgressFn& progress) {
+  namespace fs = std::filesystem;
+  BagConversionResult r;
+  std::string error;
+  if (!fs::is_directory(o.scans_dir))
+    return failed(r, "scan folder '" + o.scans_dir + "' does not exist or is not a folder");
+  const std::vector<std::string> files = listFiles(o.scans_dir, ".bin");
+  if (files.empty()) return failed(r, "no .bin scans in '" + o.scans_dir + "'");
+  if (!(o.rate > 0.0) || !std::isfinite(o.rate)) return failed(r, "--rate must be > 0");
+  ScanFolderOrigin origin;
+  if (!readScanFolderOrigin(o.origin_oxts, o.origin, origin, &error)) return failed(r, error);
+  // base_link is the OXTS unit as in KITTI raw: base_link -> velo_link = inv(T_velo_imu).
+  Eigen::Isometry3d T_velo_imu = Eigen::Isometry3d::Identity();
+  if (!o.calib_path.empty()) {
+    if (!readImuToVeloCalib(o.calib_path, T_velo_imu, &error)) return failed(r, error);
+  } else {
+    r.warnings.push_back("no calibration: base_link is the LiDAR frame (tf_static identity)");
+  }
+  StampNs start_ns = 0;
+  if (o.start_time >= 0.0) {
+    start_ns = std::llround(o.start_time * 1e9);
+  } else if (const auto stamp =
+                 o.origin_oxts.empty() ? std::nullopt : oxtsRecordStamp(o.origin_oxts)) {
+    start_ns = *stamp;
+  } else {
+    start_ns = std::llround(kScanFolderDefaultStart * 1e9);
+  }
+  if (start_ns <= 0) return failed(r, "the start time must be > 0 (rosbag rejects stamp 0)");
+  auto stampOf = [&](size_t i) {
+    return toRosTime(start_ns + std::llround(static_cast<double>(i) * 1e9 / o.rate));
+  };
+
+  AtomicBag bag(o.bag_path);
+  if (!bag.open(error)) return failed(r, error);
+  const ros::Time first = stampOf(0);
+  r.first_stamp = first.toSec();
+  writeStaticTf(bag,
+                {makeTransform(T_velo_imu.inverse(), o.base_frame, o.velo_frame, first),
+                 makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.imu_frame, first)},
+                first, r);
+  // The one georeference: a fix at the first scan (the map origin), and the attitude there.
+  if (origin.oxts) {
+    bag.write(o.gps_topic, first, makeNavSatFix(*origin.oxts, o.imu_frame, first));
+    bag.write(o.imu_topic, first, makeImuFromOxts(*origin.oxts, o.imu_frame, first));
+    ++r.imu;
+  } else {
+    OxtsRecord fix;
+    fix.lat = origin.lat;
+    fix.lon = origin.lon;
+    fix.alt = origin.alt;
+    sensor_msgs::NavSatFix msg = makeNavSatFix(fix, o.imu_frame, first);
+    msg.position_covariance = {};
+    msg.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
+    bag.write(o.gps_topic, first, msg);
+    if (origin.yaw) {
+      // Only a heading is known: roll and pitch are taken as level, rates and accelerations as
+      // not available (REP-145).
+      sensor_msgs::Imu imu;
+      imu.header.frame_id = o.imu_frame;
+      imu.header.stamp = first;
+      const Eigen::Quaterniond q = quaternionFromRpy(0.0, 0.0, *origin.yaw);
+      imu.orientation.x = q.x();
+      imu.orientation.y = q.y();
+      imu.orientation.z = q.z();
+      imu.orientation.w = q.w();
+      const double rp = std::pow(2.0 * M_PI / 180.0, 2), yaw = std::pow(1.0 * M_PI / 180.0, 2);
+      imu.orientation_covariance = {rp, 0, 0, 0, rp, 0, 0, 0, yaw};
+      imu.angular_velocity_covariance[0] = -1.0;
+      imu.linear_acceleration_covariance[0] = -1.0;
+      bag.write(o.imu_topic, first, imu);
+      ++r.imu;
+      r.warnings.push_back(
+          "--origin: imu/data at the first scan has the given yaw and roll = "
+          "pitch = 0");
+    } else {
+      r.warnings.push_back(
+          "no yaw in --origin: no imu/data; the initial heading must come from global matching");
+    }
+  }
+  ++r.gps;
+
+  std::vector<float> xyzi;
+  for (size_t i = 0; i < files.size(); ++i) {
+    if (!readFloat32Records(files[i], xyzi, &error)) {
+      r.warnings.push_back(error + " (scan " + std::to_string(i) + " skipped)");
+      ++r.skipped;
+    } else if (xyzi.empty()) {
+      r.warnings.push_back("scan '" + files[i] + "' has no points (scan " + std::to_string(i) +
+                           " skipped)");
+      ++r.skipped;
+    } else {
+      const ros::Time t = stampOf(i);
+      bag.write(o.cloud_topic, t, makeXyziCloud(xyzi, o.velo_frame, t));
+      ++r.clouds;
+    }
+    if (progress) progress(i + 1, files.size());
+  }
+  if (r.clouds == 0)
+    return failed(r, "none of the " + std::to_string(files.size()) + " .bin files in '" +
+                         o.scans_dir + "' is a readable scan");
   if (!bag.commit(error)) return failed(r, error);
   r.ok = true;
   return r;

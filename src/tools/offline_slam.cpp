@@ -63,6 +63,12 @@ int usage(const std::string& why) {
   return 2;
 }
 
+std::string argOr(const std::map<std::string, std::string>& args, const std::string& key,
+                  const std::string& fallback) {
+  const auto it = args.find(key);
+  return it == args.end() ? fallback : it->second;
+}
+
 /// One scan with what the GPS/INS said at its time.
 struct DriveScan {
   double stamp = 0.0;
@@ -219,32 +225,17 @@ class ScanFolderSource : public DriveSource {
     if (files_.empty()) return fail(error, "no .bin scans in '" + dir + "'");
     if (args.count("rate")) rate_ = std::atof(args.at("rate").c_str());
     if (!(rate_ > 0.0)) return fail(error, "--rate must be > 0");
-    if (args.count("origin-oxts") == args.count("origin"))
-      return fail(
-          error,
-          "--scans needs exactly one of --origin-oxts FILE and --origin LAT,LON,ALT[,YAW_DEG]");
-    if (args.count("origin-oxts")) {
-      OxtsRecord r;
-      if (!readOxtsFile(args.at("origin-oxts"), r, error)) return false;
-      lat = r.lat, lon = r.lon, alt = r.alt;
-      initial_yaw = r.yaw;
-      first_roll_pitch_ = Eigen::Vector2d(r.roll, r.pitch);
-    } else {
-      double yaw_deg = std::numeric_limits<double>::quiet_NaN();
-      const int n =
-          std::sscanf(args.at("origin").c_str(), "%lf,%lf,%lf,%lf", &lat, &lon, &alt, &yaw_deg);
-      if (n < 3)
-        return fail(error,
-                    "--origin takes LAT,LON,ALT[,YAW_DEG] (yaw: ENU, 0 = east, counter-clockwise)");
-      if (n == 4) initial_yaw = yaw_deg * M_PI / 180.0;
-    }
+    ScanFolderOrigin origin;
+    if (!readScanFolderOrigin(argOr(args, "origin-oxts", ""), argOr(args, "origin", ""), origin,
+                              error))
+      return false;
+    lat = origin.lat, lon = origin.lon, alt = origin.alt;
+    initial_yaw = origin.yaw;
+    if (origin.oxts) first_roll_pitch_ = Eigen::Vector2d(origin.oxts->roll, origin.oxts->pitch);
     if (args.count("calib")) {
       // p_velo = T_velo_imu p_imu; base_link is the IMU frame: p_base = inv(T_velo_imu) p_velo.
       Eigen::Isometry3d T_velo_imu;
-      std::string rigid_error;
-      if (!readKittiRigidCalib(args.at("calib"), T_velo_imu, &rigid_error) &&
-          !readKittiTrackingCalib(args.at("calib"), "Tr_imu_to_velo", T_velo_imu, error))
-        return false;
+      if (!readImuToVeloCalib(args.at("calib"), T_velo_imu, error)) return false;
       sensor_to_base = T_velo_imu.inverse();
     } else {
       std::cerr << "offline_slam: note: no --calib: base_link is the LiDAR frame\n";
@@ -347,12 +338,6 @@ std::vector<StampedLoopClosure> stampedLoops(const GraphBackend& backend) {
     out.push_back({from->second, to->second, loop.relative_pose});
   }
   return out;
-}
-
-std::string argOr(const std::map<std::string, std::string>& args, const std::string& key,
-                  const std::string& fallback) {
-  const auto it = args.find(key);
-  return it == args.end() ? fallback : it->second;
 }
 
 }  // namespace

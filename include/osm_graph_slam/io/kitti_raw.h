@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,26 @@ bool readKittiTrackingCalib(const std::string& path, const std::string& key,
 /// conversion, so it can be copied bit-exactly. Fails if the size is not a multiple of 16 bytes.
 bool readFloat32Records(const std::string& path, std::vector<float>& values,
                         std::string* error = nullptr);
+
+/// The LiDAR mounting p_velo = T_velo_imu p_imu from either calib_imu_to_velo.txt ("R:"/"T:")
+/// or a calibration file in the KITTI tracking layout ("Tr_imu_to_velo:").
+bool readImuToVeloCalib(const std::string& path, Eigen::Isometry3d& T_velo_imu,
+                        std::string* error = nullptr);
+
+/// The georeference of a folder of scans without per-scan OXTS (offline_slam --scans and
+/// kitti2bag --scans, e.g. ../shared/data/kitti_raw_0005): the first scan's position, and its
+/// attitude when known.
+struct ScanFolderOrigin {
+  double lat = 0, lon = 0, alt = 0;  ///< deg, deg, m
+  std::optional<double> yaw;         ///< [rad] ENU, 0 = east, counter-clockwise
+  std::optional<OxtsRecord> oxts;    ///< the whole record (roll, pitch, rates) with an OXTS file
+};
+
+/// Exactly one of oxts_path (a KITTI OXTS record of the first scan: position and roll/pitch/yaw)
+/// and origin_text ("LAT,LON,ALT[,YAW_DEG]", yaw in degrees, ENU) must be non-empty. False with
+/// a message for both/neither, a malformed record or text, or a record without a GNSS fix.
+bool readScanFolderOrigin(const std::string& oxts_path, const std::string& origin_text,
+                          ScanFolderOrigin& origin, std::string* error = nullptr);
 
 /// A KITTI raw drive: files listed and timestamps/calibration read; scans and OXTS records are
 /// read one at a time by the consumer.
