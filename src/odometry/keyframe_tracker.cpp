@@ -72,9 +72,9 @@ void KeyframeTracker::reset() {
 Eigen::Isometry3d KeyframeTracker::predict(double stamp) const {
   if (!params_.constant_velocity_guess || poses_seen_ < 2) return pose_;
   const double dt_prev = last_stamp_ - prev_stamp_;
-  const double dt = stamp - last_stamp_;
+  const double dt = std::min(stamp - last_stamp_, params_.max_prediction_gap);
   const Eigen::Isometry3d motion = prev_pose_.inverse() * pose_;
-  const double factor = dt_prev > 1e-9 ? std::min(dt / dt_prev, 5.0) : 1.0;
+  const double factor = dt_prev > 1e-9 ? dt / dt_prev : 1.0;
   return pose_ * scaleMotion(motion, factor);
 }
 
@@ -165,7 +165,17 @@ std::optional<Eigen::Isometry3d> KeyframeTracker::imuPredict(
     const std::optional<Eigen::Quaterniond>& imu_orientation) const {
   if (!imu_orientation || !last_imu_) return std::nullopt;
   Eigen::Isometry3d motion = pose_.inverse() * constant_velocity;
-  motion.linear() = (last_imu_->conjugate() * *imu_orientation).normalized().toRotationMatrix();
+  const Eigen::Quaterniond imu_rotation = (last_imu_->conjugate() * *imu_orientation).normalized();
+  // A circular arc at constant speed: the chord of a turn by angle a points a/2 off the start
+  // heading and is sinc(a/2) times the path. Constant velocity aimed it at half of the previous
+  // period's rotation; re-aim it at half the IMU's (matters across a gap in a turn).
+  const Eigen::AngleAxisd cv(motion.linear()), imu(imu_rotation);
+  auto sinc = [](double x) { return std::abs(x) < 1e-6 ? 1.0 : std::sin(x) / x; };
+  const Eigen::Quaterniond half_cv(Eigen::AngleAxisd(0.5 * cv.angle(), cv.axis()));
+  const Eigen::Quaterniond half_imu(Eigen::AngleAxisd(0.5 * imu.angle(), imu.axis()));
+  motion.translation() = (sinc(0.5 * imu.angle()) / sinc(0.5 * cv.angle())) *
+                         (half_imu * (half_cv.conjugate() * motion.translation()));
+  motion.linear() = imu_rotation.toRotationMatrix();
   return pose_ * motion;
 }
 

@@ -22,6 +22,7 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("max_correction_angle", p.max_correction_angle);
   r.param("min_points", p.min_points);
   r.param("lost_track_after", p.lost_track_after);
+  r.param("max_prediction_gap", p.max_prediction_gap);
   r.param("guess", p.guess);
   r.param("pre_tracker_coarse_voxel", p.pre_tracker.coarse_voxel);
   r.param("pre_tracker_fine_voxel", p.pre_tracker.fine_voxel);

@@ -183,6 +183,37 @@ TEST(TrackingRecovery, FiveScanDropoutInAFastTurnIsRecoveredAndReported) {
   EXPECT_GT(drive(no_data, poses, skip, false).failed, 0u);
 }
 
+TEST(TrackingRecovery, TwoSecondDropoutInATurnIsBridgedByTheImuGuess) {
+  // 5 m/s straight, then 20 scans (2 s) never arrive while the vehicle turns 60 deg at the same
+  // speed. The guess must extrapolate the whole gap along the arc the IMU's rotation implies:
+  // capped at 5 scan periods (the old rule) it stays metres short, and the stress matrix's city
+  // drive then locked 31 deg off (18 m ATE, no failed match).
+  std::vector<Motion> profile(11, {5.0, 0.0});
+  for (int i = 0; i < 20; ++i) profile.push_back({5.0, M_PI / 6});
+  for (int i = 0; i < 10; ++i) profile.push_back({5.0, 0.0});
+  const auto poses = integrate(profile);
+  std::vector<bool> skip(poses.size(), false);
+  for (int i = 12; i < 32; ++i) skip[i] = true;
+
+  KeyframeTrackerParams params = legacyParams();
+  params.guess = "imu";
+  const DriveOutcome bridged = drive(params, poses, skip, true);
+  params.max_prediction_gap = 0.5;  // five 0.1 s periods
+  const DriveOutcome capped = drive(params, poses, skip, true);
+  for (const auto* d : {&capped, &bridged})
+    std::printf(
+        "[tracking_recovery] 2 s gap, prediction %s: %zu scans, %zu matched, %zu failed, "
+        "max error %.3f m / %.3f deg\n",
+        d == &capped ? "capped at 0.5 s" : "over the gap", d->scans, d->matched, d->failed,
+        d->max_translation_error, d->max_rotation_error_deg);
+  EXPECT_EQ(bridged.matched, bridged.scans);
+  EXPECT_LT(bridged.max_translation_error, 0.1);
+  EXPECT_LT(bridged.max_rotation_error_deg, 0.5);
+  EXPECT_EQ(bridged.results[12].attempts, 1);
+  // The old cap does not get across (this test would catch a return to it).
+  EXPECT_TRUE(capped.failed > 0 || capped.max_translation_error > 1.0);
+}
+
 TEST(TrackingRecovery, TheFitnessGateRelearnsAfterAReanchor) {
   // Noise-free scans (fitness ~0) and then noisy ones (true matches with fitness ~0.1 m^2, far
   // above 4x the recent median): after one re-anchor the gate accepts the new level.
