@@ -136,7 +136,7 @@ ros_run() {  # ros_run TAG USE_OSM
   (
     trap - INT QUIT
     exec setsid python3 "$ROOT/scripts/demo_ros.py" monitor "$BAG" --ready-file "$ready" \
-      --bag-done-file "$bag_done" --report "$report" --print-period 10
+      --bag-done-file "$bag_done" --report "$report" --print-period 10 --timeout 120
   ) >"$LOGS/monitor_$tag.log" 2>&1 &
   monitor_pid=$!
   PIDS+=("$monitor_pid")
@@ -151,7 +151,9 @@ ros_run() {  # ros_run TAG USE_OSM
   local t_up t_play t_catch
   t_up=$(since "$t0")
   t0=$(now)
-  rosbag play --clock -q -d 1 -r "$RATE" "$BAG" >"$LOGS/rosbag_play_$tag.log" 2>&1 ||
+  # --wait-for-subscribers: the first scan (the georeferenced one) is not played before the
+  # nodelets' subscriptions are connected (on a loaded machine that took more than -d 1).
+  rosbag play --clock -q -d 1 --wait-for-subscribers -r "$RATE" "$BAG" >"$LOGS/rosbag_play_$tag.log" 2>&1 ||
     die "rosbag play ($tag) failed (log $LOGS/rosbag_play_$tag.log)"
   touch "$bag_done"
   t_play=$(since "$t0")

@@ -131,10 +131,28 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       // orientation), else the parameter or the first global matching (OSM thesis §3.4).
       first_keyframe_seen_ = true;
       std::optional<double> yaw;
-      if (imu && !backend_->params().initial_yaw_known) {
-        yaw = imu->yaw;
-        backend_->setInitialHeading(imu->yaw);
-        NODELET_INFO("initial heading %.1f deg from imu/data", imu->yaw * 180.0 / M_PI);
+      std::optional<ImuSample> heading = imu;
+      if (!heading && !backend_->params().initial_yaw_known) {
+        // A drive with one georeference (kitti2bag --scans: one imu/data at the first scan) whose
+        // first scan was lost at start-up (dropped from a full queue, or played before the
+        // subscription was connected): that sample's heading is still far better than none (the
+        // odometry frame's, e.g. 70 deg off on KITTI drive 0005).
+        heading = latestImuBefore(msg->header.stamp, kInitialHeadingMaxAge);
+        if (heading)
+          NODELET_WARN(
+              "no imu/data within %.3f s of the first keyframe: its heading is the one "
+              "%.3f s before it",
+              imu_max_dt_, (msg->header.stamp - heading->stamp).toSec());
+        else if (imuSamples() > 0)
+          NODELET_WARN(
+              "no imu/data within %.1f s before the first keyframe: no initial heading "
+              "from the IMU",
+              kInitialHeadingMaxAge);
+      }
+      if (heading && !backend_->params().initial_yaw_known) {
+        yaw = heading->yaw;
+        backend_->setInitialHeading(heading->yaw);
+        NODELET_INFO("initial heading %.1f deg from imu/data", heading->yaw * 180.0 / M_PI);
       } else if (backend_->params().initial_yaw_known) {
         yaw = backend_->params().initial_yaw;
       }
@@ -211,6 +229,23 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         best_dt = dt;
         best = sample;
       }
+    }
+    return best;
+  }
+
+  size_t imuSamples() {
+    std::lock_guard<std::mutex> guard(imu_mutex_);
+    return imu_.size();
+  }
+
+  /// The newest IMU attitude at most max_age before stamp (the first keyframe's heading when
+  /// none is within imu_max_time_difference).
+  std::optional<ImuSample> latestImuBefore(const ros::Time& stamp, double max_age) {
+    std::lock_guard<std::mutex> guard(imu_mutex_);
+    std::optional<ImuSample> best;
+    for (const auto& sample : imu_) {
+      const double age = (stamp - sample.stamp).toSec();
+      if (age >= 0.0 && age <= max_age && (!best || sample.stamp > best->stamp)) best = sample;
     }
     return best;
   }
@@ -433,6 +468,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
+  /// [s] how old an IMU sample may be to give the first keyframe's heading when none is within
+  /// imu_max_time_difference: scans lost at start-up are at most a few queue depths (0.5 s).
+  static constexpr double kInitialHeadingMaxAge = 1.0;
   bool use_imu_ = true;
   std::atomic<bool> first_keyframe_seen_{false};  ///< read by the gps/fix callback
   double imu_max_dt_ = 0.05;

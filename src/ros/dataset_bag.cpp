@@ -2,11 +2,13 @@
 
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
+#include <boost/make_shared.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -41,6 +43,22 @@ class AtomicBag {
   void write(const std::string& topic, const ros::Time& t, const Msg& msg) {
     bag_.write(topic, t, msg);
   }
+  /// Writes msg on a latched connection ("latching: 1" in the connection header, as rosbag
+  /// record stores a latched publisher): rosbag play then latches the topic, so that a
+  /// subscriber connecting after the message was played still receives it.
+  template <typename Msg>
+  void writeLatched(const std::string& topic, const ros::Time& t, const Msg& msg) {
+    auto& header = latched_headers_[topic];
+    if (!header) {
+      header = boost::make_shared<ros::M_string>();
+      (*header)["type"] = ros::message_traits::datatype(msg);
+      (*header)["md5sum"] = ros::message_traits::md5sum(msg);
+      (*header)["message_definition"] = ros::message_traits::definition(msg);
+      (*header)["callerid"] = "/kitti2bag";
+      (*header)["latching"] = "1";
+    }
+    bag_.write(topic, t, msg, header);
+  }
   bool commit(std::string& error) {
     try {
       bag_.close();
@@ -59,6 +77,7 @@ class AtomicBag {
  private:
   std::string path_, tmp_;
   rosbag::Bag bag_;
+  std::map<std::string, boost::shared_ptr<ros::M_string>> latched_headers_;
   bool committed_ = false;
 };
 
@@ -68,12 +87,14 @@ BagConversionResult failed(BagConversionResult r, const std::string& error) {
   return r;
 }
 
+/// tf_static once, latched (as tf2's static broadcaster publishes it): prefiltering gets the
+/// sensor mounting even when it subscribes after the bag started.
 void writeStaticTf(AtomicBag& bag, const std::vector<geometry_msgs::TransformStamped>& tfs,
                    const ros::Time& stamp, BagConversionResult& r) {
   tf2_msgs::TFMessage msg;
   msg.transforms = tfs;
   for (auto& t : msg.transforms) t.header.stamp = stamp;
-  bag.write("tf_static", stamp, msg);
+  bag.writeLatched("tf_static", stamp, msg);
   r.tf_static += msg.transforms.size();
 }
 
@@ -249,9 +270,10 @@ BagConversionResult convertScanFolderToBag(const ScanFolderBagOptions& o,
                  makeTransform(Eigen::Isometry3d::Identity(), o.base_frame, o.imu_frame, first)},
                 first, r);
   // The one georeference: a fix at the first scan (the map origin), and the attitude there.
+  // Both latched: a node that subscribes late (or is restarted) still gets the georeference.
   if (origin.oxts) {
-    bag.write(o.gps_topic, first, makeNavSatFix(*origin.oxts, o.imu_frame, first));
-    bag.write(o.imu_topic, first, makeImuFromOxts(*origin.oxts, o.imu_frame, first));
+    bag.writeLatched(o.gps_topic, first, makeNavSatFix(*origin.oxts, o.imu_frame, first));
+    bag.writeLatched(o.imu_topic, first, makeImuFromOxts(*origin.oxts, o.imu_frame, first));
     ++r.imu;
   } else {
     OxtsRecord fix;
@@ -261,7 +283,7 @@ BagConversionResult convertScanFolderToBag(const ScanFolderBagOptions& o,
     sensor_msgs::NavSatFix msg = makeNavSatFix(fix, o.imu_frame, first);
     msg.position_covariance = {};
     msg.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
-    bag.write(o.gps_topic, first, msg);
+    bag.writeLatched(o.gps_topic, first, msg);
     if (origin.yaw) {
       // Only a heading is known: roll and pitch are taken as level, rates and accelerations as
       // not available (REP-145).
@@ -277,7 +299,7 @@ BagConversionResult convertScanFolderToBag(const ScanFolderBagOptions& o,
       imu.orientation_covariance = {rp, 0, 0, 0, rp, 0, 0, 0, yaw};
       imu.angular_velocity_covariance[0] = -1.0;
       imu.linear_acceleration_covariance[0] = -1.0;
-      bag.write(o.imu_topic, first, imu);
+      bag.writeLatched(o.imu_topic, first, imu);
       ++r.imu;
       r.warnings.push_back(
           "--origin: imu/data at the first scan has the given yaw and roll = "

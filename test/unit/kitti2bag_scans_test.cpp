@@ -79,6 +79,18 @@ std::set<std::string> topicsOf(const std::string& bag_path) {
   return topics;
 }
 
+/// Whether the bag stores topic on a latched connection (rosbag play then latches it).
+bool latched(const std::string& bag_path, const std::string& topic) {
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+  rosbag::View view(bag, rosbag::TopicQuery(topic));
+  bool all = !view.getConnections().empty();
+  for (const auto* c : view.getConnections()) {
+    const auto it = c->header->find("latching");
+    all = all && it != c->header->end() && it->second == "1";
+  }
+  return all;
+}
+
 double yawOf(const geometry_msgs::Quaternion& q) {
   return std::atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z));
 }
@@ -131,6 +143,12 @@ TEST_F(Kitti2BagScans, RealKitti0005ScansWithOxtsOriginAndCalib) {
   EXPECT_FALSE(fs::exists(o.bag_path + ".tmp"));
   EXPECT_EQ(topicsOf(o.bag_path),
             (std::set<std::string>{"velodyne_points", "gps/fix", "imu/data", "tf_static"}));
+  // The single messages are latched: a late subscriber (prefiltering's TF listener, osm_buffer)
+  // still gets them from rosbag play; the clouds are not.
+  EXPECT_TRUE(latched(o.bag_path, "tf_static"));
+  EXPECT_TRUE(latched(o.bag_path, "gps/fix"));
+  EXPECT_TRUE(latched(o.bag_path, "imu/data"));
+  EXPECT_FALSE(latched(o.bag_path, "velodyne_points"));
 
   // Clouds: 10 Hz from the fixed epoch, frame velo_link, the .bin bytes bit-exactly.
   const auto clouds = readTopic<sensor_msgs::PointCloud2>(o.bag_path, "velodyne_points");
