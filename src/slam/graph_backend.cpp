@@ -172,10 +172,21 @@ struct GraphBackend::State {
   bool dirty = false;
   double latest_stamp = 0.0;
 
+  /// An unobserved building stays at its prior (unobserved_buildings_fixed).
+  static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {
+    return p.unobserved_buildings_fixed && b.observations == 0;
+  }
+
+  /// One more robot<->building edge on b: an observed building is free to move.
+  void observed(BuildingState& b, const GraphBackendParams& p) {
+    if (b.observations++ == 0 && b.vertex_id >= 0 && p.mode != OsmMode::kPrior)
+      graph.setFixed(b.vertex_id, false);
+  }
+
   int buildingVertex(BuildingState& b, const GraphBackendParams& p) {
     if (b.vertex_id >= 0) return b.vertex_id;
     b.vertex_id = next_building_vertex++;
-    graph.addVertexSE2(b.vertex_id, b.pose, p.mode == OsmMode::kPrior);
+    graph.addVertexSE2(b.vertex_id, b.pose, p.mode == OsmMode::kPrior || heldAtPrior(b, p));
     Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
     info(0, 0) = info(1, 1) = 1.0 / (p.building_prior_std_xy * p.building_prior_std_xy);
     info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
@@ -548,7 +559,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
             rotateInformation(localInformation(global), b->prior.reference_pose.theta);
         s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
                               EdgeOptions{1, {}});
-        ++b->observations;
+        s.observed(*b, params_);
         ++report.building_edges;
       }
       continue;
@@ -596,7 +607,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
           EdgeOptions{
               1, kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
       s.building_edges.push_back({edge, id, b->prior.id, z, info});
-      ++b->observations;
+      s.observed(*b, params_);
       ++report.building_edges;
       s.dirty = true;
     }
@@ -756,6 +767,12 @@ size_t GraphBackend::gateBuildingEdges(BackendUpdateReport& report) {
     }
     s.graph.removeEdge(e.edge_id);
     if (b->second.observations > 0) --b->second.observations;
+    if (State::heldAtPrior(b->second, params_) && b->second.vertex_id >= 0) {
+      // Nothing observes it any more: back to its prior, held there.
+      b->second.pose = b->second.prior.reference_pose;
+      s.graph.setVertexSE2(b->second.vertex_id, b->second.pose);
+      s.graph.setFixed(b->second.vertex_id, true);
+    }
     ++removed;
   }
   s.building_edges.swap(keep);
@@ -814,6 +831,8 @@ void GraphBackend::addSharedWallEdges(BackendUpdateReport& report) {
       BuildingState& a = s.buildings.at(key.first);
       BuildingState& b = s.buildings.at(key.second);
       if (a.vertex_id < 0 && b.vertex_id < 0) continue;
+      if (params_.unobserved_buildings_fixed && (a.observations == 0 || b.observations == 0))
+        continue;  // tied once both are observed
       const BuildingContact& c = wall.contact;
       const Pose2& pa = a.prior.reference_pose;
       const Pose2& pb = b.prior.reference_pose;
@@ -862,6 +881,9 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
         s.overlap_edges.push_back(edge);
         ++added;
       }
+      // Two buildings nobody saw whose priors overlap: the prior itself is wrong, one must move.
+      if (b->observations == 0 && params_.mode != OsmMode::kPrior)
+        s.graph.setFixed(a->vertex_id, false);
     }
     report.overlap_iterations = static_cast<size_t>(iter + 1);
     report.overlap_edges += added;

@@ -87,6 +87,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("overlap_min_area", p.overlap_min_area);
   r.param("overlap_clearance", p.overlap_clearance);
   r.param("use_shared_walls", p.use_shared_walls);
+  r.param("unobserved_buildings_fixed", p.unobserved_buildings_fixed);
   r.param("shared_wall_std", p.shared_wall_std);
   r.param("shared_wall_kernel_width", p.shared_wall_kernel_width);
   r.param("shared_wall_max_distance", p.shared_walls.max_distance);

@@ -323,7 +323,7 @@ TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
       << "separated buildings keep a clearance, not a compromise overlap";
 }
 
-TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWith) {
+TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWithOnlyWhenAllowed) {
   // Eight touching houses north of the street, a backyard building behind the third one (hidden
   // from the street), a detached house south. Priors: the backyard building 1.5 m off across
   // the wall it shares, two middle houses 1.5 m and 1 m off along the street.
@@ -347,6 +347,8 @@ TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWith) {
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   params.initial_yaw = row.true_poses[0].theta;
   params.shared_walls.max_distance = 2.5;  // config/sim.yaml: priors misplaced one by one
+  // By default a building nobody saw follows its neighbour; held at its prior: checked at the end.
+  params.unobserved_buildings_fixed = false;
   auto error = [&](const GraphBackend& backend, size_t i) {
     for (const auto& b : backend.correctedBuildings())
       if (b.id == row.truth[i].id)
@@ -373,6 +375,19 @@ TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWith) {
   EXPECT_LT(error(shared, 3).norm(), 0.15);
   EXPECT_LT(error(shared, 5).norm(), 0.15);
   EXPECT_LT(error(shared, 9).norm(), 0.1) << "the detached house shares no wall";
+
+  // unobserved_buildings_fixed: the backyard building stays exactly at its prior, the row is
+  // corrected alike.
+  params.use_shared_walls = true;
+  params.unobserved_buildings_fixed = true;
+  GraphBackend held(params);
+  row.feed(held, row.odometry(0.0, 1.0), prior);
+  const BackendUpdateReport h = held.update();
+  EXPECT_EQ(h.overlaps_remaining, 0u);
+  EXPECT_NEAR(error(held, 8).x(), 0.4, 1e-6) << "unobserved: exactly its prior";
+  EXPECT_NEAR(error(held, 8).y(), 1.5, 1e-6);
+  EXPECT_LT(error(held, 3).norm(), 0.15);
+  EXPECT_LT(error(held, 5).norm(), 0.15);
 }
 
 TEST(GraphBackend, FirstKeyframeIsFixedAtItsGnssPositionNotAtTheOrigin) {
