@@ -16,6 +16,7 @@
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
+#include "bag_test_utils.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/dataset_bag.h"
@@ -26,40 +27,18 @@ using namespace osm_graph_slam;
 
 namespace {
 
+using test::fileBytes;
+using test::readTopic;
+using test::writeFile;
+
 fs::path freshDir(const std::string& name) {
-  const fs::path dir = fs::path(::testing::TempDir()) / ("ogs_dataset_bag_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-void writeFile(const fs::path& path, const std::string& text) {
-  fs::create_directories(path.parent_path());
-  std::ofstream(path) << text;
-}
-
-std::string fileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
+  return test::freshFolder(fs::path(::testing::TempDir()) / ("ogs_dataset_bag_" + name));
 }
 
 void writeScan(const fs::path& path, const std::vector<float>& xyzi) {
   fs::create_directories(path.parent_path());
   std::ofstream(path, std::ios::binary)
       .write(reinterpret_cast<const char*>(xyzi.data()), xyzi.size() * sizeof(float));
-}
-
-template <typename Msg>
-std::vector<std::pair<ros::Time, Msg>> readTopic(const std::string& bag_path,
-                                                 const std::string& topic) {
-  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
-  rosbag::View view(bag, rosbag::TopicQuery(topic));
-  std::vector<std::pair<ros::Time, Msg>> out;
-  for (const auto& m : view) {
-    auto msg = m.instantiate<Msg>();
-    if (msg) out.emplace_back(m.getTime(), *msg);
-  }
-  return out;
 }
 
 /// A KITTI raw drive with n scans (given files or synthetic points) and n OXTS records moving

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "bag_test_utils.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/ros/dataset_bag.h"
 #include "test_data.h"
@@ -31,24 +32,15 @@ using namespace osm_graph_slam;
 
 namespace {
 
+using test::fileBytes;
+using test::readTopic;
+using test::writeFile;
+
 const fs::path kTmp =
     fs::temp_directory_path() / ("ogs_kitti2bag_scans_" + std::to_string(::getpid()));
 
 fs::path freshDir(const std::string& name) {
-  const fs::path dir = kTmp / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-void writeFile(const fs::path& path, const std::string& bytes) {
-  fs::create_directories(path.parent_path());
-  std::ofstream(path, std::ios::binary) << bytes;
-}
-
-std::string fileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
+  return test::freshFolder(kTmp / name);
 }
 
 /// A scan of n points (x = i, y = 2, z = -1, intensity 0.5).
@@ -56,19 +48,6 @@ std::string scanBytes(size_t n) {
   std::vector<float> v;
   for (size_t i = 0; i < n; ++i) v.insert(v.end(), {float(i), 2.0f, -1.0f, 0.5f});
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float));
-}
-
-template <typename Msg>
-std::vector<std::pair<ros::Time, Msg>> readTopic(const std::string& bag_path,
-                                                 const std::string& topic) {
-  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
-  rosbag::View view(bag, rosbag::TopicQuery(topic));
-  std::vector<std::pair<ros::Time, Msg>> out;
-  for (const auto& m : view) {
-    auto msg = m.instantiate<Msg>();
-    if (msg) out.emplace_back(m.getTime(), *msg);
-  }
-  return out;
 }
 
 std::set<std::string> topicsOf(const std::string& bag_path) {
