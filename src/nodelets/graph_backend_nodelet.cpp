@@ -64,6 +64,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pnh.param("warn_throttle_period", warn_period_, 5.0);
     pnh.param("use_imu", use_imu_, true);
     pnh.param("imu_max_time_difference", imu_max_dt_, 0.05);
+    pnh.param("initial_heading_max_age", initial_heading_max_age_, 1.0);
     pnh.param("gnss_max_gap", gnss_max_gap_, 1.5);
     pnh.param("gnss_max_time_difference", gnss_max_dt_, 0.05);
 
@@ -137,7 +138,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         // first scan was lost at start-up (dropped from a full queue, or played before the
         // subscription was connected): that sample's heading is still far better than none (the
         // odometry frame's, e.g. 70 deg off on KITTI drive 0005).
-        heading = latestImuBefore(msg->header.stamp, kInitialHeadingMaxAge);
+        heading = latestImuBefore(msg->header.stamp, initial_heading_max_age_);
         if (heading)
           NODELET_WARN(
               "no imu/data within %.3f s of the first keyframe: its heading is the one "
@@ -147,7 +148,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
           NODELET_WARN(
               "no imu/data within %.1f s before the first keyframe: no initial heading "
               "from the IMU",
-              kInitialHeadingMaxAge);
+              initial_heading_max_age_);
       }
       if (heading && !backend_->params().initial_yaw_known) {
         yaw = heading->yaw;
@@ -470,7 +471,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
   /// [s] how old an IMU sample may be to give the first keyframe's heading when none is within
   /// imu_max_time_difference: scans lost at start-up are at most a few queue depths (0.5 s).
-  static constexpr double kInitialHeadingMaxAge = 1.0;
+  double initial_heading_max_age_ = 1.0;
   bool use_imu_ = true;
   std::atomic<bool> first_keyframe_seen_{false};  ///< read by the gps/fix callback
   double imu_max_dt_ = 0.05;
