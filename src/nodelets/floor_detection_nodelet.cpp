@@ -23,12 +23,16 @@ class FloorDetectionNodelet : public nodelet::Nodelet {
     detector_ = std::make_unique<FloorDetector>(params);
     health_ = std::make_unique<FloorHealth>(params.warn_after_missing);
     floor_pub_ = nh.advertise<FloorCoeffs>("floor_coeffs", 100);
+    if (!params.enabled) {  // no floors, and no "no floor" warnings either
+      NODELET_INFO("floor_detection off (enabled: false): no floor_coeffs");
+      return;
+    }
     keyframe_sub_ = nh.subscribe("keyframe", 100, &FloorDetectionNodelet::onKeyFrame, this);
     NODELET_INFO(
-        "floor_detection %s: floor at z %.2f +- %.2f m in %.0f-%.0f m, RANSAC %.2f m, "
+        "floor_detection on: floor at z %.2f +- %.2f m in %.0f-%.0f m, RANSAC %.2f m, "
         "min %d inliers, rough-terrain radius %.1f m",
-        params.enabled ? "on" : "off", params.floor_z, params.floor_z_tolerance, params.min_range,
-        params.max_range, params.ransac_distance, params.min_inliers, params.rough_radius);
+        params.floor_z, params.floor_z_tolerance, params.min_range, params.max_range,
+        params.ransac_distance, params.min_inliers, params.rough_radius);
   }
 
  private:
