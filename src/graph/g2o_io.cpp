@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -317,7 +319,7 @@ class MissingVertexInitialiser {
   int initialised_ = 0;
 };
 
-G2oReadResult buildGraph(const ParsedFile& file, PoseGraph* out) {
+G2oReadResult buildGraph(const ParsedFile& file, const G2oReadOptions& options, PoseGraph* out) {
   std::map<int, VertexType> types;
   std::map<int, Eigen::VectorXd> estimates;
   for (const VertexRecord& v : file.vertices) {
@@ -364,12 +366,29 @@ G2oReadResult buildGraph(const ParsedFile& file, PoseGraph* out) {
       return failAt(line, graph.lastError());
     }
   }
+  G2oReadResult result;
   for (const EdgeRecord& e : file.edges) {
-    if (graph.addEdge(e.type, e.ids, e.measurement, e.information) < 0) {
-      return failAt(e.line, graph.lastError());
+    Eigen::MatrixXd repaired;
+    double min_eigenvalue = 0.0;
+    const bool indefinite = nearestPositiveSemiDefinite(e.information, &repaired, &min_eigenvalue);
+    if (indefinite && options.repair_information) {
+      result.repairs.push_back({e.line, min_eigenvalue, (repaired - e.information).norm()});
+    }
+    const Eigen::MatrixXd& information =
+        indefinite && options.repair_information ? repaired : e.information;
+    if (graph.addEdge(e.type, e.ids, e.measurement, information) < 0) {
+      std::string message = graph.lastError();
+      if (indefinite) {
+        std::ostringstream hint;
+        hint << " (smallest eigenvalue " << min_eigenvalue
+             << "; reading with repair_information, e.g. graph_benchmark --repair-information, "
+                "projects it to the nearest positive semi-definite matrix)";
+        message += hint.str();
+      }
+      return failAt(e.line, message);
     }
   }
-  G2oReadResult result;
+  result.num_repaired_information = static_cast<int>(result.repairs.size());
   for (const FixRecord& f : file.fixes) {
     if (!graph.setFixed(f.id, true)) {
       return failAt(f.line, "FIX: unknown vertex " + std::to_string(f.id));
@@ -396,7 +415,28 @@ void writeValues(std::ostream& out, const Eigen::VectorXd& v) {
 
 }  // namespace
 
-G2oReadResult readG2o(std::istream& in, PoseGraph* graph) {
+bool nearestPositiveSemiDefinite(const Eigen::MatrixXd& information, Eigen::MatrixXd* repaired,
+                                 double* min_eigenvalue) {
+  if (information.size() == 0 || information.rows() != information.cols() ||
+      !information.allFinite()) {
+    return false;
+  }
+  const Eigen::MatrixXd symmetric = 0.5 * (information + information.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(symmetric);
+  if (eig.info() != Eigen::Success) return false;
+  const double smallest = eig.eigenvalues().minCoeff();
+  if (min_eigenvalue) *min_eigenvalue = smallest;
+  // The tolerance of PoseGraph::addEdge: below it the edge would be refused.
+  const double scale = std::max(1.0, information.cwiseAbs().maxCoeff());
+  if (smallest >= -1e-9 * scale) return false;
+  const Eigen::VectorXd clamped = eig.eigenvalues().cwiseMax(0.0);
+  const Eigen::MatrixXd projected =
+      eig.eigenvectors() * clamped.asDiagonal() * eig.eigenvectors().transpose();
+  *repaired = 0.5 * (projected + projected.transpose());  // exactly symmetric
+  return true;
+}
+
+G2oReadResult readG2o(std::istream& in, PoseGraph* graph, const G2oReadOptions& options) {
   ParsedFile file;
   std::string text;
   int line = 0;
@@ -413,13 +453,13 @@ G2oReadResult readG2o(std::istream& in, PoseGraph* graph) {
   }
   if (in.bad()) return failAt(line, "read error");
   if (file.vertices.empty() && file.edges.empty()) return failAt(0, "no vertex and no edge");
-  return buildGraph(file, graph);
+  return buildGraph(file, options, graph);
 }
 
-G2oReadResult readG2o(const std::string& path, PoseGraph* graph) {
+G2oReadResult readG2o(const std::string& path, PoseGraph* graph, const G2oReadOptions& options) {
   std::ifstream in(path);
   if (!in) return failAt(0, "cannot open '" + path + "'");
-  G2oReadResult r = readG2o(in, graph);
+  G2oReadResult r = readG2o(in, graph, options);
   if (!r.ok) r.message = path + ": " + r.message;
   return r;
 }

@@ -141,7 +141,11 @@ bool parseKittiTimestamp(const std::string& text, StampNs& stamp) {
   if (std::sscanf(text.c_str(), "%d-%d-%d %d:%d:%d%n", &Y, &M, &D, &h, &m, &s, &consumed) != 6) {
     return false;
   }
-  if (M < 1 || M > 12 || D < 1 || D > 31 || h > 23 || m > 59 || s > 60) return false;
+  // Years outside [1970, 2261] are refused: ROS stamps cannot be negative and nanoseconds since
+  // 1970 overflow int64 in 2262 (a fuzzed year of 10^11 was signed overflow, issue 22).
+  if (Y < 1970 || Y > 2261) return false;
+  if (M < 1 || M > 12 || D < 1 || D > 31 || h < 0 || h > 23 || m < 0 || m > 59 || s < 0 || s > 60)
+    return false;
   int64_t frac_ns = 0;
   const char* p = text.c_str() + consumed;
   if (*p == '.') {

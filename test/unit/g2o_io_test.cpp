@@ -2,6 +2,7 @@
 // and errors with line numbers on malformed files (the output graph is left untouched).
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -166,6 +167,89 @@ TEST(G2oIo, MalformedFilesGiveLineNumberedErrorsAndKeepTheGraph) {
   EXPECT_FALSE(missing.ok);
   EXPECT_NE(missing.message.find("cannot open"), std::string::npos);
   EXPECT_FALSE(writeG2o(mixedGraph(), "/nonexistent/dir/out.g2o").ok);
+}
+
+// Issue 22: cubicle.g2o (a public SE3 dataset) has an edge with an indefinite information matrix.
+// By default it is refused (with the smallest eigenvalue and the way on); with
+// repair_information it is read with the nearest positive semi-definite matrix, and counted.
+TEST(G2oIo, IndefiniteInformationIsRefusedOrRepairedOnRequest) {
+  // Upper triangle of a 6x6 information: diagonal 100 (translation) and 400 (rotation), with an
+  // x-y coupling of 150 > 100 that makes the top-left 2x2 block indefinite (eigenvalues 250, -50).
+  const std::string indefinite = "100 150 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400";
+  const std::string good = "100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400";
+  const std::string text =
+      "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n"
+      "VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n"
+      "VERTEX_SE3:QUAT 2 2 0 0 0 0 0 1\n"
+      "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 " +
+      good +
+      "\n"
+      "EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 " +
+      indefinite +
+      "\n"
+      "EDGE_SE3:QUAT 0 2 2 0 0 0 0 0 1 " +
+      indefinite + "\n";
+  PoseGraph refused;
+  const G2oReadResult strict = readText(text, &refused);
+  EXPECT_FALSE(strict.ok);
+  EXPECT_EQ(strict.line, 5);
+  EXPECT_NE(strict.message.find("positive semi-definite"), std::string::npos) << strict.message;
+  EXPECT_NE(strict.message.find("smallest eigenvalue -50"), std::string::npos) << strict.message;
+  EXPECT_NE(strict.message.find("repair-information"), std::string::npos) << strict.message;
+  EXPECT_EQ(refused.numVertices(), 0u);
+
+  PoseGraph repaired;
+  G2oReadOptions options;
+  options.repair_information = true;
+  std::istringstream in(text);
+  const G2oReadResult r = readG2o(in, &repaired, options);
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_EQ(r.num_edges, 3);
+  EXPECT_EQ(r.num_repaired_information, 2);
+  ASSERT_EQ(r.repairs.size(), 2u);
+  EXPECT_EQ(r.repairs[0].line, 5);
+  EXPECT_EQ(r.repairs[1].line, 6);
+  EXPECT_NEAR(r.repairs[0].min_eigenvalue, -50.0, 1e-9);
+  // Nearest PSD: the -50 eigenvalue (eigenvector (1, -1)/sqrt(2)) becomes 0, so the Frobenius
+  // change is 50 and the x-y block becomes [[125, 125], [125, 125]].
+  EXPECT_NEAR(r.repairs[0].frobenius_change, 50.0, 1e-9);
+  // The well-formed edge is not touched and the repaired ones are exactly what was stated.
+  int checked = 0;
+  for (const auto& [id, edge] : repaired.edges()) {
+    const Eigen::MatrixXd& info = edge.information;
+    ASSERT_EQ(info.rows(), 6);
+    if (edge.vertices[0] == 0 && edge.vertices[1] == 1) {
+      EXPECT_EQ(info(0, 1), 0.0);
+      EXPECT_EQ(info(0, 0), 100.0);
+    } else {
+      EXPECT_NEAR(info(0, 0), 125.0, 1e-9);
+      EXPECT_NEAR(info(0, 1), 125.0, 1e-9);
+      EXPECT_NEAR(info(1, 1), 125.0, 1e-9);
+      EXPECT_NEAR(info(2, 2), 100.0, 1e-9);
+      EXPECT_NEAR(info(5, 5), 400.0, 1e-9);
+      EXPECT_EQ((info - info.transpose()).norm(), 0.0);
+      EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(info).eigenvalues().minCoeff(),
+                -1e-9);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 3);
+
+  // A positive semi-definite matrix is left alone, and so is a file without indefinite ones.
+  Eigen::MatrixXd out;
+  double min_eigenvalue = 1.0;
+  EXPECT_FALSE(nearestPositiveSemiDefinite(Eigen::Matrix3d::Identity(), &out, &min_eigenvalue));
+  EXPECT_DOUBLE_EQ(min_eigenvalue, 1.0);
+  Eigen::Matrix2d singular;
+  singular << 1, 1, 1, 1;
+  EXPECT_FALSE(nearestPositiveSemiDefinite(singular, &out));
+  PoseGraph plain;
+  std::istringstream plain_in(
+      "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n"
+      "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n");
+  const G2oReadResult untouched = readG2o(plain_in, &plain, options);
+  ASSERT_TRUE(untouched.ok);
+  EXPECT_EQ(untouched.num_repaired_information, 0);
 }
 
 }  // namespace
