@@ -1,6 +1,7 @@
 #include "osm_graph_slam/osm/osm_reader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -77,6 +78,142 @@ std::string describeException(const std::exception& e) {
     msg << "cannot read OSM data: " << e.what();
   }
   return msg.str();
+}
+
+/// Finds coordinate attributes (lat, lon, minlat, maxlon...) that libosmium 2.19's
+/// string_to_location_coordinate would overflow a signed 64-bit integer on (undefined behaviour,
+/// found by fuzz_osm_xml, issue 22): an exponent ("1e99") or a character reference that expat
+/// would decode into one ("1&#101;99"). OSM writers never produce either, so such a document is
+/// refused at that attribute (and what precedes it salvaged) instead of being handed to libosmium.
+/// A small XML tokenizer: only attribute values inside tags count, comments, CDATA sections and
+/// text are skipped. Feed the document in pieces of any size.
+class UnsafeCoordinateScanner {
+ public:
+  /// Returns false once an unsafe coordinate was seen (then line(), offset(), value() say where).
+  bool feed(const char* data, size_t size) {
+    for (size_t i = 0; i < size && !found_; ++i) step(data[i]);
+    return !found_;
+  }
+  bool found() const { return found_; }
+  uint64_t line() const { return found_line_; }
+  uint64_t offset() const { return found_offset_; }  ///< byte offset of the attribute value
+  const std::string& value() const { return value_; }
+
+ private:
+  enum class State { kText, kTag, kValue, kSkip };
+
+  static bool isNameChar(char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == ':' || c == '-' ||
+           c == '.';
+  }
+  static bool endsWith(const std::string& s, const char* suffix) {
+    const size_t n = std::strlen(suffix);
+    return s.size() >= n && s.compare(s.size() - n, n, suffix) == 0;
+  }
+
+  void step(char c) {
+    recent_ = (recent_ << 8) | static_cast<unsigned char>(c);
+    switch (state_) {
+      case State::kText:
+        if (c == '<') {
+          state_ = State::kTag;
+          name_.clear();
+          name_done_ = false;
+          pending_coordinate_ = false;
+          cdata_candidate_ = false;
+          tag_chars_ = 0;
+        }
+        break;
+      case State::kTag:
+        ++tag_chars_;
+        // tag_chars_ counts the characters after '<'.
+        if (tag_chars_ == 2 && (recent_ & 0xffffff) == 0x3c212d) {  // "<!-"
+          state_ = State::kSkip;
+          terminator_ = "-->";
+        } else if (tag_chars_ == 1 && (recent_ & 0xffff) == 0x3c21) {  // "<!": maybe CDATA
+          cdata_candidate_ = true;
+        } else if (cdata_candidate_ && tag_chars_ == 7) {
+          cdata_candidate_ = false;
+          if ((recent_ & 0xffffffffffffULL) == 0x5b4344415441ULL) {  // "[CDATA"
+            state_ = State::kSkip;
+            terminator_ = "]]>";
+          }
+        }
+        if (state_ == State::kSkip) {
+          matched_ = 0;
+        } else if (c == '>') {
+          state_ = State::kText;
+        } else if (c == '"' || c == '\'') {
+          quote_ = c;
+          state_ = State::kValue;
+          coordinate_ = pending_coordinate_;
+          pending_coordinate_ = false;
+          value_start_ = offset_ + 1;
+          value_.clear();
+        } else if (c == '=') {
+          pending_coordinate_ = endsWith(name_, "lat") || endsWith(name_, "lon");
+          name_.clear();
+        } else if (isNameChar(c)) {
+          if (name_done_) name_.clear();
+          name_done_ = false;
+          name_ += c;
+          if (name_.size() > 64) name_.erase(0, name_.size() - 64);
+        } else {
+          name_done_ = !name_.empty();
+        }
+        break;
+      case State::kValue:
+        if (c == quote_) {
+          state_ = State::kTag;
+          name_.clear();
+        } else if (coordinate_) {
+          if (value_.size() < 40) value_ += c;
+          if (c == 'e' || c == 'E' || c == '&') {
+            found_ = true;
+            found_line_ = line_;
+            found_offset_ = value_start_;
+          }
+        }
+        break;
+      case State::kSkip:
+        // Both terminators are "XX>": a third X keeps two matched.
+        if (c == terminator_[matched_]) {
+          ++matched_;
+        } else {
+          matched_ = c == terminator_[0] ? (matched_ == 2 ? 2 : 1) : 0;
+        }
+        if (terminator_[matched_] == '\0') state_ = State::kText;
+        break;
+    }
+    if (c == '\n') ++line_;
+    ++offset_;
+  }
+
+  State state_ = State::kText;
+  std::string name_;
+  bool name_done_ = false;
+  bool pending_coordinate_ = false;
+  bool coordinate_ = false;
+  bool cdata_candidate_ = false;
+  int tag_chars_ = 0;
+  char quote_ = '"';
+  const char* terminator_ = "";
+  size_t matched_ = 0;
+  uint64_t recent_ = 0;
+  uint64_t line_ = 1;
+  uint64_t offset_ = 0;
+  uint64_t value_start_ = 0;
+  bool found_ = false;
+  uint64_t found_line_ = 0;
+  uint64_t found_offset_ = 0;
+  std::string value_;
+};
+
+std::string unsafeCoordinateError(const UnsafeCoordinateScanner& scanner) {
+  return "malformed OSM XML at line " + std::to_string(scanner.line()) + ": coordinate '" +
+         scanner.value() +
+         "...' in exponent notation or with a character reference (not read: libosmium's "
+         "coordinate parser overflows on it)";
 }
 
 /// Three passes over the input so that only what is needed stays in memory:
@@ -344,6 +481,24 @@ OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
   }
   std::fclose(probe);
   const std::string format = endsWith(path, ".xml") ? "osm" : "";
+  if (endsWith(path, ".osm") || endsWith(path, ".xml")) {
+    // Uncompressed XML: one streaming pass for coordinates libosmium cannot parse safely; such a
+    // file goes through the in-memory reader, which refuses it and keeps what precedes it.
+    UnsafeCoordinateScanner scanner;
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> chunk(1 << 20);
+    while (in) {
+      in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+      if (!scanner.feed(chunk.data(), static_cast<size_t>(in.gcount()))) break;
+    }
+    if (scanner.found()) {
+      OsmData data;
+      data.error = unsafeCoordinateError(scanner);
+      data = salvageXmlFile(path, options, std::move(data));
+      data.error = path + ": " + data.error;
+      return data;
+    }
+  }
   XmlErrorPosition position;
   OsmData data = readWithCollector(
       [&] {
@@ -405,12 +560,22 @@ OsmData parseOsmXml(const std::string& xml, const OsmReadOptions& options) {
     data.error = "empty OSM XML document";
     return data;
   }
+  UnsafeCoordinateScanner scanner;
+  scanner.feed(xml.data(), xml.size());
   XmlErrorPosition position;
-  OsmData data = parseXmlOnce(xml, options, &position);
-  if (data.ok || !position.valid) return data;
+  OsmData data;
+  size_t error_offset = 0;
+  if (scanner.found()) {
+    data.error = unsafeCoordinateError(scanner);
+    error_offset = scanner.offset();
+  } else {
+    data = parseXmlOnce(xml, options, &position);
+    if (data.ok || !position.valid) return data;
+    error_offset = offsetOf(xml, position.line, position.column);
+  }
   // libosmium drops the block it was parsing when expat fails; re-parse the part before the
   // error, closed after its last complete element, so that everything read is kept.
-  const std::string prefix = xml.substr(0, offsetOf(xml, position.line, position.column));
+  const std::string prefix = xml.substr(0, error_offset);
   const size_t cut = lastCompleteElementEnd(prefix);
   const size_t root = prefix.find("<osm");
   if (cut == 0 || root == std::string::npos || cut < root) return data;

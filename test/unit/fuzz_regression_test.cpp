@@ -8,6 +8,7 @@
 #include <string>
 
 #include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/osm/osm_reader.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -51,6 +52,45 @@ TEST_F(FuzzRegression, KittiTimestampOutsideTheInt64NanosecondRangeIsRefused) {
                                          "0011-09-26 13:02:25.96\n"),
                                    stamps, &error));
   EXPECT_NE(error.find("line 2"), std::string::npos) << error;
+}
+
+// fuzz_osm_xml: a coordinate in exponent notation ("4.9e19") made libosmium 2.19's coordinate
+// parser overflow an int64 (signed overflow, UBSan in osmium/osm/location.hpp). Such attributes
+// (also through a character reference, and in <bounds minlat=...>) are refused before libosmium
+// sees them; the buildings before the attribute are kept, as for other malformed XML.
+const char* const kOneBuilding =
+    "<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n"
+    "<node id=\"1\" lat=\"49.0110\" lon=\"8.4220\"/>\n"
+    "<node id=\"2\" lat=\"49.0110\" lon=\"8.4223\"/>\n"
+    "<node id=\"3\" lat=\"49.0112\" lon=\"8.4223\"/>\n"
+    "<way id=\"10\"><nd ref=\"1\"/><nd ref=\"2\"/><nd ref=\"3\"/><nd ref=\"1\"/>"
+    "<tag k=\"building\" v=\"yes\"/></way>\n";
+
+TEST_F(FuzzRegression, OsmCoordinateInExponentNotationIsRefusedBeforeLibosmium) {
+  for (const std::string bad :
+       {"<node id=\"4\" lat=\"4.9e19\" lon=\"8.4\"/>\n",
+        "<node id=\"4\" lat='1E99' lon=\"8.4\"/>\n",
+        "<node id=\"4\" lat=\"49\" lon = \"1&#101;99\"/>\n",
+        "<bounds minlat=\"49\" minlon=\"8e30\" maxlat=\"50\" maxlon=\"9\"/>\n"}) {
+    const std::string xml = std::string(kOneBuilding) + bad + "</osm>\n";
+    const OsmData data = parseOsmXml(xml);
+    EXPECT_FALSE(data.ok) << bad;
+    EXPECT_NE(data.error.find("line 7"), std::string::npos) << data.error;
+    EXPECT_NE(data.error.find("exponent notation"), std::string::npos) << data.error;
+    EXPECT_EQ(data.buildings.size(), 1u) << data.error;  // read before the bad attribute
+    const OsmData file = readOsmFile(write("bad.osm", xml));
+    EXPECT_FALSE(file.ok);
+    EXPECT_NE(file.error.find("exponent notation"), std::string::npos) << file.error;
+    EXPECT_EQ(file.buildings.size(), 1u) << file.error;
+  }
+  // Not coordinates, or not attributes: read as before.
+  const std::string fine = std::string(kOneBuilding) +
+                           "<!-- a comment's lat=\"1e9\" --><![CDATA[ lon='2e9' ]]>\n"
+                           "<node id=\"5\" lat=\"-49.0\" lon=\"8.4\"><tag k=\"note\" "
+                           "v=\"lat='1e99'\"/><tag k=\"ele\" v=\"1e3\"/></node>\n</osm>\n";
+  const OsmData data = parseOsmXml(fine);
+  EXPECT_TRUE(data.ok) << data.error;
+  EXPECT_EQ(data.buildings.size(), 1u);
 }
 
 }  // namespace
