@@ -272,13 +272,14 @@ class MissingVertexInitialiser {
     bool progress = true;
     while (progress) {
       progress = false;
+      // (ids at the ends of the int range have no neighbour there: id ± 1 would overflow)
       for (int id : missing) {  // forward: id from id − 1
-        if (estimates_.count(id)) continue;
+        if (estimates_.count(id) || id == std::numeric_limits<int>::min()) continue;
         const auto it = consecutive.find({id - 1, id});
         if (it != consecutive.end() && initialiseFrom(*it->second)) progress = true;
       }
       for (auto rit = missing.rbegin(); rit != missing.rend(); ++rit) {  // backward
-        if (estimates_.count(*rit)) continue;
+        if (estimates_.count(*rit) || *rit == std::numeric_limits<int>::max()) continue;
         const auto it = consecutive.find({*rit, *rit + 1});
         if (it != consecutive.end() && initialiseFrom(*it->second)) progress = true;
       }

@@ -5,8 +5,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <sstream>
 #include <string>
 
+#include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 
@@ -91,6 +94,27 @@ TEST_F(FuzzRegression, OsmCoordinateInExponentNotationIsRefusedBeforeLibosmium) 
   const OsmData data = parseOsmXml(fine);
   EXPECT_TRUE(data.ok) << data.error;
   EXPECT_EQ(data.buildings.size(), 1u);
+}
+
+// Found by reading g2o_io.cpp next to fuzz_g2o (the fuzzer ran 826k inputs without reaching
+// it): an edge-only file whose vertex ids touch INT_MAX or INT_MIN made the odometry-chain
+// initialiser compute id + 1 / id - 1 (signed overflow, UBSan). Such files are read now.
+TEST_F(FuzzRegression, G2oVertexIdsAtTheEndsOfTheIntRangeAreInitialised) {
+  const int max = std::numeric_limits<int>::max();
+  const int min = std::numeric_limits<int>::min();
+  for (const std::string text :
+       {"EDGE_SE2 0 2147483647 1 0 0 1 0 0 1 0 1\n", "EDGE_SE2 0 -2147483648 1 0 0 1 0 0 1 0 1\n",
+        "EDGE_SE2 -2147483648 -2147483647 1 0 0 1 0 0 1 0 1\n"
+        "EDGE_SE2 2147483646 2147483647 1 0 0 1 0 0 1 0 1\n"
+        "EDGE_SE2 -2147483647 2147483646 1 0 0 1 0 0 1 0 1\n"}) {
+    std::istringstream in(text);
+    PoseGraph graph;
+    const G2oReadResult r = readG2o(in, &graph);
+    ASSERT_TRUE(r.ok) << r.message;
+    EXPECT_EQ(r.num_initialised, r.num_vertices);
+    const std::vector<int> ids = graph.vertexIds();
+    EXPECT_TRUE(ids.front() == min || ids.back() == max) << text;
+  }
 }
 
 }  // namespace
