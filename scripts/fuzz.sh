@@ -75,9 +75,10 @@ if [ -d "$DATA" ]; then
   for f in "$DATA"/osm/*.osm; do
     [ -f "$f" ] || continue
     b=$(basename "$f" .osm)
-    head -c 60000 "$f" > "$SHARED_SEEDS/osm_xml/$b.osm" 2>/dev/null || true
-    head -c 60000 "$f" > "$SHARED_SEEDS/overpass/$b.osm" 2>/dev/null || true
-    prefixed 01 "$f" "$SHARED_SEEDS/osm_file/$b.xml" -c 60000 2>/dev/null || true
+    # The first 16 kB (nodes, a few ways): an execution of the OSM targets costs ~ its size.
+    head -c 16000 "$f" > "$SHARED_SEEDS/osm_xml/$b.osm" 2>/dev/null || true
+    head -c 16000 "$f" > "$SHARED_SEEDS/overpass/$b.osm" 2>/dev/null || true
+    prefixed 01 "$f" "$SHARED_SEEDS/osm_file/$b.xml" -c 16000 2>/dev/null || true
   done
   if [ -d "$SHARED_SEEDS/osm_file" ] && [ -f "$DATA/osm/2011_09_26_drive_0005_sync_buildings.osm" ]; then
     "$BUILD/osm_to_pbf" "$DATA/osm/2011_09_26_drive_0005_sync_buildings.osm" "$BUILD/buildings.osm.pbf" &&
@@ -106,6 +107,7 @@ cp "$ROOT"/config/*.yaml "$SHARED_SEEDS/yaml_params/" 2>/dev/null || true
 
 # --- run ----------------------------------------------------------------------------------
 declare -A DICT=([osm_xml]=osm.dict [overpass]=osm.dict [osm_file]=osm.dict [g2o]=g2o.dict)
+declare -A MAX_LEN=([osm_xml]=16384 [overpass]=16384 [osm_file]=16384)
 status=0
 summary=()
 for t in "${TARGETS[@]}"; do
@@ -113,7 +115,8 @@ for t in "${TARGETS[@]}"; do
   crashes="$BUILD/crashes/$t"
   log="$BUILD/logs/$t.log"
   mkdir -p "$corpus" "$crashes" "$(dirname "$log")"
-  args=(-max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=2560 -max_len=65536
+  args=(-max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=2560
+        -max_len="${MAX_LEN[$t]:-65536}"
         -print_final_stats=1 -artifact_prefix="$crashes/")
   [ -n "${DICT[$t]:-}" ] && args+=(-dict="$ROOT/fuzz/dicts/${DICT[$t]}")
   seeds=("$ROOT/fuzz/seeds/$t")

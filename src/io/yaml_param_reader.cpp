@@ -10,31 +10,40 @@ namespace osm_graph_slam {
 struct YamlParamReader::Impl {
   YAML::Node root;
 
-  /// The scalar at "a/b/c", or an undefined node.
+  /// The scalar at "a/b/c", or an undefined node. Walks through const nodes (operator[] on a
+  /// const node never inserts) and rebinds with reset(): `node = child` would assign through.
   YAML::Node find(const std::string& key) const {
-    YAML::Node node = YAML::Clone(root);
+    YAML::Node node;
+    node.reset(root);
     std::stringstream ss(key);
     std::string part;
     while (std::getline(ss, part, '/')) {
       if (part.empty()) continue;
       if (!node.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
-      node = node[part];
-      if (!node) return YAML::Node(YAML::NodeType::Undefined);
+      const YAML::Node& parent = node;
+      const YAML::Node child = parent[part];
+      if (!child) return YAML::Node(YAML::NodeType::Undefined);
+      node.reset(child);
     }
     return node.IsScalar() ? node : YAML::Node(YAML::NodeType::Undefined);
   }
 
+  /// Leaf keys below node. Keys that are not scalars (a map or sequence used as a key, "? [a]")
+  /// cannot be named by an "a/b/c" path and are skipped (keys() threw on them, fuzz_yaml_params);
+  /// aliases can make the tree exponentially large, so at most kMaxKeys are listed.
+  static constexpr size_t kMaxKeys = 100000;
   void collect(const YAML::Node& node, const std::string& prefix,
                std::vector<std::string>& out) const {
+    if (out.size() >= kMaxKeys) return;
     if (!node.IsMap()) {
       out.push_back(prefix);
       return;
     }
-    for (const auto& kv : node)
-      collect(
-          kv.second,
-          prefix.empty() ? kv.first.as<std::string>() : prefix + "/" + kv.first.as<std::string>(),
-          out);
+    for (const auto& kv : node) {
+      if (!kv.first.IsScalar()) continue;
+      const std::string& name = kv.first.Scalar();
+      collect(kv.second, prefix.empty() ? name : prefix + "/" + name, out);
+    }
   }
 };
 
@@ -64,7 +73,11 @@ YamlParamReader YamlParamReader::fromString(const std::string& text) {
 
 std::vector<std::string> YamlParamReader::keys() const {
   std::vector<std::string> out;
-  if (impl_->root.IsMap()) impl_->collect(impl_->root, "", out);
+  try {
+    if (impl_->root.IsMap()) impl_->collect(impl_->root, "", out);
+  } catch (const std::exception&) {
+    // yaml-cpp throws on nodes it cannot convert; the keys listed so far stay.
+  }
   return out;
 }
 

@@ -3,6 +3,7 @@
 // (or read it) cleanly. Under scripts/test.sh --sanitize these run with ASan + UBSan as well.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -11,7 +12,9 @@
 
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/osm/osm_reader.h"
+#include "osm_graph_slam/slam/graph_dump.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -115,6 +118,69 @@ TEST_F(FuzzRegression, G2oVertexIdsAtTheEndsOfTheIntRangeAreInitialised) {
     const std::vector<int> ids = graph.vertexIds();
     EXPECT_TRUE(ids.front() == min || ids.back() == max) << text;
   }
+}
+
+// fuzz_yaml_params: a key that is not a scalar ("? [a, b]", "{x: 1}: v", an empty flow-map key)
+// made YamlParamReader::keys() throw (uncaught: the fuzzer saw std::terminate). Such keys are
+// skipped; the others are listed and readable.
+TEST_F(FuzzRegression, YamlKeysThatAreNotScalarsAreSkipped) {
+  const YamlParamReader reader = YamlParamReader::fromString(
+      "graph_backend:\n"
+      "  optimize_every: 5\n"
+      "  ? [a, b]\n"
+      "  : 1\n"
+      "  {x: 1}: 2\n"
+      "  anchors: &a { :x1, y: [1, 2, 3]}\n"
+      "  again: *a\n"
+      "flag: off\n");
+  ASSERT_TRUE(reader.ok()) << reader.error();
+  const std::vector<std::string> keys = reader.keys();
+  EXPECT_NE(std::find(keys.begin(), keys.end(), "graph_backend/optimize_every"), keys.end());
+  EXPECT_NE(std::find(keys.begin(), keys.end(), "graph_backend/again/y"), keys.end());
+  EXPECT_NE(std::find(keys.begin(), keys.end(), "flag"), keys.end());
+  int every = 0;
+  bool flag = true;
+  EXPECT_TRUE(reader.getInt("graph_backend/optimize_every", &every));
+  EXPECT_EQ(every, 5);
+  EXPECT_TRUE(reader.getBool("flag", &flag));
+  EXPECT_FALSE(flag);
+  // Lookups do not modify the document (find() no longer clones it, and must not insert).
+  double missing = 7.0;
+  EXPECT_FALSE(reader.getDouble("graph_backend/nothing/here", &missing));
+  EXPECT_EQ(reader.keys(), keys);
+}
+
+// Aliases make a small document name an exponential number of keys; keys() stops at 100000.
+TEST_F(FuzzRegression, YamlAliasExpansionIsBounded) {
+  std::string text = "a0: &a0 {x: 1, y: 2}\n";
+  for (int i = 1; i <= 24; ++i) {
+    text += "a" + std::to_string(i) + ": &a" + std::to_string(i) + " {l: *a" +
+            std::to_string(i - 1) + ", r: *a" + std::to_string(i - 1) + "}\n";
+  }
+  const YamlParamReader reader = YamlParamReader::fromString(text);
+  ASSERT_TRUE(reader.ok()) << reader.error();
+  EXPECT_LE(reader.keys().size(), 100000u);
+  int x = 0;
+  EXPECT_TRUE(reader.getInt("a3/l/r/l/x", &x));
+  EXPECT_EQ(x, 1);
+}
+
+// fuzz_graph_dump: a segment with a negative (or NaN, or huge) support count was cast to
+// unsigned (undefined behaviour). The line is malformed now; a missing count is still 0.
+TEST_F(FuzzRegression, GraphDumpSegmentSupportMustBeACount) {
+  write("keyframes.csv", "0 0.0 0.0 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  GraphDump dump;
+  std::string error;
+  for (const std::string bad : {"-1", "nan", "1e300"}) {
+    write("segments.csv", "0 -1 -1 1 -1 12\n0 -1 2 3 2 " + bad + "\n");
+    EXPECT_FALSE(readGraphDump(dir_.string(), dump, &error)) << bad;
+    EXPECT_NE(error.find("segments.csv:2: malformed line"), std::string::npos) << error;
+  }
+  write("segments.csv", "0 -1 -1 1 -1 12\n0 -1 2 3 2\n");
+  ASSERT_TRUE(readGraphDump(dir_.string(), dump, &error)) << error;
+  ASSERT_EQ(dump.segments[0].size(), 2u);
+  EXPECT_EQ(dump.segments[0][0].support, 12u);
+  EXPECT_EQ(dump.segments[0][1].support, 0u);
 }
 
 }  // namespace
