@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <set>
 
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/eval/slam_evaluation.h"
@@ -186,12 +187,38 @@ struct GraphBackend::State {
   int buildingVertex(BuildingState& b, const GraphBackendParams& p) {
     if (b.vertex_id >= 0) return b.vertex_id;
     b.vertex_id = next_building_vertex++;
-    graph.addVertexSE2(b.vertex_id, b.pose, p.mode == OsmMode::kPrior || heldAtPrior(b, p));
+    const bool fixed = p.mode == OsmMode::kPrior || heldAtPrior(b, p);
+    graph.addVertexSE2(b.vertex_id, b.pose, fixed);
     Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
     info(0, 0) = info(1, 1) = 1.0 / (p.building_prior_std_xy * p.building_prior_std_xy);
     info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
-    graph.addPriorSE2(b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
+    if (p.osm_datum_std_xy > 0.0 && !fixed)
+      graph.addEdgeSE2(datumVertex(p), b.vertex_id, b.prior.reference_pose, info,
+                       EdgeOptions{1, {}});
+    else
+      graph.addPriorSE2(b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
     return b.vertex_id;
+  }
+
+  /// Where a building is expected before anything observed it: its prior moved by the datum.
+  Pose2 predictedPose(const BuildingState& b, const GraphBackendParams& p) const {
+    if (p.osm_datum_std_xy <= 0.0) return b.prior.reference_pose;
+    return graph.vertexSE2(GraphBackend::kOsmDatumVertex).value_or(Pose2()) *
+           b.prior.reference_pose;
+  }
+
+  /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
+  int datumVertex(const GraphBackendParams& p) {
+    const int id = GraphBackend::kOsmDatumVertex;
+    if (graph.hasVertex(id)) return id;
+    graph.addVertexSE2(id, Pose2());
+    // Translation only unless a rotation deviation is given (1e-5 rad: 2 mm at 200 m).
+    const double std_theta = p.osm_datum_std_theta > 0.0 ? p.osm_datum_std_theta : 1e-5;
+    Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+    info(0, 0) = info(1, 1) = 1.0 / (p.osm_datum_std_xy * p.osm_datum_std_xy);
+    info(2, 2) = 1.0 / (std_theta * std_theta);
+    graph.addPriorSE2(id, Pose2(), info, EdgeOptions{1, {}});
+    return id;
   }
 };
 
@@ -270,6 +297,11 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
   if (state_->dirty || force_optimize) {
     optimizePhases(report);
     state_->dirty = false;
+    // Keyframes matched while the datum was elsewhere are matched again where it is now.
+    if (params_.use_osm && reassociateAfterDatumMoved(report) > 0) {
+      processOsmPriors(report);
+      optimizePhases(report);
+    }
   }
   report.total_ms = msSince(t0);
   return report;
@@ -299,7 +331,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
   std::sort(incoming.begin(), incoming.end(),
             [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
   for (auto& in : incoming) {
-    if (in.id >= static_cast<uint64_t>(kBuildingVertexBase)) {
+    if (in.id >= static_cast<uint64_t>(kOsmDatumVertex)) {
       logger_->warnOnce("kf_id", "keyframe id " + std::to_string(in.id) + " is too large; ignored");
       continue;
     }
@@ -337,13 +369,18 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
                                           in.gravity_roll_pitch->y());
         s.map_to_odom = kf.map_pose * in.odom_pose.inverse();
       }
-      const bool free_first = gnssPriors() && in.gnss_position.has_value();
-      s.graph.addVertexSE3(vid, kf.map_pose, !free_first);
-      if (free_first) {
-        // Held where GNSS cannot say: height, attitude, the INS heading; x and y by the fixes.
+      const bool gnss_held = gnssPriors() && in.gnss_position.has_value();
+      const bool soft_anchor =
+          params_.initial_yaw_known && params_.anchor_std_xy > 0.0 && params_.anchor_std_yaw > 0.0;
+      s.graph.addVertexSE3(vid, kf.map_pose, !gnss_held && !soft_anchor);
+      if (gnss_held || soft_anchor) {
+        // Held where GNSS cannot say: height, attitude; x and y by the fixes (GNSS priors) or
+        // by the anchor's deviation, the heading by the INS's.
+        const double xy_info = gnss_held ? 1e-6 : 1.0 / std::pow(params_.anchor_std_xy, 2);
+        const double yaw_std = gnss_held ? params_.gnss_first_yaw_std : params_.anchor_std_yaw;
         Matrix6d info = Matrix6d::Zero();
-        info.diagonal() << 1e-6, 1e-6, 1.0 / (0.05 * 0.05), 1.0 / (0.01 * 0.01),
-            1.0 / (0.01 * 0.01), 1.0 / std::pow(params_.gnss_first_yaw_std, 2);
+        info.diagonal() << xy_info, xy_info, 1.0 / (0.05 * 0.05), 1.0 / (0.01 * 0.01),
+            1.0 / (0.01 * 0.01), 1.0 / std::pow(yaw_std, 2);
         s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
       }
     } else {
@@ -457,9 +494,9 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
     for (auto& b : batch.buildings) {
       if (b.outline_enu.size() < 3 || s.buildings.count(b.id)) continue;
       BuildingState state;
-      state.pose = b.reference_pose;
+      state.prior = b;
+      state.pose = s.predictedPose(state, params_);
       state.local_outline = transformPolygon(b.outline_enu, b.reference_pose.inverse());
-      state.prior = std::move(b);
       s.buildings.emplace(state.prior.id, std::move(state));
       ++report.buildings_added;
     }
@@ -565,7 +602,9 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
       continue;
     }
 
-    // Non-rigid: each building aligned on its own to the keyframe's walls (local matching).
+    // Non-rigid: each building aligned on its own to the keyframe's walls (local matching),
+    // where the map's common offset (the datum, once estimated) predicts it.
+    kf.matched_with_datum = s.graph.vertexSE2(kOsmDatumVertex);
     std::vector<LineSegment2> kf_map;
     kf_map.reserve(kf.segments.size());
     for (const auto& seg : kf.segments) kf_map.push_back(seg.transformed(observed_from));
@@ -588,6 +627,11 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
         }
         walls.swap(seen);
       }
+      // Consecutive keyframes see a wall with the same errors (motion distortion, calibration):
+      // one edge per building_edge_spacing metres of path, not one per keyframe.
+      if (b->last_edge_distance &&
+          kf.accum_distance - *b->last_edge_distance < params_.building_edge_spacing)
+        continue;
       ++report.local_attempts;
       const LineMatchResult local = matcher_.matchLocal(walls, kf_map, b->pose);
       if (!local.success || local.fitness < params_.local_min_fitness ||
@@ -607,6 +651,7 @@ void GraphBackend::processOsmPriors(BackendUpdateReport& report) {
           EdgeOptions{
               1, kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
       s.building_edges.push_back({edge, id, b->prior.id, z, info});
+      b->last_edge_distance = kf.accum_distance;
       s.observed(*b, params_);
       ++report.building_edges;
       s.dirty = true;
@@ -780,6 +825,48 @@ size_t GraphBackend::gateBuildingEdges(BackendUpdateReport& report) {
   return removed;
 }
 
+size_t GraphBackend::reassociateAfterDatumMoved(BackendUpdateReport& report) {
+  State& s = *state_;
+  const std::optional<Pose2> datum = s.graph.vertexSE2(kOsmDatumVertex);
+  if (!datum || params_.osm_datum_reassociate_distance <= 0.0) return 0;
+  std::set<uint64_t> stale;
+  for (auto& [id, kf] : s.keyframes) {
+    if (!kf.matched_with_datum) continue;
+    const double moved = (kf.matched_with_datum->translation() - datum->translation()).norm();
+    if (moved > params_.osm_datum_reassociate_distance) stale.insert(id);
+  }
+  if (stale.empty()) return 0;
+  std::vector<State::BuildingEdge> keep;
+  std::set<int64_t> touched;
+  for (const auto& e : s.building_edges) {
+    if (!stale.count(e.keyframe)) {
+      keep.push_back(e);
+      continue;
+    }
+    s.graph.removeEdge(e.edge_id);
+    BuildingState& b = s.buildings.at(e.building);
+    if (b.observations > 0) --b.observations;
+    b.last_edge_distance.reset();
+    touched.insert(e.building);
+  }
+  s.building_edges.swap(keep);
+  // A building only those keyframes observed goes back to where the datum predicts it.
+  for (int64_t id : touched) {
+    BuildingState& b = s.buildings.at(id);
+    if (b.observations > 0 || b.vertex_id < 0) continue;
+    b.pose = s.predictedPose(b, params_);
+    s.graph.setVertexSE2(b.vertex_id, b.pose);
+  }
+  for (uint64_t id : stale) {
+    s.keyframes.at(id).osm_processed = false;
+    s.keyframes.at(id).matched_with_datum.reset();
+  }
+  report.osm_reassociated += stale.size();
+  logger_->info("OSM datum moved: " + std::to_string(stale.size()) +
+                " keyframes matched again at the map's new offset");
+  return stale.size();
+}
+
 std::vector<int> GraphBackend::fixRobots() {
   State& s = *state_;
   std::vector<int> fixed_now;
@@ -799,8 +886,13 @@ void GraphBackend::readRobotPoses() {
 }
 
 void GraphBackend::readBuildingPoses() {
-  for (auto& [bid, b] : state_->buildings)
-    if (auto pose = state_->graph.vertexSE2(b.vertex_id)) b.pose = *pose;
+  State& s = *state_;
+  for (auto& [bid, b] : s.buildings) {
+    if (auto pose = s.graph.vertexSE2(b.vertex_id))
+      b.pose = *pose;
+    else
+      b.pose = s.predictedPose(b, params_);
+  }
 }
 
 void GraphBackend::findNewContacts() {
@@ -854,6 +946,9 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
   // at level 2 (robots stay fixed), until no outline intersects or the iterations run out.
   State& s = *state_;
   const OptimizerOptions& options = params_.optimizer;
+  // Separating two buildings says nothing about where the map as a whole sits.
+  const bool datum = s.graph.hasVertex(kOsmDatumVertex);
+  if (datum) s.graph.setFixed(kOsmDatumVertex, true);
   std::vector<BuildingState*> order;
   std::vector<Building> outlines;
   for (auto& [bid, b] : s.buildings) {
@@ -896,6 +991,7 @@ void GraphBackend::resolveOverlaps(BackendUpdateReport& report) {
     }
     overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
   }
+  if (datum) s.graph.setFixed(kOsmDatumVertex, false);
   report.overlaps_remaining = overlaps.size();
 }
 
@@ -974,6 +1070,19 @@ Trajectory GraphBackend::odomTrajectory() const {
   Trajectory t;
   for (const auto& [id, kf] : state_->keyframes) t.push_back({kf.stamp, kf.odom_pose});
   return t;
+}
+
+std::vector<BuildingObservation> GraphBackend::buildingObservations() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<BuildingObservation> out;
+  for (const auto& e : state_->building_edges)
+    out.push_back({e.keyframe, e.building, e.z, e.information});
+  return out;
+}
+
+std::optional<Pose2> GraphBackend::osmDatum() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->graph.vertexSE2(kOsmDatumVertex);
 }
 
 std::vector<BuildingState> GraphBackend::buildings() const {

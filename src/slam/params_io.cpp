@@ -41,6 +41,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("gnss_prior_std", p.gnss_prior_std);
   r.param("gnss_prior_kernel_width", p.gnss_prior_kernel_width);
   r.param("gnss_first_yaw_std", p.gnss_first_yaw_std);
+  r.param("anchor_std_xy", p.anchor_std_xy);
+  r.param("anchor_std_yaw", p.anchor_std_yaw);
   if (!(p.odometry.lateral_std_ratio > 0.0)) {
     if (error) *error = "odometry_lateral_std_ratio must be > 0";
     p.odometry.lateral_std_ratio = InformationParams{}.lateral_std_ratio;
@@ -76,9 +78,13 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("building_edge_gate_chi2", p.building_edge_gate_chi2);
   r.param("local_edge_std_xy", p.local_edge_std_xy);
   r.param("local_edge_std_theta", p.local_edge_std_theta);
+  r.param("building_edge_spacing", p.building_edge_spacing);
   r.param("local_edge_at_walls", p.local_edge_at_walls);
   r.param("building_prior_std_xy", p.building_prior_std_xy);
   r.param("building_prior_std_theta", p.building_prior_std_theta);
+  r.param("osm_datum_std_xy", p.osm_datum_std_xy);
+  r.param("osm_datum_std_theta", p.osm_datum_std_theta);
+  r.param("osm_datum_reassociate_distance", p.osm_datum_reassociate_distance);
   r.param("joint_optimization", p.joint_optimization);
   r.param("joint_odometry_weight", p.joint_odometry_weight);
   r.param("resolve_overlaps", p.resolve_overlaps);

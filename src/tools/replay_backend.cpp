@@ -6,12 +6,15 @@
 // odometry_tum.txt, and prints what the last update did.
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <map>
 #include <set>
 #include <stdexcept>
 #include <vector>
 
+#include "osm_graph_slam/common/logger.h"
 #include "osm_graph_slam/common/param_reader.h"
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/io/building_geojson.h"
@@ -29,9 +32,10 @@ namespace {
 int usage(const std::string& why) {
   std::cerr << "replay_backend: " << why << "\n"
             << "usage: replay_backend --dump DIR --output DIR [--config OVERRIDES.yaml]\n"
-               "       [--set key=value]... [--no-osm]\n"
+               "       [--set key=value]... [--no-osm] [--edges FILE]\n"
                "  --set overrides one graph_backend parameter (as in config/graph_backend.yaml,\n"
-               "  nested keys with '/': line_matcher/max_translation=2.0)\n";
+               "  nested keys with '/': line_matcher/max_translation=2.0)\n"
+               "  --edges writes every robot<->building edge left in the graph (for analysis)\n";
   return 2;
 }
 
@@ -148,7 +152,11 @@ int main(int argc, char** argv) {
     params.backend.initial_yaw_known = true;
     params.backend.initial_yaw = *dump.initial_heading;
   }
-  GraphBackend backend(params.backend);
+  // An analysis tool: the back-end's info lines (heading, datum, re-anchors) are wanted here.
+  const auto logger = std::make_shared<Logger>([](LogLevel level, const std::string& msg) {
+    if (level != LogLevel::kDebug) std::cerr << "[backend] " << msg << "\n";
+  });
+  GraphBackend backend(params.backend, logger);
   const auto t0 = std::chrono::steady_clock::now();
   const BackendUpdateReport last = replayGraphDump(dump, backend, params.optimize_every_keyframes);
   const double ms =
@@ -177,6 +185,27 @@ int main(int argc, char** argv) {
             << last.local_unseen << "); last update: " << last.overlap_edges << " overlap edges, "
             << last.overlaps_remaining << " overlaps left, chi2 " << last.phase1.final_chi2 << " / "
             << last.joint.final_chi2 << "\n";
+  if (args.count("edges")) {
+    // Analysis (doc/backend.md): every robot<->building edge with the priors' reference poses.
+    std::ofstream f(args["edges"]);
+    std::map<uint64_t, double> stamps;
+    for (const auto& kf : backend.keyframes()) stamps[kf.id] = kf.stamp;
+    f << std::setprecision(12);
+    f << "# keyframe stamp building z_x z_y z_theta info_xx info_yy info_tt prior_x prior_y "
+         "prior_theta\n";
+    std::map<int64_t, Pose2> priors;
+    for (const auto& b : backend.buildings()) priors[b.prior.id] = b.prior.reference_pose;
+    for (const auto& e : backend.buildingObservations()) {
+      const Pose2& p = priors[e.building];
+      f << e.keyframe << " " << stamps[e.keyframe] << " " << e.building << " " << e.measurement.x
+        << " " << e.measurement.y << " " << e.measurement.theta << " " << e.information(0, 0) << " "
+        << e.information(1, 1) << " " << e.information(2, 2) << " " << p.x << " " << p.y << " "
+        << p.theta << "\n";
+    }
+  }
+  if (const auto datum = backend.osmDatum())
+    std::cout << "OSM datum: " << datum->x << " " << datum->y << " m, "
+              << datum->theta * 180.0 / M_PI << " deg\n";
   if (!ok) {
     std::cerr << "replay_backend: writing " << out << " failed " << error << "\n";
     return 1;

@@ -230,6 +230,7 @@ TEST(GraphBackend, RigidModeRecoversACommonMapShift) {
   GraphBackendParams params = baseParams(OsmMode::kRigid);
   params.global_prior_std_xy = 20.0;  // trust the (exact) odometry, move the map
   params.global_prior_std_yaw = 1.0;
+  params.anchor_std_xy = 0.0;  // ... and the first keyframe's (exact) fix
   GraphBackend backend(params);
   drive().feed(backend, odom, prior);
   const BackendUpdateReport r = backend.update();
@@ -510,4 +511,52 @@ TEST(GraphBackend, BadInputIsReportedAndKept) {
   backend.addBuildings(drive().truth, Eigen::Vector2d::Zero(), 1000.0);
   r = backend.update();
   EXPECT_GT(r.building_edges, 10u);
+}
+
+namespace {
+
+struct ShiftedMapRun {
+  double ate = 0.0;
+  double buildings_before = 0.0, buildings_after = 0.0;
+  size_t reassociated = 0;
+  Pose2 datum;
+};
+
+/// The drive with exact odometry through a prior shifted as a whole by 2.5 m (plus 0.2 m per
+/// building), the first keyframe fixed at its exact fix: everything OSM does to the trajectory
+/// is damage.
+ShiftedMapRun shiftedMapRun(double datum_std) {
+  const auto odom = drive().odometry(0.0, 1.0);
+  const auto prior = drive().perturbedPrior(0.2, 0.0, Pose2(1.5, -2.0, 0.0), 17);
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.anchor_std_xy = 0.0;
+  params.osm_datum_std_xy = datum_std;
+  params.odometry.max_std_xyz = 0.05;  // exact odometry, honest deviations
+  GraphBackend backend(params);
+  drive().feed(backend, odom, prior);
+  ShiftedMapRun run;
+  // Updates every 6 keyframes, as the nodelet's timer would: the datum is learnt on the way.
+  for (int i = 0; i < 8; ++i) run.reassociated += backend.update(true).osm_reassociated;
+  run.ate = ate(backend);
+  run.buildings_before = evaluateBuildings(prior, drive().truth).mean_corner_error;
+  run.buildings_after =
+      evaluateBuildings(backend.correctedBuildings(), drive().truth).mean_corner_error;
+  run.datum = backend.osmDatum().value_or(Pose2());
+  return run;
+}
+
+}  // namespace
+
+TEST(GraphBackend, AMapShiftedAsAWholeMovesTheDatumNotTheTrajectory) {
+  const ShiftedMapRun absolute = shiftedMapRun(0.0), datum = shiftedMapRun(3.0);
+  std::printf(
+      "[datum] ATE absolute priors %.3f m, datum %.3f m (datum %.2f %.2f); buildings "
+      "%.3f -> %.3f / %.3f m; %zu keyframes re-associated\n",
+      absolute.ate, datum.ate, datum.datum.x, datum.datum.y, datum.buildings_before,
+      absolute.buildings_after, datum.buildings_after, datum.reassociated);
+  EXPECT_LT(datum.ate, 0.5 * absolute.ate);
+  EXPECT_LT(datum.ate, 0.1);
+  EXPECT_NEAR(datum.datum.x, -1.5, 0.3);
+  EXPECT_NEAR(datum.datum.y, 2.0, 0.3);
+  EXPECT_LT(datum.buildings_after, 0.3);
 }

@@ -51,6 +51,13 @@ struct GraphBackendParams {
   double gnss_prior_std = 0.0;
   double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
   double gnss_first_yaw_std = 0.01;      ///< [rad] the first keyframe's heading prior (INS)
+  /// The first keyframe (the map's anchor) held at its GNSS fix and known heading with these
+  /// deviations instead of fixed there (height 5 cm, roll/pitch 0.01 rad), so that a trajectory
+  /// the map prior disagrees with can shift and turn as a whole instead of bending; what the
+  /// anchor's fix and the INS heading really know. 0 = fixed (as before). Needs a known initial
+  /// heading; with gnss_prior_std > 0 the fixes hold x and y and anchor_std_yaw is unused.
+  double anchor_std_xy = 2.0;    ///< [m]
+  double anchor_std_yaw = 0.01;  ///< [rad]
   // --- attitude (OSM priors say nothing about roll and pitch) ---
   double imu_attitude_std = 0.01;  ///< [rad] roll/pitch prior of keyframes with an IMU attitude
   /// [rad] without an IMU, keyframes with a map prior keep odometry's roll/pitch this firmly, so
@@ -119,8 +126,12 @@ struct GraphBackendParams {
   /// this chi2 (3 DOF; 9 = 97 %) are removed for good (0: keep every edge).
   double building_edge_gate_chi2 = 9.0;
   /// Robot↔building edge standard deviations for the best possible local match (same scaling).
-  double local_edge_std_xy = 0.1;      ///< [m]
-  double local_edge_std_theta = 0.01;  ///< [rad]
+  double local_edge_std_xy = 0.3;      ///< [m]
+  double local_edge_std_theta = 0.03;  ///< [rad]
+  /// [m] of path between two edges on the same building: consecutive keyframes see a wall with
+  /// the same errors (motion distortion, calibration), so their edges are not independent
+  /// evidence. 0 = an edge from every keyframe.
+  double building_edge_spacing = 0.0;
   /// true: the edge's information is taken where the matched walls are and carried to the
   /// building's reference vertex with the rotation's lever arm. false: as if the vertex itself
   /// had been matched, although it can be 20 m from the walls that were seen (doc/backend.md).
@@ -132,6 +143,16 @@ struct GraphBackendParams {
   /// where 1 m / 2 deg gave -28 % and +34 % (the trajectory bent towards misplaced buildings).
   double building_prior_std_xy = 5.0;     ///< [m]
   double building_prior_std_theta = 0.1;  ///< [rad]
+  /// OSM datum (doc/backend.md "Why the prior hurt"): > 0 ties every building's prior to one
+  /// SE2 vertex, the offset of the OSM map as a whole, held at zero with these deviations, so a
+  /// map that is shifted as a whole (imagery offsets, another datum) does not drag the trajectory
+  /// away from its GNSS anchor; only each building's deviation from the common offset does.
+  /// 0 = off (every prior absolute, as in the thesis).
+  double osm_datum_std_xy = 3.0;     ///< [m]
+  double osm_datum_std_theta = 0.0;  ///< [rad] (0 with the datum on: translation only)
+  /// [m] keyframes matched while the datum was this far from its current estimate are matched
+  /// again (their walls were paired at the map's stale position). 0 = never.
+  double osm_datum_reassociate_distance = 0.5;
   // --- optimisation ---
   OptimizerOptions optimizer;  ///< every optimize() call (phase 1, phase 2, overlaps)
   /// Phase 3: robots and buildings together (levels 0-1, first keyframe fixed), so that the

@@ -60,6 +60,7 @@ struct BackendUpdateReport {
   /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
   size_t local_attempts = 0, local_unseen = 0, local_rejected = 0;
   size_t building_edges_gated = 0;  ///< removed by the consistency gate
+  size_t osm_reassociated = 0;      ///< keyframes matched again after the OSM datum moved
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   size_t shared_walls = 0;  ///< building pairs tied by a shared wall in this update
   /// Floor plane-pair edges added; consecutive floors not tied because the slope changed or
@@ -85,8 +86,9 @@ struct KeyframeState {
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
   bool has_global_prior = false;
-  bool has_attitude = false;  ///< a roll/pitch prior (IMU, or odometry's) was added
-  bool floor_tied = false;    ///< a floor edge ties it to a neighbour's floor
+  bool has_attitude = false;                ///< a roll/pitch prior (IMU, or odometry's) was added
+  bool floor_tied = false;                  ///< a floor edge ties it to a neighbour's floor
+  std::optional<Pose2> matched_with_datum;  ///< the OSM datum when its buildings were matched
 };
 
 /// A building as the back-end knows it: the OSM prior and the current estimate.
@@ -95,9 +97,18 @@ struct BuildingState {
   Pose2 pose;              ///< current estimate of the reference pose
   Polygon2 local_outline;  ///< outline in the building frame (prior pose⁻¹ · outline)
   int vertex_id = -1;
-  size_t observations = 0;  ///< robot↔building edges
+  size_t observations = 0;                   ///< robot↔building edges
+  std::optional<double> last_edge_distance;  ///< path distance of its newest edge's keyframe
   /// The prior with outline, reference pose and segments moved to the current estimate.
   Building corrected() const;
+};
+
+/// One robot↔building edge in the graph: the building's pose seen from the keyframe.
+struct BuildingObservation {
+  uint64_t keyframe = 0;
+  int64_t building = 0;
+  Pose2 measurement;            ///< planar(keyframe)⁻¹ · building
+  Eigen::Matrix3d information;  ///< in the building's axes
 };
 
 /// map -> odom that puts the first keyframe at `position` (default: the map origin) with the
@@ -141,6 +152,7 @@ class GraphBackend {
   Trajectory odomTrajectory() const;  ///< the same keyframes as odometry saw them
   std::vector<BuildingState> buildings() const;
   std::vector<Building> correctedBuildings() const;  ///< outline_geo filled when the origin is set
+  std::vector<BuildingObservation> buildingObservations() const;  ///< edges still in the graph
   PoseGraph graphSnapshot() const;
   std::vector<LoopClosureInput> loopClosures() const;  ///< the ones added to the graph
   std::optional<EnuConverter> origin() const;
@@ -149,6 +161,10 @@ class GraphBackend {
 
   /// Vertex id of a building's SE2 vertex (robot keyframe k has vertex id k).
   static constexpr int kBuildingVertexBase = 1 << 30;
+  /// Vertex id of the OSM datum (osm_datum_std_xy > 0); keyframe ids stay below it.
+  static constexpr int kOsmDatumVertex = kBuildingVertexBase - 1;
+  /// The estimated offset of the OSM map as a whole (ENU), when the datum is on and in the graph.
+  std::optional<Pose2> osmDatum() const;
 
  private:
   /// GNSS position priors on keyframes (gnss_prior_std > 0), once the heading is known.
@@ -166,6 +182,9 @@ class GraphBackend {
   void addOdometryAttitudePrior(KeyframeState& kf, int level);
   std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
   size_t gateBuildingEdges(BackendUpdateReport& report);
+  /// Keyframes matched while the OSM datum was more than osm_datum_reassociate_distance from
+  /// where it is now lose their building edges and are matched again; returns how many.
+  size_t reassociateAfterDatumMoved(BackendUpdateReport& report);
   void readRobotPoses();
   void readBuildingPoses();
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
