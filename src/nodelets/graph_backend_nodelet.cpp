@@ -122,7 +122,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
     // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
     // the first keyframe's, which anchors the map.
-    if (!first_keyframe_seen_ || gnssPriors()) kf.gnss_position = gnssPositionAt(msg->header.stamp);
+    if (!first_keyframe_seen_ || gnssPriors()) {
+      double std_xy = 0.0;
+      kf.gnss_position = gnssPositionAt(msg->header.stamp, &std_xy);
+      if (kf.gnss_position && std_xy > 0.0) kf.gnss_std = std_xy;
+    }
     if (!first_keyframe_seen_) {
       if (!gnssPriors()) {
         std::lock_guard<std::mutex> guard(gnss_mutex_);
@@ -257,7 +261,13 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       return;
     if (first_keyframe_seen_ && !gnssPriors()) return;  // only the first keyframe needs a fix
     std::lock_guard<std::mutex> guard(gnss_mutex_);
-    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0};
+    // The receiver's horizontal deviation, when it reports a covariance (REP-145 NavSatFix).
+    double std_xy = 0.0;
+    if (msg->position_covariance_type != sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN) {
+      const double var = 0.5 * (msg->position_covariance[0] + msg->position_covariance[4]);
+      if (std::isfinite(var) && var > 0.0) std_xy = std::sqrt(var);
+    }
+    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0, std_xy};
     // In stamp order, whatever order they arrive in (gnssFixAt searches by stamp).
     gnss_.insert(std::upper_bound(gnss_.begin(), gnss_.end(), fix,
                                   [](const GnssFixSample& a, const GnssFixSample& b) {
@@ -271,12 +281,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   /// base_link's GNSS position at stamp in the map frame, once the map origin is known:
   /// interpolated between the fixes around it (at most gnss_max_gap apart), else the nearest fix
-  /// within gnss_max_time_difference (the next fix may not have arrived yet).
-  std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp) {
+  /// within gnss_max_time_difference (the next fix may not have arrived yet). std_xy: the fix's
+  /// reported horizontal deviation (0: unknown).
+  std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp, double* std_xy) {
     std::lock_guard<std::mutex> guard(gnss_mutex_);
     if (!enu_) return std::nullopt;
     const auto fix = gnssFixAt(gnss_, stamp.toSec(), gnss_max_gap_, gnss_max_dt_);
     if (!fix) return std::nullopt;
+    *std_xy = fix->std_xy;
     return Eigen::Vector2d(enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>());
   }
 

@@ -15,8 +15,10 @@ std::optional<GnssFixSample> gnssFixAt(const std::vector<GnssFixSample>& fixes, 
     const double gap = b.stamp - a.stamp;
     if (gap <= max_gap) {
       const double w = gap > 0.0 ? (stamp - a.stamp) / gap : 0.0;
+      // Unknown (0) on either side stays unknown: the larger deviation of the two.
+      const double std_xy = a.std_xy > 0.0 && b.std_xy > 0.0 ? std::max(a.std_xy, b.std_xy) : 0.0;
       return GnssFixSample{stamp, a.lat + w * (b.lat - a.lat), a.lon + w * (b.lon - a.lon),
-                           a.alt + w * (b.alt - a.alt)};
+                           a.alt + w * (b.alt - a.alt), std_xy};
     }
   }
   std::optional<GnssFixSample> nearest;

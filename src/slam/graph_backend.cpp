@@ -376,7 +376,9 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
       if (gnss_held || soft_anchor) {
         // Held where GNSS cannot say: height, attitude; x and y by the fixes (GNSS priors) or
         // by the anchor's deviation, the heading by the INS's.
-        const double xy_info = gnss_held ? 1e-6 : 1.0 / std::pow(params_.anchor_std_xy, 2);
+        const double anchor_std =
+            in.gnss_std && *in.gnss_std > 0.0 ? *in.gnss_std : params_.anchor_std_xy;
+        const double xy_info = gnss_held ? 1e-6 : 1.0 / std::pow(anchor_std, 2);
         const double yaw_std = gnss_held ? params_.gnss_first_yaw_std : params_.anchor_std_yaw;
         Matrix6d info = Matrix6d::Zero();
         info.diagonal() << xy_info, xy_info, 1.0 / (0.05 * 0.05), 1.0 / (0.01 * 0.01),

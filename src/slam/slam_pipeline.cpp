@@ -61,7 +61,8 @@ void SlamPipeline::setOrigin(double lat, double lon, double alt) {
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
                                const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
                                const std::optional<Eigen::Vector2d>& gnss_position,
-                               const std::optional<Eigen::Quaterniond>& imu_orientation) {
+                               const std::optional<Eigen::Quaterniond>& imu_orientation,
+                               std::optional<double> gnss_std) {
   if (!started_) {
     start_ = Clock::now();
     started_ = true;
@@ -94,13 +95,14 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
                     result.registration.converged ? result.registration.fitness : -1.0,
-                    result.reanchored, gravity_roll_pitch, gnss_position);
+                    result.reanchored, gravity_roll_pitch, gnss_position, gnss_std);
   return true;
 }
 
 void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
                                    const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                                   const std::optional<Eigen::Vector2d>& gnss_position) {
+                                   const std::optional<Eigen::Vector2d>& gnss_position,
+                                   std::optional<double> gnss_std) {
   ++timings_.keyframes;
   KeyframeInput input;
   input.id = kf.id;
@@ -112,6 +114,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = gravity_roll_pitch;
   input.gnss_position = gnss_position;
+  if (gnss_position) input.gnss_std = gnss_std;
   if (params_.floor.enabled) {
     StageTimer t(timings_.floor_ms);
     const FloorDetection floor = floor_.detect(*kf.cloud);
@@ -151,6 +154,12 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
     }
   }
 
+  if (osm_buffer_ && backend_->numKeyframes() == 0) {
+    // map->odom holds the origin and the heading only once the first keyframe is in the graph:
+    // until the first update the queries below would be made in the odometry frame.
+    StageTimer t(timings_.backend_ms);
+    account(backend_->update());
+  }
   if (osm_buffer_) {
     StageTimer t(timings_.osm_ms);
     // The query position is the keyframe's estimate in the map (map->odom of the last update).

@@ -32,6 +32,15 @@ TEST(GnssFixLookup, InterpolatesBetweenCloseFixesElseTakesTheNearestWithinTheLim
   EXPECT_FALSE(gnssFixAt({}, 10.0, 1.5, 0.05).has_value());
 }
 
+TEST(GnssFixLookup, KeepsTheLargerReportedDeviationAndUnknownStaysUnknown) {
+  const std::vector<GnssFixSample> fixes = {{10.0, 49.0, 8.0, 100.0, 0.02},
+                                            {10.1, 49.0005, 8.001, 100.5, 1.8},
+                                            {10.2, 49.001, 8.002, 101.0, 0.0}};
+  EXPECT_DOUBLE_EQ(gnssFixAt(fixes, 10.05, 1.5, 0.05)->std_xy, 1.8);
+  EXPECT_DOUBLE_EQ(gnssFixAt(fixes, 10.15, 1.5, 0.05)->std_xy, 0.0);
+  EXPECT_DOUBLE_EQ(gnssFixAt(fixes, 10.0, 1.5, 0.05)->std_xy, 0.02);
+}
+
 TEST(EnuConverter, OriginMapsToZero) {
   const EnuConverter enu(kLat0, kLon0, 112.0);
   EXPECT_LT(enu.toEnu(kLat0, kLon0, 112.0).norm(), 1e-9);

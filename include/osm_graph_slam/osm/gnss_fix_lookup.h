@@ -9,6 +9,7 @@ namespace osm_graph_slam {
 struct GnssFixSample {
   double stamp = 0.0;  ///< [s]
   double lat = 0.0, lon = 0.0, alt = 0.0;
+  double std_xy = 0.0;  ///< [m] horizontal standard deviation the receiver reports (0: unknown)
 };
 
 /// The fix at stamp: interpolated between the fixes around it when they are at most max_gap

@@ -56,6 +56,7 @@ struct GraphBackendParams {
   /// the map prior disagrees with can shift and turn as a whole instead of bending; what the
   /// anchor's fix and the INS heading really know. 0 = fixed (as before). Needs a known initial
   /// heading; with gnss_prior_std > 0 the fixes hold x and y and anchor_std_yaw is unused.
+  /// anchor_std_xy is used when the fix does not report its deviation (KeyframeInput::gnss_std).
   double anchor_std_xy = 2.0;    ///< [m]
   double anchor_std_yaw = 0.01;  ///< [rad]
   // --- attitude (OSM priors say nothing about roll and pitch) ---

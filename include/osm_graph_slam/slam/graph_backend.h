@@ -40,6 +40,9 @@ struct KeyframeInput {
   /// origin) [m], if known. The first keyframe is fixed there: the origin is the first fix, and
   /// when the first scans never became keyframes (dropped, empty) the vehicle has moved since.
   std::optional<Eigen::Vector2d> gnss_position;
+  /// [m] that fix's horizontal standard deviation, when the receiver reports it: the first
+  /// keyframe is held there with it (else with anchor_std_xy).
+  std::optional<double> gnss_std;
   /// The floor plane (a, b, c, d) under base_link, if the floor detector found one (it may also
   /// come later through addFloor()).
   std::optional<Eigen::Vector4d> floor;

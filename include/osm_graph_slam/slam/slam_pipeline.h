@@ -63,10 +63,12 @@ class SlamPipeline {
   /// first keyframe is fixed there).
   /// imu_orientation: base_link's orientation from an IMU/INS at the scan's time, if any (the
   /// tracker's imu guesses use its change between scans).
+  /// gnss_std: the fix's horizontal standard deviation [m], if the receiver reports it.
   bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
                    const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
                    const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
-                   const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt);
+                   const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
+                   std::optional<double> gnss_std = std::nullopt);
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
   /// Time the caller waited for input (files, a bag), so the report shows it next to the
@@ -83,7 +85,8 @@ class SlamPipeline {
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
                        const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                       const std::optional<Eigen::Vector2d>& gnss_position);
+                       const std::optional<Eigen::Vector2d>& gnss_position,
+                       std::optional<double> gnss_std);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
