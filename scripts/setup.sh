@@ -61,8 +61,10 @@ done
 cd "$WS"
 echo "[setup] building catkin workspace $WS (-j$JOBS)"
 set +e
-catkin_make -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE=/usr/bin/python3 -j"$JOBS" \
-  ${OGS_MAKE_TARGETS:-} 2>&1 | tee "$WS/build.log" |
+# OGS_CMAKE_ARGS: extra CMake arguments (scripts/test.sh --sanitize builds its own workspace so).
+# shellcheck disable=SC2086
+catkin_make -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE=/usr/bin/python3 ${OGS_CMAKE_ARGS:-} \
+  -j"$JOBS" ${OGS_MAKE_TARGETS:-} 2>&1 | tee "$WS/build.log" |
   grep --line-buffered -E '^\[ *[0-9]+%\] Building|error:|Error [0-9]|CMake Error'
 status=${PIPESTATUS[0]}
 set -e

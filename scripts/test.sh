@@ -1,10 +1,18 @@
 #!/usr/bin/env bash
 # Runs setup (install + build), then every gtest and rostest of osm_graph_slam.
 # Exits non-zero on any failure; the last line is "N passed, N failed, N skipped".
+#   scripts/test.sh              the above (what CI runs)
+#   scripts/test.sh --sanitize   builds every gtest with AddressSanitizer + UndefinedBehavior-
+#                                Sanitizer in a workspace of its own (build_ws/sanitize) and runs
+#                                them; any sanitizer report fails (doc/reliability.md)
 export PATH=/usr/bin:/bin:/usr/sbin:/sbin:$PATH   # pyenv's python3 breaks catkin
 set -o pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+if [ "${1:-}" = "--sanitize" ]; then
+  shift
+  exec "$ROOT/scripts/test_sanitize.sh" "$@"
+fi
 WS="${OGS_BUILD_WS:-$ROOT/build_ws}"
 JOBS="${OGS_JOBS:-$(nproc)}"
 
