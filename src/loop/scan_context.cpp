@@ -26,6 +26,13 @@ void computeKeys(ScanContext& sc) {
 
 }  // namespace
 
+ScanContext scanContextFromCells(const Eigen::MatrixXf& cells) {
+  ScanContext sc;
+  sc.cells = cells;
+  computeKeys(sc);
+  return sc;
+}
+
 ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params) {
   ScanContext sc;
   const int rings = std::max(1, params.num_rings);

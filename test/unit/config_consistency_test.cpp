@@ -19,6 +19,7 @@
 #include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/lines/params_io.h"
+#include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/osm/params_io.h"
@@ -144,6 +145,12 @@ std::vector<StageConfig> stages() {
        {"map_frame", "odom_frame", "base_link_frame", "optimization_period", "tf_publish_rate",
         "map_cloud_resolution", "warn_throttle_period", "use_imu", "imu_max_time_difference",
         "initial_heading_max_age", "gnss_max_gap", "gnss_max_time_difference"}},
+      {"localization",
+       [](const ParamReader& r) {
+         LocalizationParams p;
+         readParams(r, p);
+       },
+       {"map_frame", "base_link_frame"}},
   };
 }
 

@@ -39,6 +39,9 @@ struct ScanContextMatch {
 /// Builds the descriptor of a cloud given in the sensor frame (non-finite points are skipped).
 ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params);
 
+/// The descriptor of stored cells (rings x sectors): the keys and norms recomputed (map packages).
+ScanContext scanContextFromCells(const Eigen::MatrixXf& cells);
+
 /// Distance of the two descriptors when candidate column (j + shift) is compared with query
 /// column j; columns empty in both are ignored.
 double scanContextDistanceAtShift(const ScanContext& query, const ScanContext& candidate,

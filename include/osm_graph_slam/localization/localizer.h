@@ -1,0 +1,133 @@
+#pragma once
+// Localisation on a saved map (ART-SLAM LOC): a pose UKF predicted by the gyro (or a constant
+// velocity and turn rate) and corrected by registering each prefiltered scan against the map
+// cloud around the predicted pose; a registration whose fitness or correction is out of bounds
+// does not correct. Global localisation from the map's keyframes (Scan Context retrieval, then
+// scan-to-keyframe registration verified by fitness and overlap) starts the filter when no
+// initial pose is given, and re-starts it when the filter diverged (bad matches for N scans).
+// Scans farther than off_map_distance from every keyframe are flagged off the map: predicted
+// only, never corrected against a map that is not there.
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/localization/map_package.h"
+#include "osm_graph_slam/localization/pose_ukf.h"
+#include "osm_graph_slam/registration/registration.h"
+
+namespace osm_graph_slam {
+
+struct LocalizationParams {
+  RegistrationParams registration;  ///< scan-to-map (tracking)
+  double map_voxel_size = 0.5;      ///< [m] the map cloud is reduced to this before use
+  double scan_voxel_size = 1.0;     ///< [m] scans are reduced to this before matching (0: as given)
+  double local_map_radius = 60.0;   ///< [m] map points within this of the prediction (2D)
+  double local_map_update_distance = 8.0;  ///< [m] rebuild the local map after this motion
+  double max_fitness = 0.5;                ///< [m^2] worse matches do not correct
+  /// ... nor matches above this x the median fitness of the recent accepted ones (a scan that
+  /// slides along a street it does not belong to fits, but worse than usual); 0: off
+  double fitness_ratio = 2.5;
+  double fitness_ratio_floor = 0.1;            ///< [m^2] the adaptive limit never goes below this
+  double max_correction_trans = 1.5;           ///< [m] registration vs prediction
+  double max_correction_angle = 0.15;          ///< [rad]
+  double measurement_position_std = 0.05;      ///< [m] of an accepted registration
+  double measurement_orientation_std = 0.005;  ///< [rad]
+  int divergence_scans = 5;        ///< failed corrections in a row: re-localise globally
+  double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
+  int min_points = 100;            ///< fewer scan points: no correction
+  PoseUkfParams ukf;
+  double init_position_std = 0.5;      ///< [m] a given or global initial pose
+  double init_orientation_std = 0.05;  ///< [rad]
+  double init_velocity_std = 5.0;      ///< [m/s] unknown at the start
+  double init_rate_std = 0.5;          ///< [rad/s]
+  // Global localisation.
+  int global_ring_key_candidates = 30;  ///< nearest ring keys searched
+  int global_candidates = 8;            ///< best Scan Context matches registered
+  double global_max_descriptor_distance = 0.6;
+  double global_max_fitness = 0.25;      ///< [m^2] after the fine registration
+  double global_min_overlap = 0.6;       ///< scan points within overlap_distance of the map
+  double global_overlap_distance = 0.6;  ///< [m]
+  double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
+  double global_voxel_size = 1.0;                 ///< [m] coarse source/target voxel
+  /// Another candidate more than 2 m away scoring (fitness / overlap) within this factor of the
+  /// best makes the answer ambiguous: refused.
+  double global_ambiguity_ratio = 1.5;
+};
+
+enum class LocalizationStatus {
+  kUninitialized,  ///< no pose yet (global localisation failed on this scan)
+  kTracking,       ///< corrected by the map
+  kPredicted,      ///< on the map but the registration was rejected: prediction only
+  kOffMap,         ///< too far from the map: prediction only, flagged
+  kRelocalized,    ///< the filter was (re-)started by global localisation on this scan
+};
+
+const char* toString(LocalizationStatus status);
+
+struct LocalizationOutput {
+  LocalizationStatus status = LocalizationStatus::kUninitialized;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< base_link in map
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double fitness = -1.0;         ///< of this scan's registration (-1: none)
+  double distance_to_map = 0.0;  ///< [m] to the nearest keyframe (2D)
+  bool diverged = false;         ///< the filter was declared diverged on this scan
+};
+
+struct GlobalLocalizationResult {
+  bool success = false;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  uint64_t keyframe_id = 0;
+  double descriptor_distance = 1.0;
+  double fitness = -1.0;
+  double overlap = 0.0;
+  int candidates_tried = 0;
+  std::string message;
+};
+
+struct LocalizationStats {
+  size_t scans = 0, tracking = 0, predicted = 0, off_map = 0, uninitialized = 0;
+  size_t relocalizations = 0, global_attempts = 0, global_failures = 0, divergences = 0;
+  size_t global_ambiguous = 0;  ///< of the failures: refused as ambiguous
+  double registration_ms = 0.0, local_map_ms = 0.0, global_ms = 0.0, filter_ms = 0.0;
+  size_t local_map_builds = 0;
+};
+
+class Localizer {
+ public:
+  Localizer(const LocalizationParams& params, std::shared_ptr<const MapPackage> map);
+  ~Localizer();
+
+  /// Starts the filter at a known pose (rviz /initialpose, --initial-pose).
+  void setInitialPose(const Eigen::Isometry3d& pose, double stamp);
+
+  /// One prefiltered scan in base_link at stamp; gyro = body rates at that time, if any.
+  LocalizationOutput process(double stamp, const PointCloudConstPtr& cloud,
+                             const std::optional<Eigen::Vector3d>& gyro = std::nullopt);
+
+  /// Where is this scan on the map, with no prior (exposed for tests and the global tool).
+  GlobalLocalizationResult globalLocalize(const PointCloudConstPtr& cloud);
+
+  bool initialized() const { return ukf_.initialized(); }
+  const LocalizationStats& stats() const { return stats_; }
+  const PoseUkf& filter() const { return ukf_; }
+  /// [m] 2D distance from position to the nearest map keyframe.
+  double distanceToMap(const Eigen::Vector3d& position) const;
+
+ private:
+  struct Impl;
+  LocalizationParams params_;
+  std::shared_ptr<const MapPackage> map_;
+  std::unique_ptr<Impl> impl_;
+  PoseUkf ukf_;
+  LocalizationStats stats_;
+  double last_stamp_ = 0.0;
+  int failures_in_row_ = 0;
+  bool searching_ = true;               ///< waiting for a global localisation
+  std::vector<double> recent_fitness_;  ///< of the last accepted matches (ring of 20)
+  size_t recent_next_ = 0;
+};
+
+}  // namespace osm_graph_slam

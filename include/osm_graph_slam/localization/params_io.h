@@ -1,0 +1,12 @@
+#pragma once
+// Reading LocalizationParams from any ParamReader with the keys of config/localization.yaml
+// (registration/ and ukf/ blocks nested).
+#include "osm_graph_slam/common/param_reader.h"
+#include "osm_graph_slam/localization/localizer.h"
+
+namespace osm_graph_slam {
+
+void readParams(const ParamReader& reader, PoseUkfParams& params);
+void readParams(const ParamReader& reader, LocalizationParams& params);
+
+}  // namespace osm_graph_slam

@@ -1,0 +1,376 @@
+#include "osm_graph_slam/localization/localizer.h"
+
+#include <pcl/common/transforms.h>
+#include <pcl/kdtree/kdtree_flann.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <vector>
+
+#include "osm_graph_slam/cloud/voxel_filter.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/map_export.h"
+
+namespace osm_graph_slam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double rotationAngle(const Eigen::Matrix3d& r) {
+  return Eigen::AngleAxisd(r).angle();
+}
+
+/// Map points bucketed in square 2D cells, for fast crops around a position.
+class MapGrid {
+ public:
+  MapGrid(const PointCloudConstPtr& cloud, double cell) : cloud_(cloud), cell_(cell) {
+    for (size_t i = 0; i < cloud->size(); ++i) {
+      const auto& p = (*cloud)[i];
+      cells_[key(cellOf(p.x), cellOf(p.y))].push_back(static_cast<int>(i));
+    }
+  }
+  PointCloudPtr crop(const Eigen::Vector2d& centre, double radius) const {
+    auto out = std::make_shared<PointCloud>();
+    const int64_t x0 = cellOf(centre.x() - radius), x1 = cellOf(centre.x() + radius);
+    const int64_t y0 = cellOf(centre.y() - radius), y1 = cellOf(centre.y() + radius);
+    const double r2 = radius * radius;
+    for (int64_t x = x0; x <= x1; ++x)
+      for (int64_t y = y0; y <= y1; ++y) {
+        const auto it = cells_.find(key(x, y));
+        if (it == cells_.end()) continue;
+        for (int i : it->second) {
+          const auto& p = (*cloud_)[i];
+          const double dx = p.x - centre.x(), dy = p.y - centre.y();
+          if (dx * dx + dy * dy <= r2) out->push_back(p);
+        }
+      }
+    out->width = static_cast<uint32_t>(out->size());
+    out->height = 1;
+    out->is_dense = true;
+    return out;
+  }
+
+ private:
+  int64_t cellOf(double v) const { return static_cast<int64_t>(std::floor(v / cell_)); }
+  static int64_t key(int64_t x, int64_t y) { return (x << 32) ^ (y & 0xffffffffLL); }
+  PointCloudConstPtr cloud_;
+  double cell_;
+  std::unordered_map<int64_t, std::vector<int>> cells_;
+};
+
+PointCloudPtr voxelize(const PointCloudConstPtr& cloud, double leaf) {
+  // The back-end's hash-grid voxel filter (no 32-bit index overflow on city-sized maps).
+  KeyframeState all;
+  all.cloud = cloud;
+  return buildMapCloud({all}, leaf);
+}
+
+}  // namespace
+
+const char* toString(LocalizationStatus status) {
+  switch (status) {
+    case LocalizationStatus::kUninitialized:
+      return "uninitialized";
+    case LocalizationStatus::kTracking:
+      return "tracking";
+    case LocalizationStatus::kPredicted:
+      return "predicted";
+    case LocalizationStatus::kOffMap:
+      return "off_map";
+    case LocalizationStatus::kRelocalized:
+      return "relocalized";
+  }
+  return "unknown";
+}
+
+struct Localizer::Impl {
+  PointCloudPtr map;         ///< at map_voxel_size
+  PointCloudPtr coarse_map;  ///< at global_voxel_size
+  std::unique_ptr<MapGrid> grid, coarse_grid;
+  std::unique_ptr<Registration> tracker;       ///< scan-to-local-map
+  std::unique_ptr<Registration> coarse, fine;  ///< global localisation
+  PointCloudPtr local_map;
+  Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
+  std::vector<Eigen::Vector2d> keyframe_xy;
+  Eigen::MatrixXf ring_keys;  ///< one column per keyframe
+};
+
+Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const MapPackage> map)
+    : params_(params), map_(std::move(map)), impl_(std::make_unique<Impl>()), ukf_(params.ukf) {
+  impl_->map = voxelize(map_->map_cloud, params_.map_voxel_size);
+  impl_->coarse_map = voxelize(impl_->map, params_.global_voxel_size);
+  impl_->grid = std::make_unique<MapGrid>(impl_->map, 10.0);
+  impl_->coarse_grid = std::make_unique<MapGrid>(impl_->coarse_map, 10.0);
+  impl_->tracker = createRegistration(params_.registration);
+  RegistrationParams coarse = params_.registration;
+  coarse.max_correspondence_distance = params_.global_coarse_max_correspondence;
+  impl_->coarse = createRegistration(coarse);
+  impl_->fine = createRegistration(params_.registration);
+  const size_t n = map_->keyframes.size();
+  impl_->ring_keys.resize(n > 0 ? map_->keyframes.front().descriptor.ring_key.size() : 0, n);
+  for (size_t i = 0; i < n; ++i) {
+    const MapKeyframe& kf = map_->keyframes[i];
+    impl_->keyframe_xy.push_back(kf.pose.translation().head<2>());
+    if (kf.descriptor.ring_key.size() == impl_->ring_keys.rows())
+      impl_->ring_keys.col(i) = kf.descriptor.ring_key;
+    else
+      impl_->ring_keys.col(i).setConstant(1e3f);
+  }
+}
+
+Localizer::~Localizer() = default;
+
+double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& xy : impl_->keyframe_xy)
+    best = std::min(best, (xy - position.head<2>()).squaredNorm());
+  return std::sqrt(best);
+}
+
+void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
+  ukf_.initialize(pose, params_.init_position_std, params_.init_orientation_std,
+                  params_.init_velocity_std, params_.init_rate_std);
+  last_stamp_ = stamp;
+  failures_in_row_ = 0;
+  searching_ = false;
+  recent_fitness_.clear();
+  recent_next_ = 0;
+}
+
+GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& cloud) {
+  GlobalLocalizationResult result;
+  const auto t0 = Clock::now();
+  ++stats_.global_attempts;
+  if (!cloud || cloud->size() < static_cast<size_t>(params_.min_points) ||
+      map_->keyframes.empty()) {
+    result.message = "too few points or an empty map";
+    stats_.global_ms += msSince(t0);
+    ++stats_.global_failures;
+    return result;
+  }
+  const ScanContext query = computeScanContext(*cloud, map_->scan_context);
+  // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
+  const int n = static_cast<int>(map_->keyframes.size());
+  std::vector<std::pair<float, int>> by_ring;
+  by_ring.reserve(n);
+  if (query.ring_key.size() == impl_->ring_keys.rows())
+    for (int i = 0; i < n; ++i)
+      by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
+  const int k = std::min<int>(params_.global_ring_key_candidates, by_ring.size());
+  std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());
+  struct Candidate {
+    double distance;
+    int index;
+    double yaw;
+  };
+  std::vector<Candidate> candidates;
+  for (int i = 0; i < k; ++i) {
+    const int index = by_ring[i].second;
+    const ScanContextMatch m =
+        matchScanContexts(query, map_->keyframes[index].descriptor, map_->scan_context);
+    if (m.distance <= params_.global_max_descriptor_distance)
+      candidates.push_back({m.distance, index, m.yaw});
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  // Close keyframes with close descriptors give the same answer: keep candidates 5 m apart.
+  std::vector<Candidate> distinct;
+  for (const Candidate& c : candidates) {
+    bool near = false;
+    for (const Candidate& d : distinct)
+      near = near || (impl_->keyframe_xy[c.index] - impl_->keyframe_xy[d.index]).norm() < 5.0;
+    if (!near) distinct.push_back(c);
+    if (static_cast<int>(distinct.size()) >= params_.global_candidates) break;
+  }
+  if (distinct.empty()) {
+    result.message = "no keyframe with a similar Scan Context";
+    stats_.global_ms += msSince(t0);
+    ++stats_.global_failures;
+    return result;
+  }
+  const PointCloudPtr coarse_source = voxelize(cloud, params_.global_voxel_size);
+  struct Passed {
+    Eigen::Isometry3d pose;
+    double score;
+  };
+  std::vector<Passed> passed;
+  double best_score = std::numeric_limits<double>::infinity();
+  for (const Candidate& c : distinct) {
+    ++result.candidates_tried;
+    const MapKeyframe& kf = map_->keyframes[c.index];
+    Eigen::Isometry3d guess = kf.pose;
+    guess.linear() = kf.pose.linear() * Eigen::AngleAxisd(c.yaw, Eigen::Vector3d::UnitZ()).matrix();
+    const Eigen::Vector2d centre = kf.pose.translation().head<2>();
+    const double radius = std::min(params_.local_map_radius, 50.0);
+    impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
+    const RegistrationResult coarse = impl_->coarse->align(coarse_source, guess);
+    if (!coarse.converged) continue;
+    const PointCloudPtr target = impl_->grid->crop(centre, radius);
+    impl_->fine->setTarget(target);
+    const RegistrationResult fine = impl_->fine->align(cloud, coarse.transform);
+    if (!fine.converged || fine.fitness > params_.global_max_fitness) continue;
+    // Overlap: scan points with a map point near them at the solution.
+    pcl::KdTreeFLANN<PointT> tree;
+    tree.setInputCloud(target);
+    PointCloud aligned;
+    pcl::transformPointCloud(*cloud, aligned, fine.transform.matrix().cast<float>());
+    size_t inliers = 0;
+    std::vector<int> idx(1);
+    std::vector<float> d2(1);
+    const float max_d2 =
+        static_cast<float>(params_.global_overlap_distance * params_.global_overlap_distance);
+    for (const auto& p : aligned)
+      if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) ++inliers;
+    const double overlap = aligned.empty() ? 0.0 : double(inliers) / double(aligned.size());
+    if (overlap < params_.global_min_overlap) continue;
+    const double score = fine.fitness / overlap;
+    passed.push_back({fine.transform, score});
+    if (score < best_score) {
+      best_score = score;
+      result.success = true;
+      result.pose = fine.transform;
+      result.keyframe_id = kf.id;
+      result.descriptor_distance = c.distance;
+      result.fitness = fine.fitness;
+      result.overlap = overlap;
+    }
+  }
+  // Perceptual aliasing (a street of identical facades): another place that fits almost as well
+  // makes the answer ambiguous; no answer is better than a wrong one.
+  for (const Passed& p : passed) {
+    if (!result.success) break;
+    if ((p.pose.translation() - result.pose.translation()).norm() > 2.0 &&
+        p.score < params_.global_ambiguity_ratio * best_score) {
+      result.success = false;
+      result.message = "ambiguous: two places " +
+                       std::to_string((p.pose.translation() - result.pose.translation()).norm()) +
+                       " m apart fit alike";
+      ++stats_.global_failures;
+      ++stats_.global_ambiguous;
+      stats_.global_ms += msSince(t0);
+      return result;
+    }
+  }
+  if (!result.success) {
+    result.message =
+        "no candidate passed registration (" + std::to_string(result.candidates_tried) + " tried)";
+    ++stats_.global_failures;
+  }
+  stats_.global_ms += msSince(t0);
+  return result;
+}
+
+LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cloud,
+                                      const std::optional<Eigen::Vector3d>& gyro) {
+  LocalizationOutput out;
+  ++stats_.scans;
+  // Not started (no initial pose) or diverged: global localisation on this scan.
+  if (searching_) {
+    const GlobalLocalizationResult g = globalLocalize(cloud);
+    if (!g.success) {
+      ++stats_.uninitialized;
+      out.status = LocalizationStatus::kUninitialized;
+      if (ukf_.initialized()) {  // diverged: keep predicting, flagged as not localised
+        ukf_.predict(stamp - last_stamp_, gyro);
+        last_stamp_ = stamp;
+        out.pose = ukf_.pose();
+        out.covariance = ukf_.poseCovariance();
+      }
+      return out;
+    }
+    setInitialPose(g.pose, stamp);
+    ++stats_.relocalizations;
+    out.status = LocalizationStatus::kRelocalized;
+    out.pose = g.pose;
+    out.fitness = g.fitness;
+    out.covariance = ukf_.poseCovariance();
+    out.distance_to_map = distanceToMap(g.pose.translation());
+    // The global pose came from this very scan: use it as the first correction as well.
+    ukf_.correct(g.pose, params_.measurement_position_std, params_.measurement_orientation_std);
+    return out;
+  }
+
+  auto t0 = Clock::now();
+  ukf_.predict(stamp - last_stamp_, gyro);
+  last_stamp_ = stamp;
+  const Eigen::Isometry3d predicted = ukf_.pose();
+  stats_.filter_ms += msSince(t0);
+  out.distance_to_map = distanceToMap(predicted.translation());
+  out.pose = predicted;
+  if (out.distance_to_map > params_.off_map_distance) {
+    ++stats_.off_map;
+    out.status = LocalizationStatus::kOffMap;
+    out.covariance = ukf_.poseCovariance();
+    failures_in_row_ = 0;  // nothing to fail against
+    return out;
+  }
+
+  bool accepted = false;
+  if (cloud && cloud->size() >= static_cast<size_t>(params_.min_points)) {
+    t0 = Clock::now();
+    const Eigen::Vector2d centre = predicted.translation().head<2>();
+    if ((centre - impl_->local_centre).norm() > params_.local_map_update_distance ||
+        !impl_->local_map) {
+      impl_->local_map = impl_->grid->crop(centre, params_.local_map_radius);
+      impl_->local_centre = centre;
+      impl_->tracker->setTarget(impl_->local_map);
+      ++stats_.local_map_builds;
+      stats_.local_map_ms += msSince(t0);
+      t0 = Clock::now();
+    }
+    const PointCloudConstPtr source =
+        params_.scan_voxel_size > 0.0 ? voxelDownsample(cloud, params_.scan_voxel_size) : cloud;
+    const RegistrationResult r = impl_->tracker->align(source, predicted);
+    stats_.registration_ms += msSince(t0);
+    out.fitness = r.converged ? r.fitness : -1.0;
+    const Eigen::Isometry3d delta = predicted.inverse() * r.transform;
+    double fitness_limit = params_.max_fitness;
+    if (params_.fitness_ratio > 0.0 && recent_fitness_.size() >= 5) {
+      std::vector<double> sorted = recent_fitness_;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      fitness_limit = std::min(
+          fitness_limit,
+          std::max(params_.fitness_ratio_floor, params_.fitness_ratio * sorted[sorted.size() / 2]));
+    }
+    accepted = r.converged && r.fitness <= fitness_limit &&
+               delta.translation().norm() <= params_.max_correction_trans &&
+               rotationAngle(delta.linear()) <= params_.max_correction_angle;
+    if (accepted) {
+      if (recent_fitness_.size() < 20) {
+        recent_fitness_.push_back(r.fitness);
+      } else {
+        recent_fitness_[recent_next_] = r.fitness;
+        recent_next_ = (recent_next_ + 1) % recent_fitness_.size();
+      }
+      t0 = Clock::now();
+      ukf_.correct(r.transform, params_.measurement_position_std,
+                   params_.measurement_orientation_std);
+      stats_.filter_ms += msSince(t0);
+    }
+  }
+  out.pose = ukf_.pose();
+  out.covariance = ukf_.poseCovariance();
+  if (accepted) {
+    failures_in_row_ = 0;
+    ++stats_.tracking;
+    out.status = LocalizationStatus::kTracking;
+  } else {
+    ++stats_.predicted;
+    out.status = LocalizationStatus::kPredicted;
+    if (++failures_in_row_ >= params_.divergence_scans) {
+      out.diverged = true;
+      ++stats_.divergences;
+      searching_ = true;  // global localisation from the next scan on
+    }
+  }
+  return out;
+}
+
+}  // namespace osm_graph_slam

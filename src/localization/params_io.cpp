@@ -1,0 +1,51 @@
+#include "osm_graph_slam/localization/params_io.h"
+
+#include "osm_graph_slam/registration/params_io.h"
+
+namespace osm_graph_slam {
+
+void readParams(const ParamReader& r, PoseUkfParams& p) {
+  r.param("position_noise", p.position_noise);
+  r.param("velocity_noise", p.velocity_noise);
+  r.param("orientation_noise", p.orientation_noise);
+  r.param("angular_rate_noise", p.angular_rate_noise);
+  r.param("gyro_bias_noise", p.gyro_bias_noise);
+  r.param("gyro_noise", p.gyro_noise);
+  r.param("alpha", p.alpha);
+  r.param("beta", p.beta);
+  r.param("kappa", p.kappa);
+}
+
+void readParams(const ParamReader& r, LocalizationParams& p) {
+  readParams(PrefixedParamReader(r, "registration"), p.registration);
+  r.param("map_voxel_size", p.map_voxel_size);
+  r.param("scan_voxel_size", p.scan_voxel_size);
+  r.param("local_map_radius", p.local_map_radius);
+  r.param("local_map_update_distance", p.local_map_update_distance);
+  r.param("max_fitness", p.max_fitness);
+  r.param("fitness_ratio", p.fitness_ratio);
+  r.param("fitness_ratio_floor", p.fitness_ratio_floor);
+  r.param("max_correction_trans", p.max_correction_trans);
+  r.param("max_correction_angle", p.max_correction_angle);
+  r.param("measurement_position_std", p.measurement_position_std);
+  r.param("measurement_orientation_std", p.measurement_orientation_std);
+  r.param("divergence_scans", p.divergence_scans);
+  r.param("off_map_distance", p.off_map_distance);
+  r.param("min_points", p.min_points);
+  readParams(PrefixedParamReader(r, "ukf"), p.ukf);
+  r.param("init_position_std", p.init_position_std);
+  r.param("init_orientation_std", p.init_orientation_std);
+  r.param("init_velocity_std", p.init_velocity_std);
+  r.param("init_rate_std", p.init_rate_std);
+  r.param("global_ring_key_candidates", p.global_ring_key_candidates);
+  r.param("global_candidates", p.global_candidates);
+  r.param("global_max_descriptor_distance", p.global_max_descriptor_distance);
+  r.param("global_max_fitness", p.global_max_fitness);
+  r.param("global_min_overlap", p.global_min_overlap);
+  r.param("global_overlap_distance", p.global_overlap_distance);
+  r.param("global_coarse_max_correspondence", p.global_coarse_max_correspondence);
+  r.param("global_voxel_size", p.global_voxel_size);
+  r.param("global_ambiguity_ratio", p.global_ambiguity_ratio);
+}
+
+}  // namespace osm_graph_slam

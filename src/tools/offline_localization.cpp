@@ -1,0 +1,409 @@
+// offline_localization: localisation on a saved map package (written by offline_slam) for a KITTI
+// raw drive folder or a bag, without a ROS master, as fast as the CPU allows.
+//
+//   offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)
+//                        --output DIR [--initial-pose x,y,yaw | --initial-pose truth | --global]
+//                        [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]
+//                        [--map-truth GT_TUM] [--json] [--cloud-topic T ...]   (bag topics as
+//                        offline_slam)
+//
+// The map frame is the map package's ENU origin; the drive's own origin (its first fix) is
+// carried over through lat/lon. Without --initial-pose or --global the first GNSS fix and the IMU
+// heading start the filter. Writes trajectory_tum.txt (every localised scan, map frame),
+// ground_truth_tum.txt (the truth at the same stamps), off_map_tum.txt (flagged scans, predicted
+// only), status.csv (per scan), timing.json / timing.txt; --json prints the report.
+// --map-truth: the ground truth of the map's keyframes (offline_slam's ground_truth_tum.txt): the
+// report then also gives the error relative to the map (the truth moved by the rigid transform
+// that best aligns the map's keyframes to their truth), which separates the localiser's error
+// from the map's own absolute error (a simulated map is off by its GNSS origin).
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/eval/trajectory_metrics.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
+#include "osm_graph_slam/localization/localizer.h"
+#include "osm_graph_slam/localization/map_package.h"
+#include "osm_graph_slam/localization/params_io.h"
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/ros/drive_source.h"
+#include "osm_graph_slam/slam/pipeline_params_io.h"
+
+using namespace osm_graph_slam;
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int usage(const std::string& why) {
+  std::cerr << "offline_localization: " << why << "\n"
+            << "usage: offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR]\n"
+               "       | --bag FILE.bag) --output DIR\n"
+               "       [--initial-pose x,y,yaw | --initial-pose truth | --global]\n"
+               "       [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]\n"
+               "       [--map-truth GT_TUM] [--json] [--cloud-topic T] [--gps-topic T]\n"
+               "       [--imu-topic T]"
+               "       [--ground-truth-topic T] [--base-frame F]\n";
+  return 2;
+}
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+/// Rigid map between two ENU frames anchored at different fixes (p_to = T * p_from), from the
+/// geodetic conversion of the origin and three unit axes 100 m long.
+Eigen::Isometry3d enuToEnu(const EnuConverter& from, const EnuConverter& to) {
+  const auto convert = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d g = from.toGeodetic(p);
+    return to.toEnu(g.x(), g.y(), g.z());
+  };
+  const Eigen::Vector3d o = convert(Eigen::Vector3d::Zero());
+  Eigen::Matrix3d axes;
+  for (int i = 0; i < 3; ++i) axes.col(i) = (convert(100.0 * Eigen::Vector3d::Unit(i)) - o) / 100.0;
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(axes, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = svd.matrixU() * svd.matrixV().transpose();
+  t.translation() = o;
+  return t;
+}
+
+/// The height of the map keyframe nearest to position (2D): the filter does not search in z.
+double heightAt(const MapPackage& map, const Eigen::Vector3d& position) {
+  double best = std::numeric_limits<double>::infinity(), z = 0.0;
+  for (const auto& kf : map.keyframes) {
+    const double d = (kf.pose.translation().head<2>() - position.head<2>()).norm();
+    if (d < best) best = d, z = kf.pose.translation().z();
+  }
+  return z;
+}
+
+double yawOfPose(const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d x = pose.linear().col(0);
+  return std::atan2(x.y(), x.x());
+}
+
+struct RunErrors {
+  size_t n = 0;
+  double sum_t = 0, max_t = 0, sum_yaw = 0, max_yaw = 0, sum_t2 = 0;
+  void add(double t, double yaw) {
+    ++n;
+    sum_t += t;
+    sum_t2 += t * t;
+    max_t = std::max(max_t, t);
+    sum_yaw += yaw;
+    max_yaw = std::max(max_yaw, yaw);
+  }
+  std::string json() const {
+    std::ostringstream o;
+    o << std::setprecision(6) << "{\"scans\": " << n
+      << ", \"translation_mean_m\": " << (n ? sum_t / n : 0.0)
+      << ", \"translation_rmse_m\": " << (n ? std::sqrt(sum_t2 / n) : 0.0)
+      << ", \"translation_max_m\": " << max_t
+      << ", \"heading_mean_deg\": " << (n ? sum_yaw / n : 0.0) * 180.0 / M_PI
+      << ", \"heading_max_deg\": " << max_yaw * 180.0 / M_PI << "}";
+    return o.str();
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::map<std::string, std::string> args;
+  bool json = false, use_imu = true, global = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--json") {
+      json = true;
+    } else if (a == "--no-imu") {
+      use_imu = false;
+    } else if (a == "--global") {
+      global = true;
+    } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
+      args[a.substr(2)] = argv[++i];
+    } else {
+      return usage("unexpected argument '" + a + "'");
+    }
+  }
+  if (!args.count("map")) return usage("--map is required");
+  if (!args.count("output")) return usage("--output is required");
+  if (args.count("scans")) return usage("--scans drives are not supported (no per-scan time base)");
+  if (global && args.count("initial-pose"))
+    return usage("--initial-pose and --global exclude each other");
+
+  std::string error;
+  auto map = std::make_shared<MapPackage>();
+  const auto t_load = Clock::now();
+  if (!loadMapPackage(args["map"], *map, &error)) {
+    std::cerr << "offline_localization: " << error << "\n";
+    return 1;
+  }
+  const double load_ms = msSince(t_load);
+  if (!map->has_origin) {
+    std::cerr << "offline_localization: the map package has no ENU origin\n";
+    return 1;
+  }
+
+  // Prefilter as the SLAM pipeline does (config/prefiltering.yaml); localisation parameters from
+  // config/localization.yaml, then the override file's "localization" block.
+  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
+  SlamPipelineParams pipeline;
+  if (!loadPipelineParams(config_dir, args.count("config") ? args["config"] : "", pipeline,
+                          &error)) {
+    std::cerr << "offline_localization: " << error << "\n";
+    return 1;
+  }
+  LocalizationParams params;
+  {
+    const YamlParamReader defaults = YamlParamReader::fromFile(config_dir + "/localization.yaml");
+    if (!defaults.ok()) {
+      std::cerr << "offline_localization: " << defaults.error() << "\n";
+      return 1;
+    }
+    readParams(defaults, params);
+    if (args.count("config")) {
+      const YamlParamReader overrides = YamlParamReader::fromFile(args["config"]);
+      readParams(PrefixedParamReader(overrides, "localization"), params);
+    }
+  }
+
+  const std::unique_ptr<DriveSource> drive = openDriveSource(args, "offline_localization", &error);
+  if (!drive) {
+    std::cerr << "offline_localization: " << error << "\n";
+    return 1;
+  }
+  pipeline.prefilter.sensor_to_base = drive->sensor_to_base;
+  CloudPrefilter prefilter(pipeline.prefilter);
+  const EnuConverter drive_enu(drive->lat, drive->lon, drive->alt);
+  const EnuConverter map_enu(map->origin_lat, map->origin_lon, map->origin_alt);
+  const Eigen::Isometry3d drive_to_map = enuToEnu(drive_enu, map_enu);
+
+  // Map frame -> truth frame, from the map's keyframes and their ground truth.
+  std::optional<Eigen::Isometry3d> truth_to_map;
+  if (args.count("map-truth")) {
+    const TrajectoryReadResult gt = readTrajectory(args["map-truth"]);
+    if (!gt.ok) {
+      std::cerr << "offline_localization: --map-truth: " << gt.error << "\n";
+      return 1;
+    }
+    std::map<long long, Eigen::Vector3d> by_stamp;
+    for (const auto& sp : gt.trajectory)
+      by_stamp[std::llround(sp.stamp * 1e3)] = sp.pose.translation();
+    std::vector<Eigen::Vector3d> a, b;
+    for (const auto& kf : map->keyframes) {
+      const auto it = by_stamp.find(std::llround(kf.stamp * 1e3));
+      if (it == by_stamp.end()) continue;
+      b.push_back(kf.pose.translation());
+      a.push_back(it->second);
+    }
+    if (a.size() < 3) {
+      std::cerr << "offline_localization: --map-truth matches only " << a.size()
+                << " keyframes of the map\n";
+      return 1;
+    }
+    truth_to_map = alignUmeyama(a, b);
+  }
+
+  const auto t_init = Clock::now();
+  Localizer localizer(params, map);
+  const double init_ms = msSince(t_init);
+
+  std::string initial = args.count("initial-pose") ? args["initial-pose"] : "";
+  if (!initial.empty() && initial != "truth") {
+    double x, y, yaw;
+    char c1, c2;
+    std::istringstream is(initial);
+    if (!(is >> x >> c1 >> y >> c2 >> yaw) || c1 != ',' || c2 != ',')
+      return usage("--initial-pose takes x,y,yaw (map frame, m and rad) or truth");
+  }
+
+  const size_t start = args.count("start-scan") ? std::stoul(args["start-scan"]) : 0;
+  size_t n = drive->size();
+  if (args.count("max-scans")) n = std::min<size_t>(n, start + std::stoul(args["max-scans"]));
+  ScanPrefetcher prefetcher(*drive, n, 8);
+  Trajectory estimate, truth_at_estimate, off_map;
+  std::ostringstream status_csv;
+  status_csv << std::setprecision(15)
+             << "# stamp status fitness distance_to_map_m x y yaw error_m error_yaw_deg\n";
+  RunErrors tracking_error, all_error, tracking_error_map, all_error_map;
+  size_t scans = 0, first_localized = 0, skipped = 0;
+  bool started = false, localized_once = false;
+  double prefilter_ms = 0, localize_ms = 0, input_ms = 0;
+  size_t wrong_relocalizations = 0;
+  DriveScan scan;
+  const auto t_run = Clock::now();
+  for (size_t i = 0; i < n; ++i) {
+    auto t0 = Clock::now();
+    if (!prefetcher.next(scan)) break;
+    input_ms += msSince(t0);
+    if (i < start) continue;
+    if (!scan.cloud) {
+      std::cerr << "\noffline_localization: " << scan.error << " (scan skipped)\n";
+      ++skipped;
+      continue;
+    }
+    ++scans;
+    std::optional<Eigen::Isometry3d> truth;
+    if (scan.truth) truth = drive_to_map * *scan.truth;
+    if (!started) {
+      started = true;
+      if (initial == "truth") {
+        if (!truth) {
+          std::cerr
+              << "offline_localization: --initial-pose truth: the drive has no ground truth\n";
+          return 1;
+        }
+        localizer.setInitialPose(*truth, scan.stamp);
+      } else if (!initial.empty()) {
+        double x, y, yaw;
+        char c;
+        std::istringstream is(initial);
+        is >> x >> c >> y >> c >> yaw;
+        Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+        pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        pose.translation() = Eigen::Vector3d(x, y, 0.0);
+        pose.translation().z() = heightAt(*map, pose.translation());
+        localizer.setInitialPose(pose, scan.stamp);
+      } else if (!global) {
+        if (!scan.gnss || !scan.orientation) {
+          std::cerr << "offline_localization: the first scan has no GNSS fix and IMU orientation; "
+                       "use --initial-pose or --global\n";
+          return 1;
+        }
+        Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+        pose.linear() = scan.orientation->toRotationMatrix();
+        pose.translation() = Eigen::Vector3d(scan.gnss->x(), scan.gnss->y(), 0.0);
+        pose = drive_to_map * pose;
+        pose.translation().z() = heightAt(*map, pose.translation());
+        localizer.setInitialPose(pose, scan.stamp);
+      }
+    }
+    t0 = Clock::now();
+    const CloudPrefilterResult filtered = prefilter.filter(*scan.cloud);
+    prefilter_ms += msSince(t0);
+    t0 = Clock::now();
+    const LocalizationOutput out =
+        localizer.process(scan.stamp, filtered.cloud,
+                          use_imu ? scan.angular_velocity : std::optional<Eigen::Vector3d>());
+    localize_ms += msSince(t0);
+
+    double err_t = std::nan(""), err_yaw = std::nan("");
+    if (truth) {
+      err_t = (out.pose.translation() - truth->translation()).head<2>().norm();
+      err_yaw = Eigen::AngleAxisd(truth->linear().transpose() * out.pose.linear()).angle();
+    }
+    const bool localized = out.status == LocalizationStatus::kTracking ||
+                           out.status == LocalizationStatus::kPredicted ||
+                           out.status == LocalizationStatus::kRelocalized;
+    if (localized) {
+      if (!localized_once) first_localized = scans;
+      localized_once = true;
+      estimate.push_back({scan.stamp, out.pose});
+      if (truth) {
+        truth_at_estimate.push_back({scan.stamp, *truth});
+        all_error.add(err_t, err_yaw);
+        if (out.status == LocalizationStatus::kTracking) tracking_error.add(err_t, err_yaw);
+        if (truth_to_map) {
+          const Eigen::Isometry3d t = *truth_to_map * *truth;
+          const double e = (out.pose.translation() - t.translation()).head<2>().norm();
+          const double y = Eigen::AngleAxisd(t.linear().transpose() * out.pose.linear()).angle();
+          all_error_map.add(e, y);
+          if (out.status == LocalizationStatus::kTracking) tracking_error_map.add(e, y);
+        }
+        if (out.status == LocalizationStatus::kRelocalized &&
+            (err_t > 0.5 || err_yaw > 2.0 * M_PI / 180))
+          ++wrong_relocalizations;
+      }
+    } else if (out.status == LocalizationStatus::kOffMap) {
+      off_map.push_back({scan.stamp, out.pose});
+    }
+    status_csv << scan.stamp << ' ' << toString(out.status) << ' ' << out.fitness << ' '
+               << out.distance_to_map << ' ' << out.pose.translation().x() << ' '
+               << out.pose.translation().y() << ' ' << yawOfPose(out.pose) << ' ' << err_t << ' '
+               << err_yaw * 180.0 / M_PI << '\n';
+    printProgress(i + 1, n);
+  }
+  const double wall_s = msSince(t_run) / 1000.0;
+
+  const std::string out_dir = args["output"];
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  bool ok = writeTumTrajectory(out_dir + "/trajectory_tum.txt", estimate, &error);
+  ok = ok && writeTumTrajectory(out_dir + "/ground_truth_tum.txt", truth_at_estimate, &error);
+  ok = ok && writeTumTrajectory(out_dir + "/off_map_tum.txt", off_map, &error);
+  ok = ok && writeFileAtomically(out_dir + "/status.csv", status_csv.str(), &error);
+
+  const LocalizationStats& s = localizer.stats();
+  const double per_scan = scans ? 1.0 / scans : 0.0;
+  std::ostringstream j;
+  j << std::setprecision(6) << "{\"map\": \"" << args["map"] << "\", \"scans\": " << scans
+    << ", \"skipped\": " << skipped << ", \"localized\": " << estimate.size()
+    << ", \"tracking\": " << s.tracking << ", \"predicted\": " << s.predicted
+    << ", \"off_map\": " << s.off_map << ", \"not_localized\": " << s.uninitialized
+    << ", \"relocalized\": " << s.relocalizations << ", \"divergences\": " << s.divergences
+    << ", \"global_attempts\": " << s.global_attempts
+    << ", \"global_failures\": " << s.global_failures
+    << ", \"first_localized_scan\": " << (localized_once ? long(first_localized) : -1L)
+    << ", \"wrong_relocalizations\": " << wrong_relocalizations
+    << ", \"error_tracking\": " << tracking_error.json() << ", \"error_all\": " << all_error.json()
+    << ", \"error_tracking_vs_map\": " << tracking_error_map.json()
+    << ", \"error_all_vs_map\": " << all_error_map.json() << ", \"timing\": {\"wall_s\": " << wall_s
+    << ", \"scans_per_s\": " << (wall_s > 0 ? scans / wall_s : 0.0)
+    << ", \"real_time_factor\": " << (wall_s > 0 ? scans / wall_s / 10.0 : 0.0)
+    << ", \"map_load_ms\": " << load_ms << ", \"localizer_init_ms\": " << init_ms
+    << ", \"input_ms_per_scan\": " << input_ms * per_scan
+    << ", \"prefilter_ms_per_scan\": " << prefilter_ms * per_scan
+    << ", \"localize_ms_per_scan\": " << localize_ms * per_scan
+    << ", \"registration_ms_per_scan\": " << s.registration_ms * per_scan
+    << ", \"local_map_ms_per_scan\": " << s.local_map_ms * per_scan
+    << ", \"local_map_builds\": " << s.local_map_builds << ", \"global_ms_total\": " << s.global_ms
+    << ", \"global_ms_per_attempt\": " << (s.global_attempts ? s.global_ms / s.global_attempts : 0)
+    << ", \"filter_ms_per_scan\": " << s.filter_ms * per_scan << "}}";
+  std::ostringstream table;
+  table << std::fixed << std::setprecision(2) << "offline_localization: " << scans << " scans in "
+        << wall_s << " s (" << (wall_s > 0 ? scans / wall_s : 0.0) << " scans/s, x"
+        << (wall_s > 0 ? scans / wall_s / 10.0 : 0.0) << " real time)\n"
+        << "  localized " << estimate.size() << " (tracking " << s.tracking << ", predicted "
+        << s.predicted << ", re-localized " << s.relocalizations << "), off map " << s.off_map
+        << ", not localized " << s.uninitialized << ", divergences " << s.divergences << "\n"
+        << "  per scan [ms]: input " << input_ms * per_scan << ", prefilter "
+        << prefilter_ms * per_scan << ", localize " << localize_ms * per_scan << " (registration "
+        << s.registration_ms * per_scan << ", local map " << s.local_map_ms * per_scan << " over "
+        << s.local_map_builds << " builds, filter " << s.filter_ms * per_scan << ")\n"
+        << "  global localisation: " << s.global_attempts << " attempts, " << s.global_failures
+        << " failed, " << (s.global_attempts ? s.global_ms / s.global_attempts : 0.0)
+        << " ms each\n"
+        << "  map: " << map->keyframes.size() << " keyframes, " << map->map_cloud->size()
+        << " points (loaded in " << load_ms << " ms, localizer ready in " << init_ms << " ms)\n";
+  if (tracking_error.n)
+    table << std::setprecision(3) << "  error while tracking: mean "
+          << tracking_error.sum_t / tracking_error.n << " m, max " << tracking_error.max_t
+          << " m; heading mean " << tracking_error.sum_yaw / tracking_error.n * 180 / M_PI
+          << " deg, max " << tracking_error.max_yaw * 180 / M_PI << " deg\n";
+  if (tracking_error_map.n)
+    table << std::setprecision(3) << "  error relative to the map: mean "
+          << tracking_error_map.sum_t / tracking_error_map.n << " m, max "
+          << tracking_error_map.max_t << " m; heading mean "
+          << tracking_error_map.sum_yaw / tracking_error_map.n * 180 / M_PI << " deg, max "
+          << tracking_error_map.max_yaw * 180 / M_PI << " deg\n";
+  ok = ok && writeFileAtomically(out_dir + "/timing.json", j.str() + "\n", &error);
+  ok = ok && writeFileAtomically(out_dir + "/timing.txt", table.str(), &error);
+  if (!ok) {
+    std::cerr << "offline_localization: " << error << "\n";
+    return 1;
+  }
+  if (json)
+    std::cout << j.str() << "\n";
+  else
+    std::cout << table.str();
+  return 0;
+}
