@@ -13,6 +13,7 @@
 #include <osmium/io/any_input.hpp>
 #include <osmium/memory/buffer.hpp>
 #include <osmium/osm.hpp>
+#include <protozero/pbf_reader.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <unordered_map>
@@ -208,6 +209,48 @@ class UnsafeCoordinateScanner {
   uint64_t found_offset_ = 0;
   std::string value_;
 };
+
+/// Walks the BlobHeaders of a PBF file (only the headers are read; the blobs are skipped). A
+/// header without its `type` string made libosmium 2.19 call strncmp with a null pointer
+/// (undefined behaviour, found by fuzz_osm_file), so such a file is refused here with the blob
+/// named. Anything else malformed is left for libosmium to report. Returns "" when fine.
+std::string checkPbfBlobHeaders(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string header;
+  for (size_t blob = 0; in; ++blob) {
+    unsigned char size_bytes[4];
+    in.read(reinterpret_cast<char*>(size_bytes), 4);
+    if (in.gcount() != 4) return "";  // end of file (or a truncation libosmium reports)
+    const uint32_t size = (uint32_t{size_bytes[0]} << 24) | (uint32_t{size_bytes[1]} << 16) |
+                          (uint32_t{size_bytes[2]} << 8) | uint32_t{size_bytes[3]};
+    if (size == 0 || size > 64 * 1024) return "";  // libosmium refuses these itself
+    header.resize(size);
+    if (!in.read(header.data(), size)) return "";
+    bool has_type = false;
+    int64_t data_size = 0;
+    try {
+      protozero::pbf_reader message{header.data(), header.size()};
+      while (message.next()) {
+        if (message.tag() == 1 &&
+            message.wire_type() == protozero::pbf_wire_type::length_delimited) {
+          has_type = message.get_view().size() > 0;
+        } else if (message.tag() == 3 && message.wire_type() == protozero::pbf_wire_type::varint) {
+          data_size = message.get_int32();
+        } else {
+          message.skip();
+        }
+      }
+    } catch (const std::exception&) {
+      return "";  // libosmium decodes the same header and reports the error
+    }
+    if (!has_type) {
+      return "malformed OSM PBF: blob header " + std::to_string(blob) + " has no type";
+    }
+    if (data_size <= 0) return "";
+    in.seekg(data_size, std::ios::cur);
+  }
+  return "";
+}
 
 std::string unsafeCoordinateError(const UnsafeCoordinateScanner& scanner) {
   return "malformed OSM XML at line " + std::to_string(scanner.line()) + ": coordinate '" +
@@ -481,6 +524,14 @@ OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
   }
   std::fclose(probe);
   const std::string format = endsWith(path, ".xml") ? "osm" : "";
+  if (endsWith(path, ".pbf")) {
+    const std::string pbf_error = checkPbfBlobHeaders(path);
+    if (!pbf_error.empty()) {
+      OsmData data;
+      data.error = path + ": " + pbf_error;
+      return data;
+    }
+  }
   if (endsWith(path, ".osm") || endsWith(path, ".xml")) {
     // Uncompressed XML: one streaming pass for coordinates libosmium cannot parse safely; such a
     // file goes through the in-memory reader, which refuses it and keeps what precedes it.

@@ -3,6 +3,9 @@
 // (or read it) cleanly. Under scripts/test.sh --sanitize these run with ASan + UBSan as well.
 #include <gtest/gtest.h>
 
+#include <osmium/io/any_input.hpp>
+#include <osmium/io/any_output.hpp>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -118,6 +121,33 @@ TEST_F(FuzzRegression, G2oVertexIdsAtTheEndsOfTheIntRangeAreInitialised) {
     const std::vector<int> ids = graph.vertexIds();
     EXPECT_TRUE(ids.front() == min || ids.back() == max) << text;
   }
+}
+
+// fuzz_osm_file: a PBF BlobHeader without its type string made libosmium 2.19 call strncmp with
+// a null pointer (UBSan, pbf_input_format.hpp:196). Such a file is refused with the blob named;
+// a valid PBF (written here from kOneBuilding by libosmium) still reads.
+TEST_F(FuzzRegression, OsmPbfBlobHeaderWithoutTypeIsRefused) {
+  // BlobHeader {datasize: 5} (field 3, varint) and no field 1 (type), then 5 bytes of blob.
+  const std::string no_type(
+      "\x00\x00\x00\x02\x18\x05"
+      "abcde",
+      11);
+  const OsmData bad = readOsmFile(write("no_type.osm.pbf", no_type));
+  EXPECT_FALSE(bad.ok);
+  EXPECT_NE(bad.error.find("blob header 0 has no type"), std::string::npos) << bad.error;
+
+  const std::string xml = write("one.osm", std::string(kOneBuilding) + "</osm>\n");
+  const std::string pbf = (dir_ / "one.osm.pbf").string();
+  {
+    osmium::io::Reader reader{xml};
+    osmium::io::Writer writer{pbf, reader.header(), osmium::io::overwrite::allow};
+    while (osmium::memory::Buffer buffer = reader.read()) writer(std::move(buffer));
+    writer.close();
+    reader.close();
+  }
+  const OsmData good = readOsmFile(pbf);
+  EXPECT_TRUE(good.ok) << good.error;
+  EXPECT_EQ(good.buildings.size(), 1u);
 }
 
 // fuzz_yaml_params: a key that is not a scalar ("? [a, b]", "{x: 1}: v", an empty flow-map key)
