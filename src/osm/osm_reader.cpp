@@ -1,5 +1,7 @@
 #include "osm_graph_slam/osm/osm_reader.h"
 
+#include <bzlib.h>
+#include <zlib.h>
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -9,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+
 #include <osmium/area/assembler.hpp>
 #include <osmium/io/any_input.hpp>
 #include <osmium/memory/buffer.hpp>
@@ -547,6 +550,36 @@ OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
       data.error = unsafeCoordinateError(scanner);
       data = salvageXmlFile(path, options, std::move(data));
       data.error = path + ": " + data.error;
+      return data;
+    }
+  } else if (endsWith(path, ".osm.gz") || endsWith(path, ".osm.bz2")) {
+    // Compressed XML: the same pass over the decompressed stream (a stream that cannot be
+    // decompressed is left for libosmium to report); such a file is refused as a whole.
+    UnsafeCoordinateScanner scanner;
+    std::vector<char> chunk(1 << 20);
+    if (endsWith(path, ".gz")) {
+      if (gzFile gz = gzopen(path.c_str(), "rb")) {
+        int n = 0;
+        while ((n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0 &&
+               scanner.feed(chunk.data(), static_cast<size_t>(n))) {
+        }
+        gzclose(gz);
+      }
+    } else if (FILE* file = std::fopen(path.c_str(), "rb")) {
+      int bz_error = BZ_OK;
+      if (BZFILE* bz = BZ2_bzReadOpen(&bz_error, file, 0, 0, nullptr, 0)) {
+        while (bz_error == BZ_OK) {
+          const int n = BZ2_bzRead(&bz_error, bz, chunk.data(), static_cast<int>(chunk.size()));
+          if ((bz_error != BZ_OK && bz_error != BZ_STREAM_END) || n <= 0) break;
+          if (!scanner.feed(chunk.data(), static_cast<size_t>(n))) break;
+        }
+        BZ2_bzReadClose(&bz_error, bz);
+      }
+      std::fclose(file);
+    }
+    if (scanner.found()) {
+      OsmData data;
+      data.error = path + ": " + unsafeCoordinateError(scanner);
       return data;
     }
   }

@@ -1,7 +1,9 @@
 // Regression tests for what the libFuzzer targets of fuzz/ found (issue 22, doc/reliability.md).
 // Each case is the minimised input of a crash or sanitizer report; the reader must now refuse it
 // (or read it) cleanly. Under scripts/test.sh --sanitize these run with ASan + UBSan as well.
+#include <bzlib.h>
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <osmium/io/any_input.hpp>
 #include <osmium/io/any_output.hpp>
@@ -91,6 +93,25 @@ TEST_F(FuzzRegression, OsmCoordinateInExponentNotationIsRefusedBeforeLibosmium) 
     EXPECT_FALSE(file.ok);
     EXPECT_NE(file.error.find("exponent notation"), std::string::npos) << file.error;
     EXPECT_EQ(file.buildings.size(), 1u) << file.error;
+    // Compressed files are scanned through their decompressed stream (refused as a whole).
+    const std::string gz_path = (dir_ / "bad.osm.gz").string();
+    gzFile gz = gzopen(gz_path.c_str(), "wb");
+    ASSERT_NE(gz, nullptr);
+    gzwrite(gz, xml.data(), static_cast<unsigned>(xml.size()));
+    gzclose(gz);
+    const std::string bz_path = (dir_ / "bad.osm.bz2").string();
+    FILE* raw = std::fopen(bz_path.c_str(), "wb");
+    ASSERT_NE(raw, nullptr);
+    int bz_error = BZ_OK;
+    BZFILE* bz = BZ2_bzWriteOpen(&bz_error, raw, 9, 0, 0);
+    BZ2_bzWrite(&bz_error, bz, const_cast<char*>(xml.data()), static_cast<int>(xml.size()));
+    BZ2_bzWriteClose(&bz_error, bz, 0, nullptr, nullptr);
+    std::fclose(raw);
+    for (const std::string& compressed : {gz_path, bz_path}) {
+      const OsmData c = readOsmFile(compressed);
+      EXPECT_FALSE(c.ok) << compressed;
+      EXPECT_NE(c.error.find("exponent notation"), std::string::npos) << c.error;
+    }
   }
   // Not coordinates, or not attributes: read as before.
   const std::string fine = std::string(kOneBuilding) +
@@ -100,6 +121,14 @@ TEST_F(FuzzRegression, OsmCoordinateInExponentNotationIsRefusedBeforeLibosmium) 
   const OsmData data = parseOsmXml(fine);
   EXPECT_TRUE(data.ok) << data.error;
   EXPECT_EQ(data.buildings.size(), 1u);
+  const std::string gz_path = (dir_ / "fine.osm.gz").string();
+  gzFile gz = gzopen(gz_path.c_str(), "wb");
+  ASSERT_NE(gz, nullptr);
+  gzwrite(gz, fine.data(), static_cast<unsigned>(fine.size()));
+  gzclose(gz);
+  const OsmData compressed = readOsmFile(gz_path);
+  EXPECT_TRUE(compressed.ok) << compressed.error;
+  EXPECT_EQ(compressed.buildings.size(), 1u);
 }
 
 // Found by reading g2o_io.cpp next to fuzz_g2o (the fuzzer ran 826k inputs without reaching
