@@ -140,6 +140,7 @@ void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
   last_stamp_ = stamp;
   failures_in_row_ = 0;
   searching_ = false;
+  confirming_ = false;
   recent_fitness_.clear();
   recent_next_ = 0;
 }
@@ -286,14 +287,21 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       return out;
     }
     setInitialPose(g.pose, stamp);
-    ++stats_.relocalizations;
-    out.status = LocalizationStatus::kRelocalized;
     out.pose = g.pose;
     out.fitness = g.fitness;
-    out.covariance = ukf_.poseCovariance();
     out.distance_to_map = distanceToMap(g.pose.translation());
     // The global pose came from this very scan: use it as the first correction as well.
     ukf_.correct(g.pose, params_.measurement_position_std, params_.measurement_orientation_std);
+    out.covariance = ukf_.poseCovariance();
+    if (params_.global_confirm_after > 0) {
+      confirming_ = true;
+      confirm_wait_ = 0;
+      ++stats_.uninitialized;
+      out.status = LocalizationStatus::kUninitialized;
+      return out;
+    }
+    ++stats_.relocalizations;
+    out.status = LocalizationStatus::kRelocalized;
     return out;
   }
 
@@ -359,16 +367,39 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   out.covariance = ukf_.poseCovariance();
   if (accepted) {
     failures_in_row_ = 0;
+  } else if (++failures_in_row_ >= params_.divergence_scans) {
+    out.diverged = true;
+    ++stats_.divergences;
+    searching_ = true;  // global localisation from the next scan on
+    confirming_ = false;
+  }
+  if (confirming_ && !searching_) {
+    // Not reported until a second global answer agrees with the tracked pose.
+    out.status = LocalizationStatus::kUninitialized;
+    ++stats_.uninitialized;
+    if (accepted && ++confirm_wait_ >= params_.global_confirm_after) {
+      const GlobalLocalizationResult g = globalLocalize(cloud);
+      if (g.success) {
+        const Eigen::Isometry3d d = out.pose.inverse() * g.pose;
+        if (d.translation().norm() < 1.0 && rotationAngle(d.linear()) < 2.0 * M_PI / 180.0) {
+          confirming_ = false;
+          ++stats_.relocalizations;
+          out.status = LocalizationStatus::kRelocalized;
+        } else {
+          ++stats_.global_disagreements;
+          searching_ = true;  // two answers disagree: start over
+          confirming_ = false;
+        }
+      }
+    }
+    return out;
+  }
+  if (accepted) {
     ++stats_.tracking;
     out.status = LocalizationStatus::kTracking;
   } else {
     ++stats_.predicted;
     out.status = LocalizationStatus::kPredicted;
-    if (++failures_in_row_ >= params_.divergence_scans) {
-      out.diverged = true;
-      ++stats_.divergences;
-      searching_ = true;  // global localisation from the next scan on
-    }
   }
   return out;
 }

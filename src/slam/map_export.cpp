@@ -15,6 +15,7 @@
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 
 namespace osm_graph_slam {
@@ -173,7 +174,7 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
 }
 
 MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
-                        double resolution) {
+                        double resolution, const ScanContextParams* scan_context) {
   MapExportResult result;
   const std::vector<KeyframeState> keyframes = backend.keyframes();
   if (keyframes.empty()) {
@@ -209,6 +210,11 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
         writeTumTrajectory(write.path("trajectory_tum.txt"), trajectory, &error), error);
   const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
   write("graph.g2o", g2o.ok, g2o.message);
+  write("map_package",
+        writeMapPackage(mapPackageFromBackend(backend, resolution,
+                                              scan_context ? *scan_context : ScanContextParams()),
+                        write.path("map_package"), &error),
+        error);
 
   result.success = write.first_error.empty();
   result.message = result.success ? "wrote " + std::to_string(result.files.size()) + " files (" +

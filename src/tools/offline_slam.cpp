@@ -39,7 +39,6 @@
 #include "osm_graph_slam/io/loop_closure_file.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
-#include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_map_source.h"
 #include "osm_graph_slam/ros/drive_source.h"
@@ -200,17 +199,10 @@ int main(int argc, char** argv) {
   const BackendUpdateReport report = pipeline.finish();
 
   const std::string out = args["output"];
-  const MapExportResult saved = saveMap(pipeline.backend(), out, 0.2);
+  const MapExportResult saved = saveMap(pipeline.backend(), out, 0.2, &params.loop.scan_context);
   if (!saved.success) {
     std::cerr << "offline_slam: " << saved.message << "\n";
     return 1;
-  }
-  {
-    // The map package for offline_localization (doc/localization.md): OUT/map_package.
-    std::string package_error;
-    if (!writeMapPackage(mapPackageFromBackend(pipeline.backend(), 0.2, params.loop.scan_context),
-                         out + "/map_package", &package_error))
-      std::cerr << "offline_slam: map package not written: " << package_error << "\n";
   }
   if (args.count("dump")) {
     const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"]);

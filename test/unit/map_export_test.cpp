@@ -7,6 +7,7 @@
 
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 #include "osm_graph_slam/slam/graph_dump.h"
@@ -61,8 +62,13 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   const std::string dir = tempDir("save_map");
   const MapExportResult r = saveMap(*backend_, dir, 0.2);
   ASSERT_TRUE(r.success) << r.message;
-  EXPECT_EQ(r.files.size(), 6u);
+  EXPECT_EQ(r.files.size(), 7u);
   for (const auto& f : r.files) EXPECT_TRUE(fs::exists(f)) << f;
+  // The map package for localisation loads back with every keyframe.
+  MapPackage package;
+  std::string error;
+  ASSERT_TRUE(loadMapPackage(dir + "/map_package", package, &error)) << error;
+  EXPECT_EQ(package.keyframes.size(), backend_->keyframes().size());
   for (const auto& entry : fs::directory_iterator(dir))
     EXPECT_NE(entry.path().extension(), ".tmp") << "temporary file left behind";
 

@@ -55,6 +55,10 @@ struct LocalizationParams {
   /// Another candidate more than 2 m away scoring (fitness / overlap) within this factor of the
   /// best makes the answer ambiguous: refused.
   double global_ambiguity_ratio = 1.5;
+  /// A global answer is confirmed by a second, independent one this many scans later (tracked in
+  /// between) that agrees within 1 m and 2 deg; until then the scans are not reported localised.
+  /// 0: the first answer is taken.
+  int global_confirm_after = 3;
 };
 
 enum class LocalizationStatus {
@@ -90,7 +94,8 @@ struct GlobalLocalizationResult {
 struct LocalizationStats {
   size_t scans = 0, tracking = 0, predicted = 0, off_map = 0, uninitialized = 0;
   size_t relocalizations = 0, global_attempts = 0, global_failures = 0, divergences = 0;
-  size_t global_ambiguous = 0;  ///< of the failures: refused as ambiguous
+  size_t global_ambiguous = 0;      ///< of the failures: refused as ambiguous
+  size_t global_disagreements = 0;  ///< a confirming answer disagreed: searched again
   double registration_ms = 0.0, local_map_ms = 0.0, global_ms = 0.0, filter_ms = 0.0;
   size_t local_map_builds = 0;
 };
@@ -125,7 +130,9 @@ class Localizer {
   LocalizationStats stats_;
   double last_stamp_ = 0.0;
   int failures_in_row_ = 0;
-  bool searching_ = true;               ///< waiting for a global localisation
+  bool searching_ = true;    ///< waiting for a global localisation
+  bool confirming_ = false;  ///< started from a global answer not yet confirmed
+  int confirm_wait_ = 0;
   std::vector<double> recent_fitness_;  ///< of the last accepted matches (ring of 20)
   size_t recent_next_ = 0;
 };

@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
 namespace osm_graph_slam {
@@ -24,9 +25,11 @@ PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double 
 std::string buildingsToOsmXml(const std::vector<Building>& buildings);
 
 /// save_map: map.pcd, buildings_corrected.geojson, buildings_corrected.osm,
-/// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o.
+/// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o, and map_package/ (localization/
+/// map_package.h: what offline_localization loads), its Scan Context descriptors made with
+/// scan_context (default parameters when null).
 MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
-                        double resolution);
+                        double resolution, const ScanContextParams* scan_context = nullptr);
 
 /// dump_graph: everything needed to rebuild and re-optimise the graph offline by replaying it
 /// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, loops.csv,
