@@ -261,13 +261,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       return;
     if (first_keyframe_seen_ && !gnssPriors()) return;  // only the first keyframe needs a fix
     std::lock_guard<std::mutex> guard(gnss_mutex_);
-    // The receiver's horizontal deviation, when it reports a covariance (REP-145 NavSatFix).
-    double std_xy = 0.0;
-    if (msg->position_covariance_type != sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN) {
-      const double var = 0.5 * (msg->position_covariance[0] + msg->position_covariance[4]);
-      if (std::isfinite(var) && var > 0.0) std_xy = std::sqrt(var);
-    }
-    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0, std_xy};
+    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0,
+                            navSatFixStd(*msg)};
     // In stamp order, whatever order they arrive in (gnssFixAt searches by stamp).
     gnss_.insert(std::upper_bound(gnss_.begin(), gnss_.end(), fix,
                                   [](const GnssFixSample& a, const GnssFixSample& b) {

@@ -79,7 +79,7 @@ void BagDriveReader::Impl::readSmallTopics() {
           std::isfinite(fix->latitude) && std::isfinite(fix->longitude) &&
           std::isfinite(fix->altitude))
         fixes.push_back({static_cast<int64_t>(fix->header.stamp.toNSec()), fix->latitude,
-                         fix->longitude, fix->altitude});
+                         fix->longitude, fix->altitude, navSatFixStd(*fix)});
     } else if (auto imu_msg = m.instantiate<sensor_msgs::Imu>()) {
       const auto& o = imu_msg->orientation;
       Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
@@ -108,7 +108,8 @@ bool BagDriveReader::open(const std::string& path, const BagDriveTopics& topics,
     impl_->bag.open(path, rosbag::bagmode::Read);
     impl_->readSmallTopics();
     for (const BagFix& f : impl_->fixes)
-      impl_->track.push_back({static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt});
+      impl_->track.push_back(
+          {static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt, f.std_xy});
     std::stable_sort(
         impl_->track.begin(), impl_->track.end(),
         [](const GnssFixSample& a, const GnssFixSample& b) { return a.stamp < b.stamp; });
@@ -140,7 +141,7 @@ size_t BagDriveReader::numGroundTruth() const {
 std::optional<BagFix> BagDriveReader::fixAt(int64_t stamp_ns, double max_gap, double max_dt) const {
   const auto fix = gnssFixAt(impl_->track, static_cast<double>(stamp_ns) * 1e-9, max_gap, max_dt);
   if (!fix) return std::nullopt;
-  return BagFix{stamp_ns, fix->lat, fix->lon, fix->alt};
+  return BagFix{stamp_ns, fix->lat, fix->lon, fix->alt, fix->std_xy};
 }
 
 std::optional<BagFix> BagDriveReader::firstFix() const {

@@ -1,5 +1,7 @@
 #include "osm_graph_slam/ros/conversions.h"
 
+#include <cmath>
+
 #include <pcl_conversions/pcl_conversions.h>
 #include <sensor_msgs/point_field_conversion.h>
 
@@ -145,6 +147,12 @@ Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double p
                      .toRotationMatrix();
   out.translation() << x, y, z;
   return out;
+}
+
+double navSatFixStd(const sensor_msgs::NavSatFix& fix) {
+  if (fix.position_covariance_type == sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN) return 0.0;
+  const double var = 0.5 * (fix.position_covariance[0] + fix.position_covariance[4]);
+  return std::isfinite(var) && var > 0.0 ? std::sqrt(var) : 0.0;
 }
 
 }  // namespace osm_graph_slam

@@ -66,7 +66,10 @@ class KittiRawSource : public DriveSource {
     OxtsRecord r;
     if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
       scan.truth = oxtsPose(r, *enu_);  // KITTI's OXTS is RTK GNSS + INS
-      if (r.hasGnssFix()) scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();
+      if (r.hasGnssFix()) {
+        scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();
+        if (r.pos_accuracy > 0.0) scan.gnss_std = r.pos_accuracy;
+      }
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
       scan.orientation = Eigen::Quaterniond(oxtsPose(r, *enu_).linear());
       scan.angular_velocity = Eigen::Vector3d(r.wx, r.wy, r.wz);
@@ -129,8 +132,10 @@ class BagSource : public DriveSource {
     }
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
     // The pipeline anchors its first keyframe here, whichever cloud that is.
-    if (const auto f = reader_.fixAt(c->stamp_ns))
+    if (const auto f = reader_.fixAt(c->stamp_ns)) {
       scan.gnss = enu_->toEnu(f->lat, f->lon, f->alt).head<2>();
+      if (f->std_xy > 0.0) scan.gnss_std = f->std_xy;
+    }
     return true;
   }
 
@@ -158,6 +163,7 @@ class ScanFolderSource : public DriveSource {
     lat = origin.lat, lon = origin.lon, alt = origin.alt;
     initial_yaw = origin.yaw;
     if (origin.oxts) first_roll_pitch_ = Eigen::Vector2d(origin.oxts->roll, origin.oxts->pitch);
+    if (origin.oxts && origin.oxts->pos_accuracy > 0.0) origin_std_ = origin.oxts->pos_accuracy;
     if (args.count("calib")) {
       // p_velo = T_velo_imu p_imu; base_link is the IMU frame: p_base = inv(T_velo_imu) p_velo.
       Eigen::Isometry3d T_velo_imu;
@@ -178,6 +184,7 @@ class ScanFolderSource : public DriveSource {
     if (readKittiBin(files_[i], *cloud, &scan.error)) scan.cloud = cloud;
     if (i == 0) {
       scan.gnss = Eigen::Vector2d::Zero();  // the georeference is the origin
+      scan.gnss_std = origin_std_;
       scan.roll_pitch = first_roll_pitch_;
     }
     return true;
@@ -193,6 +200,7 @@ class ScanFolderSource : public DriveSource {
   double rate_ = 10.0;
   size_t index_ = 0;
   std::optional<Eigen::Vector2d> first_roll_pitch_;
+  std::optional<double> origin_std_;  ///< the origin record's pos_accuracy
 };
 
 }  // namespace

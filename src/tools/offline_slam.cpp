@@ -191,9 +191,9 @@ int main(int argc, char** argv) {
       continue;
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
-    pipeline.processScan(scan.stamp, scan.cloud,
-                         use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss,
-                         use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>());
+    pipeline.processScan(
+        scan.stamp, scan.cloud, use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(),
+        scan.gnss, use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>(), scan.gnss_std);
     printProgress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

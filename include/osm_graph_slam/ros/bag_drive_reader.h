@@ -24,6 +24,7 @@ struct BagDriveTopics {
 struct BagFix {
   int64_t stamp_ns = 0;
   double lat = 0.0, lon = 0.0, alt = 0.0;
+  double std_xy = 0.0;  ///< [m] from the message's covariance (0: unknown)
 };
 
 /// One cloud of the bag: cloud is null (and error says why) for a malformed message.

@@ -2,6 +2,7 @@
 // Message <-> core type conversions shared by every nodelet and tool (ROS side only).
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>
+#include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <Eigen/Geometry>
@@ -28,6 +29,10 @@ Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& pose);
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& transform);
 
 /// x, y, z, roll, pitch, yaw (extrinsic X-Y-Z, i.e. R = Rz(yaw) Ry(pitch) Rx(roll)).
+/// The fix's horizontal standard deviation [m] from its covariance (mean of the east and north
+/// variances), or 0 when the covariance is unknown or not a usable number.
+double navSatFixStd(const sensor_msgs::NavSatFix& fix);
+
 Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double pitch, double yaw);
 
 }  // namespace osm_graph_slam

@@ -27,6 +27,7 @@ struct DriveScan {
   std::optional<Eigen::Vector3d> angular_velocity;  ///< base_link body rates [rad/s] (gyro), if any
   std::optional<Eigen::Isometry3d> truth;           ///< base_link in ENU at the first fix
   std::optional<Eigen::Vector2d> gnss;              ///< the GNSS fix in the same frame
+  std::optional<double> gnss_std;  ///< [m] its horizontal deviation, when the receiver reports it
 };
 
 /// A drive: origin, initial heading, sensor mounting and the scans in order.
