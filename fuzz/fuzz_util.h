@@ -3,9 +3,11 @@
 // and whole-file writes, for readers that only take a path.
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 
 namespace ogs_fuzz {
@@ -27,11 +29,15 @@ inline std::string scratchPath(const std::string& name) {
   return scratchDir() + "/" + name;
 }
 
+/// A scratch file that cannot be written is a fault of the machine, not of the reader: it is
+/// named on stderr before the abort so that the log tells it from a finding.
 inline void writeFile(const std::string& path, const uint8_t* data, size_t size) {
   FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) std::abort();
-  if (size && std::fwrite(data, 1, size, f) != size) std::abort();
-  std::fclose(f);
+  if (!f || (size && std::fwrite(data, 1, size, f) != size) || std::fclose(f) != 0) {
+    std::fprintf(stderr, "fuzz harness: cannot write scratch file %s: %s\n", path.c_str(),
+                 std::strerror(errno));
+    std::abort();
+  }
 }
 
 inline void writeFile(const std::string& path, const std::string& text) {
