@@ -542,7 +542,7 @@ TEST_F(SlamPipeline, SaveMapWritesFilesThatParse) {
   srv.request.resolution = 0.5;
   ASSERT_TRUE(ros::service::call(saveMapService(), srv));
   ASSERT_TRUE(srv.response.success) << srv.response.message;
-  EXPECT_EQ(srv.response.files.size(), 6u);
+  EXPECT_EQ(srv.response.files.size(), 7u);  // with the localisation map package
   for (const auto& f : srv.response.files) EXPECT_TRUE(fs::exists(f)) << f;
 
   pcl::PointCloud<pcl::PointXYZI> map;
