@@ -2,7 +2,7 @@
 // How far corrected buildings are from the true ones, and whether outlines overlap.
 #include <vector>
 
-#include "osm_graph_slam/osm/building.h"
+#include "osm_graph_slam/osm/building_set.h"  // findOverlappingBuildings
 
 namespace osm_graph_slam {
 
@@ -19,10 +19,5 @@ struct BuildingErrors {
 /// the truth), so the reference corner is compared as the same physical corner.
 BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
                                  const std::vector<Building>& truth);
-
-/// Pairs of buildings whose outlines intersect with more than min_area [m^2] (shared walls of
-/// touching buildings have zero area and are not counted).
-std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
-    const std::vector<Building>& buildings, double min_area = 0.05);
 
 }  // namespace osm_graph_slam

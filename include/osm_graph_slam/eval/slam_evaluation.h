@@ -49,9 +49,6 @@ struct SlamEvaluation {
 /// Below this coverage fraction the table prints a warning line.
 inline constexpr double kCoverageWarning = 0.99;
 
-/// Tag the back-end puts on each corrected building: its number of robot<->building edges.
-inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
-
 SlamEvaluation evaluateSlam(const SlamEvaluationInput& input);
 std::string evaluationToJson(const SlamEvaluation& evaluation);
 std::string evaluationToTable(const SlamEvaluation& evaluation);

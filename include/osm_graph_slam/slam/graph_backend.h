@@ -24,6 +24,10 @@
 namespace osm_graph_slam {
 
 class EnuConverter;
+struct BackendQueues;
+struct BackendState;
+class OsmAssociation;
+class BuildingConstraints;
 
 struct KeyframeInput {
   uint64_t id = 0;
@@ -170,42 +174,32 @@ class GraphBackend {
   std::optional<Pose2> osmDatum() const;
 
  private:
-  /// GNSS position priors on keyframes (gnss_prior_std > 0), once the heading is known.
+  /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
   bool gnssPriors() const;
-  struct Pending;
-  struct State;
   void flushKeyframes(BackendUpdateReport& report);
+  void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
+  bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
+  void insertKeyframe(const KeyframeInput& in);
+  void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
+  void linkToPrevious(const KeyframeInput& in, KeyframeState& kf);
+  void addKeyframePriors(const KeyframeInput& in, KeyframeState& kf);  ///< GNSS, gravity
+  void dropOrphanSegments();
   void flushLoops(BackendUpdateReport& report);
   void flushBuildings(BackendUpdateReport& report);
   void flushFloors(BackendUpdateReport& report);
   void linkFloor(KeyframeState& kf, BackendUpdateReport& report);
-  void processOsmPriors(BackendUpdateReport& report);
-  bool keyframeCovered(const Eigen::Vector2d& position) const;
-  void addGlobalPrior(KeyframeState& kf, const LineMatchResult& global);
-  void addOdometryAttitudePrior(KeyframeState& kf, int level);
-  std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
-  size_t gateBuildingEdges(BackendUpdateReport& report);
-  /// Keyframes matched while the OSM datum was more than osm_datum_reassociate_distance from
-  /// where it is now lose their building edges and are matched again; returns how many.
-  size_t reassociateAfterDatumMoved(BackendUpdateReport& report);
-  void readRobotPoses();
-  void readBuildingPoses();
-  Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
   void optimizePhases(BackendUpdateReport& report);
-  void resolveOverlaps(BackendUpdateReport& report);
-  void addSharedWallEdges(BackendUpdateReport& report);
-  void findNewContacts();
   void updateMapToOdom();
-  void rotateTrajectory(double dyaw);
 
   GraphBackendParams params_;
   std::shared_ptr<const Logger> logger_;
-  LineMatcher matcher_;
 
   mutable std::mutex queue_mutex_;
-  std::unique_ptr<Pending> pending_;
+  std::unique_ptr<BackendQueues> pending_;
   mutable std::mutex state_mutex_;
-  std::unique_ptr<State> state_;
+  std::unique_ptr<BackendState> state_;
+  std::unique_ptr<OsmAssociation> osm_;               ///< robot<->building edges per OSM mode
+  std::unique_ptr<BuildingConstraints> constraints_;  ///< gate, shared walls, overlaps
 };
 
 }  // namespace osm_graph_slam

@@ -1,0 +1,19 @@
+#pragma once
+// Properties of a set of buildings used by the back-end (overlap resolution, saved maps) and by
+// the evaluation alike.
+#include <utility>
+#include <vector>
+
+#include "osm_graph_slam/osm/building.h"
+
+namespace osm_graph_slam {
+
+/// Tag the back-end puts on each corrected building: its number of robot<->building edges.
+inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
+
+/// Pairs of buildings whose outlines intersect with more than min_area [m^2] (shared walls of
+/// touching buildings have zero area and are not counted).
+std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
+    const std::vector<Building>& buildings, double min_area = 0.05);
+
+}  // namespace osm_graph_slam

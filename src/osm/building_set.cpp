@@ -1,0 +1,18 @@
+#include "osm_graph_slam/osm/building_set.h"
+
+#include "osm_graph_slam/lines/line_geometry.h"
+
+namespace osm_graph_slam {
+
+std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
+    const std::vector<Building>& buildings, double min_area) {
+  std::vector<const Polygon2*> outlines;
+  for (const auto& b : buildings) outlines.push_back(&b.outline_enu);
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (const auto& [i, j] : nearbyPolygonPairs(outlines, 0.0))
+    if (polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) > min_area)
+      pairs.emplace_back(i, j);
+  return pairs;
+}
+
+}  // namespace osm_graph_slam

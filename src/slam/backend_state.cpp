@@ -1,0 +1,138 @@
+#include "backend_state.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace osm_graph_slam {
+
+void BackendState::observed(BuildingState& b, const GraphBackendParams& p) {
+  if (b.observations++ == 0 && b.vertex_id >= 0 && p.mode != OsmMode::kPrior)
+    graph.setFixed(b.vertex_id, false);
+}
+
+int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) {
+  if (b.vertex_id >= 0) return b.vertex_id;
+  b.vertex_id = next_building_vertex++;
+  const bool fixed = p.mode == OsmMode::kPrior || heldAtPrior(b, p);
+  graph.addVertexSE2(b.vertex_id, b.pose, fixed);
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  info(0, 0) = info(1, 1) = 1.0 / (p.building_prior_std_xy * p.building_prior_std_xy);
+  info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
+  if (p.osm_datum_std_xy > 0.0 && !fixed)
+    graph.addEdgeSE2(datumVertex(p), b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
+  else
+    graph.addPriorSE2(b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
+  return b.vertex_id;
+}
+
+Pose2 BackendState::predictedPose(const BuildingState& b, const GraphBackendParams& p) const {
+  if (p.osm_datum_std_xy <= 0.0) return b.prior.reference_pose;
+  return graph.vertexSE2(GraphBackend::kOsmDatumVertex).value_or(Pose2()) * b.prior.reference_pose;
+}
+
+int BackendState::datumVertex(const GraphBackendParams& p) {
+  const int id = GraphBackend::kOsmDatumVertex;
+  if (graph.hasVertex(id)) return id;
+  graph.addVertexSE2(id, Pose2());
+  // Translation only unless a rotation deviation is given (1e-5 rad: 2 mm at 200 m).
+  const double std_theta = p.osm_datum_std_theta > 0.0 ? p.osm_datum_std_theta : 1e-5;
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  info(0, 0) = info(1, 1) = 1.0 / (p.osm_datum_std_xy * p.osm_datum_std_xy);
+  info(2, 2) = 1.0 / (std_theta * std_theta);
+  graph.addPriorSE2(id, Pose2(), info, EdgeOptions{1, {}});
+  return id;
+}
+
+bool BackendState::covered(const Eigen::Vector2d& position) const {
+  for (const auto& [center, radius] : coverage)
+    if ((position - center).norm() <= radius) return true;
+  return false;
+}
+
+std::vector<int> BackendState::fixRobots() {
+  std::vector<int> fixed_now;
+  for (const auto& [id, kf] : keyframes) {
+    const int vid = static_cast<int>(id);
+    if (!graph.isFixed(vid)) {
+      graph.setFixed(vid, true);
+      fixed_now.push_back(vid);
+    }
+  }
+  return fixed_now;
+}
+
+void BackendState::readRobotPoses() {
+  for (auto& [id, kf] : keyframes)
+    if (auto pose = graph.vertexSE3(static_cast<int>(id))) kf.map_pose = *pose;
+}
+
+void BackendState::readBuildingPoses(const GraphBackendParams& p) {
+  for (auto& [bid, b] : buildings) {
+    if (auto pose = graph.vertexSE2(b.vertex_id))
+      b.pose = *pose;
+    else
+      b.pose = predictedPose(b, p);
+  }
+}
+
+void BackendState::rotateTrajectory(double dyaw) {
+  const Eigen::Vector2d pivot =
+      keyframes.empty()
+          ? Eigen::Vector2d::Zero()
+          : Eigen::Vector2d(keyframes.begin()->second.map_pose.translation().head<2>());
+  const Eigen::Vector2d shift = pivot - Pose2(0.0, 0.0, dyaw).rotation() * pivot;
+  const Eigen::Isometry3d rot = isometryFromPlanar(Pose2(shift.x(), shift.y(), dyaw));
+  for (auto& [id, kf] : keyframes) {
+    kf.map_pose = rot * kf.map_pose;
+    graph.setVertexSE3(static_cast<int>(id), kf.map_pose);
+  }
+  map_to_odom = rot * map_to_odom;
+}
+
+RobustKernel kernelNamed(const std::string& name, double width) {
+  if (name == "huber") return RobustKernel::huber(width);
+  if (name == "cauchy") return RobustKernel::cauchy(width);
+  return RobustKernel::none();
+}
+
+Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_yaw) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  R.topLeftCorner<2, 2>() = Pose2(0, 0, frame_yaw).rotation();
+  return R.transpose() * info_map * R;
+}
+
+Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
+                                  double std_theta, const LineMatcherParams& m) {
+  Eigen::Matrix3d info = matcher_info;
+  const double sxy = 1.0 / (std_xy * std_xy * m.edge_information_xy);
+  const double sth = 1.0 / (std_theta * std_theta * m.edge_information_theta);
+  info.topLeftCorner<2, 2>() *= sxy;
+  info(2, 2) *= sth;
+  info.topRightCorner<2, 1>() *= std::sqrt(sxy * sth);
+  info.bottomLeftCorner<1, 2>() *= std::sqrt(sxy * sth);
+  return info;
+}
+
+Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch) {
+  const double yaw = planarPose(pose).theta;
+  Eigen::Isometry3d z = Eigen::Isometry3d::Identity();
+  z.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  z.translation() = pose.translation();
+  return z;
+}
+
+Matrix6d attitudeInformation(double std_rad) {
+  Matrix6d info = Matrix6d::Identity() * 1e-9;  // positive definite; effectively unconstrained
+  info(3, 3) = info(4, 4) = 1.0 / (std_rad * std_rad);
+  return info;
+}
+
+Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
+  const Eigen::Matrix3d r = pose.rotation();
+  return {std::atan2(r(2, 1), r(2, 2)), std::asin(-std::clamp(r(2, 0), -1.0, 1.0))};
+}
+
+}  // namespace osm_graph_slam

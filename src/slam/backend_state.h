@@ -1,0 +1,98 @@
+#pragma once
+// The back-end's state behind GraphBackend, shared with the modules it delegates to by concept
+// (osm_association: robot<->building edges per OSM mode; building_constraints: gate, shared
+// walls, overlaps). Internal to src/slam/: not an installed header.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+
+namespace osm_graph_slam {
+
+/// Inputs queued by the thread-safe add*() calls until the next update().
+struct BackendQueues {
+  std::deque<KeyframeInput> keyframes;
+  std::map<uint64_t, std::vector<LineSegment2>> segments;
+  std::map<uint64_t, Eigen::Vector4d> floors;
+  std::deque<LoopClosureInput> loops;
+  struct BuildingBatch {
+    std::vector<Building> buildings;
+    Eigen::Vector2d center;
+    double radius;
+  };
+  std::deque<BuildingBatch> buildings;
+};
+
+/// A robot<->building edge still in the graph, kept for the gate and re-association.
+struct BuildingEdgeRecord {
+  int edge_id;
+  uint64_t keyframe;
+  int64_t building;
+  Pose2 z;
+  Eigen::Matrix3d information;
+};
+
+struct BackendState {
+  PoseGraph graph;
+  std::map<uint64_t, KeyframeState> keyframes;
+  std::map<int64_t, BuildingState> buildings;
+  std::map<uint64_t, std::vector<LineSegment2>> early_segments;  ///< keyframe not yet inserted
+  std::map<uint64_t, Eigen::Vector4d> early_floors;              ///< keyframe not yet inserted
+  std::optional<uint64_t> last_floor_keyframe;               ///< the newest keyframe with a floor
+  std::deque<LoopClosureInput> early_loops;                  ///< current keyframe not yet in
+  std::vector<std::pair<Eigen::Vector2d, double>> coverage;  ///< answered OSM queries
+  std::optional<EnuConverter> origin;
+  Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
+  bool heading_initialized = false;
+  std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
+  int next_building_vertex = GraphBackend::kBuildingVertexBase;
+  std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
+  std::vector<LoopClosureInput> loops;
+  bool dirty = false;
+  double latest_stamp = 0.0;
+
+  /// An unobserved building stays at its prior (unobserved_buildings_fixed).
+  static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {
+    return p.unobserved_buildings_fixed && b.observations == 0;
+  }
+  /// One more robot<->building edge on b: an observed building is free to move.
+  void observed(BuildingState& b, const GraphBackendParams& p);
+  /// b's vertex, created with its prior (relative to the OSM datum) on first use.
+  int buildingVertex(BuildingState& b, const GraphBackendParams& p);
+  /// Where a building is expected before anything observed it: its prior moved by the datum.
+  Pose2 predictedPose(const BuildingState& b, const GraphBackendParams& p) const;
+  /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
+  int datumVertex(const GraphBackendParams& p);
+  /// Whether an answered OSM query covers the position.
+  bool covered(const Eigen::Vector2d& position) const;
+
+  std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
+  void readRobotPoses();
+  void readBuildingPoses(const GraphBackendParams& p);
+  /// Rotates every keyframe by dyaw about the first one (fixed where GNSS put it).
+  void rotateTrajectory(double dyaw);
+};
+
+// Edge helpers shared by the modules.
+RobustKernel kernelNamed(const std::string& name, double width);
+/// Information of a 2D match (translation in map axes) re-expressed in the axes of an edge whose
+/// error is measured in a frame rotated by `frame_yaw` (the g2o SE2 error convention).
+Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_yaw);
+/// The matcher's information (§3.3.5: by feature type, scaled by fitness) rescaled so that the
+/// best possible match (edge feature, full fitness) has the given standard deviations.
+Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
+                                  double std_theta, const LineMatcherParams& m);
+/// A unary SE3 measurement that constrains only roll and pitch (the x/y components of the
+/// rotation error in the measurement frame, whose yaw is the current estimate's).
+Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch);
+Matrix6d attitudeInformation(double std_rad);
+Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose);
+
+}  // namespace osm_graph_slam
