@@ -495,6 +495,26 @@ void fillResult(LineMatchResult& r, const Search& search, const Pose2& T, MatchF
   if (!r.success) r.message = "fitness or matched segments below the thresholds";
 }
 
+/// First pose: the best hypothesis at a clearly different heading must score clearly lower,
+/// otherwise the heading is a guess between look-alike corners (e.g. a symmetric square).
+void refuseAmbiguousHeading(LineMatchResult& r, const Search& search,
+                            const std::vector<Hypothesis>& hyps, const LineMatcherParams& p) {
+  double runner_up = kNegInf;
+  for (const auto& h : hyps) {
+    if (std::abs(wrapAngle(h.T.theta - r.transform.theta)) <= p.initial_distinct_heading_deg * kDeg)
+      continue;
+    runner_up = std::max(runner_up, search.evaluate(h.T, runner_up).fitness);
+  }
+  r.runner_up_fitness = runner_up;
+  if (r.success && p.initial_ambiguity_margin > 0.0 &&
+      r.fitness - runner_up < p.initial_ambiguity_margin) {
+    r.success = false;
+    r.message = "ambiguous heading: a hypothesis " +
+                std::to_string(p.initial_distinct_heading_deg) + "+ deg away scores " +
+                std::to_string(runner_up) + " against " + std::to_string(r.fitness);
+  }
+}
+
 }  // namespace
 
 LineMatchResult LineMatcher::matchGlobal(const std::vector<LineSegment2>& keyframe_segments,
@@ -524,7 +544,10 @@ LineMatchResult LineMatcher::match(const std::vector<LineSegment2>& source_in,
     return result;
   }
   const LineMatcherParams& p = params_;
-  const Bounds bounds{mode == MatchMode::kOverlap ? p.overlap_max_translation : p.max_translation,
+  const bool first_pose = mode == MatchMode::kGlobal && rotation_unbounded;
+  const Bounds bounds{mode == MatchMode::kOverlap ? p.overlap_max_translation
+                      : first_pose ? std::max(p.max_translation, p.initial_max_translation)
+                                   : p.max_translation,
                       rotation_unbounded            ? M_PI
                       : mode == MatchMode::kOverlap ? p.overlap_max_rotation_deg * kDeg
                                                     : p.max_rotation_deg * kDeg};
@@ -585,6 +608,7 @@ LineMatchResult LineMatcher::match(const std::vector<LineSegment2>& source_in,
       final_T = polished;
   }
   fillResult(result, search, final_T, best.feature, p);
+  if (first_pose) refuseAmbiguousHeading(result, search, hyps, p);
   result.stats.ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   return result;
 }

@@ -24,6 +24,9 @@ void readParams(const ParamReader& r, LineMatcherParams& p) {
   r.param("edge_length_slack", p.edge_length_slack);
   r.param("max_translation", p.max_translation);
   r.param("max_rotation_deg", p.max_rotation_deg);
+  r.param("initial_max_translation", p.initial_max_translation);
+  r.param("initial_ambiguity_margin", p.initial_ambiguity_margin);
+  r.param("initial_distinct_heading_deg", p.initial_distinct_heading_deg);
   r.param("refine_k_nearest", p.refine_k_nearest);
   r.param("refine_rounds", p.refine_rounds);
   r.param("local_line_seed_distance", p.local_line_seed_distance);

@@ -94,6 +94,46 @@ TEST(LineMatcherSynthetic, GlobalMatchingWithUnboundedRotationFindsHeading) {
   EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
 }
 
+TEST(LineMatcherSynthetic, FirstPoseFoundWithTheMapOffsetBeyondTheTrackedWindow) {
+  // The real drive kitti_raw_0005: the OSM outlines sit 4.6 m from the RTK fix, beyond the 3 m
+  // a tracked keyframe may move, and the heading is 70 degrees off (doc/real_data.md).
+  const auto scene = makeStreetScene(12, 3);
+  const Pose2 truth(-3.0, 0.0, 0.0);
+  const auto segments = keyframeSegments(scene, truth, 5);
+  const Pose2 guess(truth.x + 1.8, truth.y - 4.1, truth.theta + 70.0 * kDeg);
+  const LineMatchResult r = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess, true);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(r.transform.x, truth.x, 0.05);
+  EXPECT_NEAR(r.transform.y, truth.y, 0.05);
+  EXPECT_LT(angleErrorDeg(r.transform.theta, truth.theta), 0.3);
+  EXPECT_GT(r.fitness - r.runner_up_fitness, 10.0);  // no other heading comes close
+  // The tracked keyframe's 3 m window (the window before) never sees the right answer.
+  LineMatcherParams narrow;
+  narrow.initial_max_translation = 3.0;
+  const LineMatchResult old =
+      LineMatcher(narrow).matchGlobal(segments, buildingWalls(scene), guess, true);
+  EXPECT_FALSE(old.success && angleErrorDeg(old.transform.theta, truth.theta) < 2.0 &&
+               std::hypot(old.transform.x - truth.x, old.transform.y - truth.y) < 0.5);
+}
+
+TEST(LineMatcherSynthetic, FirstPoseInASymmetricCourtyardIsRefusedAsAmbiguous) {
+  // A square courtyard seen from its centre looks the same every 90 degrees: any heading the
+  // search picks is a guess, so the first pose must not be set from it.
+  const std::vector<SimBuilding> scene = {courtyardBuilding(-20.0, -20.0, 40.0, 40.0, 6.0)};
+  const Pose2 truth(0.0, 0.0, 0.2);
+  const auto segments = keyframeSegments(scene, truth, 9);
+  ASSERT_GE(segments.size(), 4u);
+  const Pose2 guess(0.5, -0.5, truth.theta + 60.0 * kDeg);
+  const LineMatchResult r = LineMatcher().matchGlobal(segments, buildingWalls(scene), guess, true);
+  EXPECT_FALSE(r.success);
+  EXPECT_GT(r.runner_up_fitness, r.fitness - 10.0) << r.message;
+  EXPECT_NE(r.message.find("ambiguous"), std::string::npos) << r.message;
+  // With the test off the same search reports success: the refusal is the ambiguity test's.
+  LineMatcherParams off;
+  off.initial_ambiguity_margin = 0.0;
+  EXPECT_TRUE(LineMatcher(off).matchGlobal(segments, buildingWalls(scene), guess, true).success);
+}
+
 TEST(LineMatcherSynthetic, CourtyardFromInsideIsMatched) {
   const std::vector<SimBuilding> scene = {courtyardBuilding(-15.0, -12.0, 30.0, 24.0, 6.0, 0.1)};
   const Pose2 truth = Pose2(-15.0, -12.0, 0.1) * Pose2(15.0, 12.0, 0.3);  // in the courtyard
