@@ -51,7 +51,8 @@ struct BackendState {
   std::optional<EnuConverter> origin;
   Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
   bool heading_initialized = false;
-  std::optional<double> initial_yaw;  ///< known ENU yaw of the first keyframe
+  std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
+  bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;

@@ -246,9 +246,11 @@ void GraphBackend::anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& k
         attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(), in.gravity_roll_pitch->y());
     s.map_to_odom = kf.map_pose * in.odom_pose.inverse();
   }
+  // Known from the parameters or from setInitialHeading() (the nodelet: the IMU's heading).
+  s.heading_known_at_start = s.initial_yaw.has_value();
   const bool gnss_held = gnssPriors() && in.gnss_position.has_value();
   const bool soft_anchor =
-      params_.initial_yaw_known && params_.anchor_std_xy > 0.0 && params_.anchor_std_yaw > 0.0;
+      s.heading_known_at_start && params_.anchor_std_xy > 0.0 && params_.anchor_std_yaw > 0.0;
   s.graph.addVertexSE3(vid, kf.map_pose, !gnss_held && !soft_anchor);
   if (!gnss_held && !soft_anchor) return;
   // Held where GNSS cannot say: height, attitude; x and y by the fixes (GNSS priors) or by the
@@ -383,9 +385,9 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
 }
 
 bool GraphBackend::gnssPriors() const {
-  // With the heading still unknown the first keyframe must stay fixed: global matching rotates
-  // the trajectory about it.
-  return params_.gnss_prior_std > 0.0 && params_.initial_yaw_known;
+  // With the heading still unknown at the first keyframe it must stay fixed: global matching
+  // rotates the trajectory about it.
+  return params_.gnss_prior_std > 0.0 && state_->heading_known_at_start;
 }
 
 void GraphBackend::flushFloors(BackendUpdateReport& report) {

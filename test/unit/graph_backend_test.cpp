@@ -422,6 +422,32 @@ TEST(GraphBackend, FirstKeyframeIsFixedAtItsGnssPositionNotAtTheOrigin) {
   EXPECT_LT(ate(late_heading), 0.01);
 }
 
+TEST(GraphBackend, AHeadingGivenBeforeTheFirstKeyframeAnchorsItLikeTheParameter) {
+  // The nodelet gives the IMU's heading by setInitialHeading() just before the first keyframe;
+  // offline runners set it as a parameter. Both must anchor the first keyframe the same way
+  // (softly, at anchor_std_xy), not fixed in one and soft in the other.
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.use_osm = false;
+  params.initial_yaw_known = true;
+  params.initial_yaw = drive().true_poses[0].theta;
+  GraphBackend by_param(params);
+  params.initial_yaw_known = false;
+  GraphBackend by_call(params);
+  by_call.setInitialHeading(drive().true_poses[0].theta);
+  const auto odom = drive().odometry(0.0, 1.0);
+  drive().feed(by_param, odom, {}, std::nullopt, 0, true);
+  drive().feed(by_call, odom, {}, std::nullopt, 0, true);
+  by_param.update();
+  by_call.update();
+  const int first = static_cast<int>(by_param.keyframes().front().id);
+  EXPECT_FALSE(by_param.graphSnapshot().isFixed(first));
+  EXPECT_FALSE(by_call.graphSnapshot().isFixed(first));
+  const Trajectory a = by_param.trajectory(), b = by_call.trajectory();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i)
+    EXPECT_LT((a[i].pose.translation() - b[i].pose.translation()).norm(), 1e-9) << i;
+}
+
 TEST(GraphBackend, ImuAttitudeKeepsTheTrajectoryLevel) {
   // Odometry that pitches 0.3 deg per keyframe: the trajectory dives; an IMU knows it is level.
   auto odom = drive().odometry(0.002, 1.005);
