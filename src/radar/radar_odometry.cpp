@@ -1,0 +1,107 @@
+#include "osm_graph_slam/radar/radar_odometry.h"
+
+#include <chrono>
+
+#include "osm_graph_slam/common/param_reader.h"
+
+namespace osm_graph_slam::radar {
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+bool readParams(const ParamReader& r, RadarOdometryParams& p, std::string* error) {
+  RadarFeatureParams& f = p.features;
+  r.param("features/detector", f.detector);
+  r.param("features/k_strongest", f.k_strongest);
+  r.param("features/min_power", f.min_power);
+  r.param("features/cfar_train_cells", f.cfar_train_cells);
+  r.param("features/cfar_guard_cells", f.cfar_guard_cells);
+  r.param("features/cfar_scale", f.cfar_scale);
+  r.param("features/cfar_min_power", f.cfar_min_power);
+  r.param("features/min_range", f.min_range);
+  r.param("features/max_range", f.max_range);
+  r.param("features/thinning_cell", f.thinning_cell);
+  r.param("features/max_features", f.max_features);
+  r.param("features/cart_resolution", f.cart_resolution);
+  r.param("features/orb_patch_size", f.orb_patch_size);
+  r.param("features/azimuth_clockwise", f.azimuth_clockwise);
+  MotionEstimatorParams& m = p.motion;
+  r.param("motion/motion_compensation", m.motion_compensation);
+  r.param("motion/doppler_correction", m.doppler_correction);
+  r.param("motion/doppler_beta", m.doppler_beta);
+  r.param("motion/ransac_iterations", m.ransac_iterations);
+  r.param("motion/inlier_threshold", m.inlier_threshold);
+  r.param("motion/gauss_newton_iterations", m.gauss_newton_iterations);
+  r.param("motion/min_inliers", m.min_inliers);
+  r.param("motion/seed", m.seed);
+  r.param("ratio_test", p.ratio_test);
+  r.param("keyframe_translation", p.keyframe_translation);
+  r.param("keyframe_rotation_deg", p.keyframe_rotation_deg);
+  auto fail = [&](const std::string& why) {
+    if (error) *error = "radar parameters: " + why;
+    return false;
+  };
+  if (f.detector != "kstrongest" && f.detector != "cfar")
+    return fail("features/detector '" + f.detector + "' (kstrongest or cfar)");
+  if (f.cart_resolution <= 0.0 || f.max_range <= f.min_range || f.orb_patch_size < 5)
+    return fail("features: cart_resolution > 0, max_range > min_range, orb_patch_size >= 5");
+  if (m.inlier_threshold <= 0.0 || m.ransac_iterations < 1 || m.min_inliers < 2)
+    return fail("motion: inlier_threshold > 0, ransac_iterations >= 1, min_inliers >= 2");
+  if (p.ratio_test <= 0.0 || p.ratio_test > 1.0) return fail("ratio_test in (0, 1]");
+  return true;
+}
+
+RadarOdometryStep RadarOdometry::process(const RadarPolarScan& scan) {
+  RadarOdometryStep step;
+  step.time = scan.midTime();
+  auto t0 = std::chrono::steady_clock::now();
+  step.feature_set = extractFeatures(scan, params_.features);
+  step.detections = step.feature_set.detections;
+  step.features = int(step.feature_set.features.size());
+  step.ms_features = msSince(t0);
+  if (!has_previous_) {
+    step.first = true;
+    step.ok = true;
+    has_previous_ = true;
+    previous_ = step.feature_set;
+    previous_time_ = step.time;
+    step.pose = pose_;
+    return step;
+  }
+  t0 = std::chrono::steady_clock::now();
+  const std::vector<FeatureMatch> matches =
+      matchFeatures(previous_, step.feature_set, params_.ratio_test);
+  step.matches = int(matches.size());
+  step.ms_matching = msSince(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  std::vector<RadarCorrespondence> cs;
+  cs.reserve(matches.size());
+  const bool cw = params_.features.azimuth_clockwise;
+  for (const FeatureMatch& m : matches) {
+    const RadarFeature& a = previous_.features[size_t(m.previous)];
+    const RadarFeature& b = step.feature_set.features[size_t(m.current)];
+    cs.push_back({a.range, b.range, beamDirection(a.azimuth, cw), beamDirection(b.azimuth, cw),
+                  a.time, b.time});
+  }
+  const MotionEstimate est =
+      estimateVelocity(std::move(cs), params_.motion, {previous_time_, step.time}, velocity_);
+  step.ms_motion = msSince(t0);
+  step.ok = est.ok;
+  if (est.ok) velocity_ = est.velocity;  // else: constant velocity
+  step.velocity = velocity_;
+  step.inliers = int(est.inliers.size());
+  step.rms_error = est.rms_error;
+  step.relative = se2Exp(velocity_, step.time - previous_time_);
+  pose_ = pose_ * step.relative;
+  step.pose = pose_;
+  previous_ = step.feature_set;
+  previous_time_ = step.time;
+  return step;
+}
+
+}  // namespace osm_graph_slam::radar
