@@ -5,8 +5,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <list>
 #include <nanoflann.hpp>
 #include <sstream>
+#include <stdexcept>
+#include <unordered_map>
 
 #include "osm_graph_slam/loop/dynamic_kd_index.h"
 
@@ -26,6 +29,13 @@ double yawOf(const Eigen::Isometry3d& pose) {
 
 double wrapPi(double a) {
   return std::atan2(std::sin(a), std::cos(a));
+}
+
+Eigen::Isometry3d planarIsometry(double x, double y, double z, double yaw) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).matrix();
+  pose.translation() = Eigen::Vector3d(x, y, z);
+  return pose;
 }
 
 }  // namespace
@@ -99,15 +109,32 @@ struct LoopDetector::Query {
   ScanContext descriptor;
   PointCloudConstPtr cloud;
   PointCloudConstPtr coarse_cloud;
+  std::vector<Eigen::Vector2f> bev_points;  ///< correlative stage
   bool usable = false;
   std::string problem;
+};
+
+/// Likelihood fields of recently verified candidates (LRU by database index): a revisit verifies
+/// the same few keyframes for several consecutive queries.
+struct LoopDetector::FieldCache {
+  std::list<std::pair<size_t, BevLikelihoodField>> items;  ///< most recent first
+  std::unordered_map<size_t, std::list<std::pair<size_t, BevLikelihoodField>>::iterator> where;
 };
 
 LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
     : params_(params),
       logger_(std::move(log_sink)),
       ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
-      position_index_(std::make_unique<DynamicKdIndex>(3)) {
+      position_index_(std::make_unique<DynamicKdIndex>(3)),
+      field_cache_(std::make_unique<FieldCache>()) {
+  if (params_.coarse_method != "correlative" && params_.coarse_method != "gicp") {
+    throw std::invalid_argument("loop detection: unknown coarse_method '" + params_.coarse_method +
+                                "' (correlative | gicp)");
+  }
+  // The BEV stage separates ground from structure exactly like the descriptor does.
+  params_.correlative.sensor_height = params_.scan_context.sensor_height;
+  params_.correlative.min_height = params_.scan_context.min_height;
+  params_.correlative.max_height = params_.scan_context.max_height;
   fine_registration_ = createRegistration(params_.registration);
   if (params_.coarse_max_correspondence_distance > 0.0) {
     RegistrationParams coarse = params_.registration;
@@ -228,6 +255,71 @@ bool LoopDetector::consistentWithOdometry(const LoopDatabaseEntry& target,
   return dt <= t_tol && dyaw <= yaw_tol;
 }
 
+std::optional<DetectedLoop> LoopDetector::rejectCandidate(CandidateOutcome& outcome,
+                                                          const char* verdict, int& counter) {
+  ++counter;
+  outcome.verdict = verdict;
+  stats_.outcomes.push_back(outcome);
+  return std::nullopt;
+}
+
+bool LoopDetector::useCorrelative(const std::optional<Eigen::Isometry3d>& odom_pose) const {
+  return odom_pose.has_value() && params_.coarse_method == "correlative";
+}
+
+const BevLikelihoodField& LoopDetector::fieldOf(size_t index) {
+  FieldCache& cache = *field_cache_;
+  auto found = cache.where.find(index);
+  if (found != cache.where.end()) {
+    cache.items.splice(cache.items.begin(), cache.items, found->second);
+    return cache.items.front().second;
+  }
+  cache.items.emplace_front(index, BevLikelihoodField(*entries_[index].cloud, params_.correlative));
+  cache.where[index] = cache.items.begin();
+  while (cache.items.size() > static_cast<size_t>(std::max(1, params_.field_cache_size))) {
+    cache.where.erase(cache.items.back().first);
+    cache.items.pop_back();
+  }
+  return cache.items.front().second;
+}
+
+std::optional<DetectedLoop> LoopDetector::verifyCorrelative(const Query& query,
+                                                            const RankedCandidate& candidate,
+                                                            const Eigen::Isometry3d& odom_pose,
+                                                            double accum_distance) {
+  const LoopDatabaseEntry& target = entries_[candidate.index];
+  ++stats_.verified;
+  CandidateOutcome outcome;
+  outcome.id = target.id;
+  outcome.descriptor_distance = candidate.match.distance;
+  // The window is every pose the odometry check could accept: the best pose in it is the one
+  // the evidence prefers, and a second placement in it that fits as well makes the match
+  // ambiguous whatever the fine stage would settle on.
+  const Eigen::Isometry3d odom_relative = target.odom_pose.inverse() * odom_pose;
+  const double gap = std::max(0.0, accum_distance - target.accum_distance);
+  BevSearchWindow window;
+  window.center = Eigen::Vector3d(odom_relative.translation().x(), odom_relative.translation().y(),
+                                  yawOf(odom_relative));
+  window.translation_radius = params_.odometry_translation_tolerance_base +
+                              params_.odometry_translation_tolerance_per_meter * gap;
+  window.yaw_radius =
+      params_.odometry_yaw_tolerance_base + params_.odometry_yaw_tolerance_per_meter * gap;
+  auto start = Clock::now();
+  const BevSearchResult bev =
+      searchBev(fieldOf(candidate.index), query.bev_points, window, params_.correlative);
+  stats_.correlative_ms += msSince(start);
+  outcome.bev_score = bev.best_score;
+  outcome.ambiguity = bev.ambiguity();
+  outcome.transform =
+      planarIsometry(bev.best.x(), bev.best.y(), odom_relative.translation().z(), bev.best.z());
+  if (!bev.valid) return rejectCandidate(outcome, "correlative", stats_.rejected_coarse);
+  if (bev.ambiguity() >= params_.max_ambiguity) {
+    return rejectCandidate(outcome, "ambiguous", stats_.rejected_ambiguous);
+  }
+  return fineStage(query, candidate, outcome.transform, odom_pose, accum_distance, outcome,
+                   &bev.best);
+}
+
 std::optional<DetectedLoop> LoopDetector::verifyCandidate(
     const Query& query, const RankedCandidate& candidate, Eigen::Isometry3d guess,
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
@@ -237,12 +329,6 @@ std::optional<DetectedLoop> LoopDetector::verifyCandidate(
   CandidateOutcome outcome;
   outcome.id = target.id;
   outcome.descriptor_distance = candidate.match.distance;
-  auto reject = [&](const char* verdict, int& counter) -> std::optional<DetectedLoop> {
-    ++counter;
-    outcome.verdict = verdict;
-    stats_.outcomes.push_back(outcome);
-    return std::nullopt;
-  };
   if (coarse_registration_) {
     auto start = Clock::now();
     coarse_registration_->setTarget(target.coarse_cloud);  // back-ends keep a repeated target
@@ -254,32 +340,50 @@ std::optional<DetectedLoop> LoopDetector::verifyCandidate(
     // that fits badly or contradicts odometry cannot become an accepted loop.
     if (params_.coarse_max_fitness > 0.0 &&
         (!coarse.converged || !(coarse.fitness <= params_.coarse_max_fitness))) {
-      return reject("coarse_fitness", stats_.rejected_coarse);
+      return rejectCandidate(outcome, "coarse_fitness", stats_.rejected_coarse);
     }
     if (check_odometry &&
         !consistentWithOdometry(target, coarse.transform, *odom_pose, accum_distance)) {
-      return reject("coarse_odometry", stats_.rejected_coarse);
+      return rejectCandidate(outcome, "coarse_odometry", stats_.rejected_coarse);
     }
     if (coarse.converged) guess = coarse.transform;
   }
+  return fineStage(query, candidate, guess, odom_pose, accum_distance, outcome, nullptr);
+}
+
+std::optional<DetectedLoop> LoopDetector::fineStage(
+    const Query& query, const RankedCandidate& candidate, const Eigen::Isometry3d& guess,
+    const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance,
+    CandidateOutcome& outcome, const Eigen::Vector3d* correlative_peak) {
+  const LoopDatabaseEntry& target = entries_[candidate.index];
+  const bool check_odometry = odom_pose && params_.check_odometry_consistency;
   auto start = Clock::now();
   ++stats_.fine_registrations;
   fine_registration_->setTarget(target.cloud);
+  stats_.fine_target_ms += msSince(start);
   const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
   stats_.fine_ms += msSince(start);
+  stats_.fine_iterations += fine.iterations;
   outcome.fitness = fine.fitness;
   outcome.transform = fine.transform;
   if (!fine.converged || !(fine.fitness <= params_.max_fitness)) {
-    return reject("fitness", stats_.rejected_fitness);
+    return rejectCandidate(outcome, "fitness", stats_.rejected_fitness);
+  }
+  if (correlative_peak &&
+      (fine.transform.translation().head<2>() - correlative_peak->head<2>()).norm() >
+          params_.max_refinement_shift) {
+    return rejectCandidate(outcome, "refinement", stats_.rejected_refinement);
   }
   start = Clock::now();
   outcome.overlap =
       overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
   stats_.overlap_ms += msSince(start);
-  if (outcome.overlap < params_.min_overlap) return reject("overlap", stats_.rejected_overlap);
+  if (outcome.overlap < params_.min_overlap) {
+    return rejectCandidate(outcome, "overlap", stats_.rejected_overlap);
+  }
   if (check_odometry &&
       !consistentWithOdometry(target, fine.transform, *odom_pose, accum_distance)) {
-    return reject("odometry", stats_.rejected_odometry);
+    return rejectCandidate(outcome, "odometry", stats_.rejected_odometry);
   }
   outcome.verdict = "accepted";
   stats_.outcomes.push_back(outcome);
@@ -301,6 +405,13 @@ std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
                                                  double accum_distance) {
   std::optional<DetectedLoop> best;
   for (const auto& candidate : ranked) {
+    if (useCorrelative(odom_pose)) {
+      // One search covers every seed the odometry check could accept.
+      auto loop = verifyCorrelative(query, candidate, *odom_pose, accum_distance);
+      if (loop && (!best || loop->fitness < best->fitness)) best = loop;
+      if (best && params_.stop_at_first_accepted) break;
+      continue;
+    }
     const LoopDatabaseEntry& target = entries_[candidate.index];
     // Rotation from the descriptor. Translation: first from odometry when there is one (so that
     // on repetitive facades registration settles in the alias nearest to the odometry), then,
@@ -395,9 +506,14 @@ std::optional<DetectedLoop> LoopDetector::prepareAndVerify(
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const auto start = Clock::now();
   query.cloud = storedCloud(cloud, params_.voxel_size);
-  query.coarse_cloud = coarse_registration_
-                           ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
-                           : query.cloud;
+  if (useCorrelative(odom_pose)) {
+    query.bev_points = bevQueryPoints(*query.cloud, params_.correlative);
+  } else {
+    query.coarse_cloud = coarse_registration_
+                             ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
+                             : query.cloud;
+  }
+  stats_.prepare_ms = msSince(start);
   auto loop = verify(query, ranked, odom_pose, accum_distance);
   stats_.verification_ms = msSince(start);
   stats_.accepted = loop.has_value();

@@ -15,6 +15,16 @@ void readParams(const ParamReader& r, ScanContextParams& p) {
   r.param("sector_search_window", p.sector_search_window);
 }
 
+/// The correlative stage's own keys; its ground/height limits are the descriptor's.
+static void readCorrelativeParams(const ParamReader& r, BevCorrelationParams& p) {
+  r.param("cell_size", p.cell_size);
+  r.param("sigma", p.sigma);
+  r.param("max_range", p.max_range);
+  r.param("query_point_spacing", p.query_point_spacing);
+  r.param("yaw_step", p.yaw_step);
+  r.param("peak_separation", p.peak_separation);
+}
+
 void readParams(const ParamReader& r, LoopDetectorParams& p) {
   readParams(PrefixedParamReader(r, "scan_context"), p.scan_context);
   r.param("min_accum_distance_gap", p.min_accum_distance_gap);
@@ -27,6 +37,11 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("verify_odometry_nearest", p.verify_odometry_nearest);
   r.param("voxel_size", p.voxel_size);
   r.param("min_points", p.min_points);
+  r.param("coarse_method", p.coarse_method);
+  readCorrelativeParams(PrefixedParamReader(r, "correlative"), p.correlative);
+  r.param("max_ambiguity", p.max_ambiguity);
+  r.param("max_refinement_shift", p.max_refinement_shift);
+  r.param("field_cache_size", p.field_cache_size);
   r.param("coarse_voxel_size", p.coarse_voxel_size);
   r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
   r.param("coarse_max_fitness", p.coarse_max_fitness);

@@ -79,27 +79,33 @@ bool hasTrueRevisit(const Drive& d, size_t i, double min_gap, double max_distanc
   return false;
 }
 
-TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
-  const Drive& d = drive();
-  LoopDetectorParams params;
-  LoopDetector detector(params);
+struct DriveOutcome {
   int revisits = 0, found = 0, false_loops = 0, inaccurate = 0, accepted = 0, missed = 0;
-  int aliases_rejected = 0;
+  int aliases_rejected = 0;  ///< well-fitting registrations > 5 m from the truth, rejected
+  int ambiguous = 0;         ///< candidates rejected by the correlative ambiguity test
   double max_t = 0.0, max_r = 0.0;
+};
+
+/// Runs the drive through a detector; prints every missed revisit with its candidates.
+DriveOutcome runDrive(const LoopDetectorParams& params) {
+  const Drive& d = drive();
+  LoopDetector detector(params);
+  DriveOutcome out;
   for (size_t i = 0; i < d.keyframes.size(); ++i) {
     const auto loop = detector.process(d.keyframes[i]);
     const bool revisit = hasTrueRevisit(d, i, params.min_accum_distance_gap, 5.0);
-    revisits += revisit ? 1 : 0;
+    out.revisits += revisit ? 1 : 0;
+    out.ambiguous += detector.lastStats().rejected_ambiguous;
     for (const auto& o : detector.lastStats().outcomes) {
       const Eigen::Isometry3d truth = d.truth[o.id].inverse() * d.truth[i];
       const double err = (truth.inverse() * o.transform).translation().norm();
       // A registration that fits well but lands a facade period (or more) away: the trap.
       const bool fits = (o.verdict == "odometry" && o.fitness <= params.max_fitness) ||
                         o.verdict == "coarse_odometry";
-      if (fits && err > 5.0) ++aliases_rejected;
+      if (fits && err > 5.0) ++out.aliases_rejected;
     }
     if (!loop) {
-      missed += revisit ? 1 : 0;
+      out.missed += revisit ? 1 : 0;
       if (revisit) {
         std::cout << "   revisit keyframe " << i << " not closed: " << detector.lastStats().reason
                   << "\n";
@@ -111,19 +117,20 @@ TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
                     << ", result " << (truth.inverse() * o.transform).translation().norm()
                     << " m from the truth, odometry "
                     << (truth.inverse() * odom).translation().norm()
-                    << " m from the truth, fitness " << o.fitness << " -> " << o.verdict << "\n";
+                    << " m from the truth, fitness " << o.fitness << ", ambiguity " << o.ambiguity
+                    << " -> " << o.verdict << "\n";
         }
       }
       continue;
     }
-    ++accepted;
-    found += revisit ? 1 : 0;
+    ++out.accepted;
+    out.found += revisit ? 1 : 0;
     const PoseError e = errorOf(*loop, d);
-    max_t = std::max(max_t, e.translation);
-    max_r = std::max(max_r, e.rotation_deg);
-    if (e.translation > 1.0 || e.rotation_deg > 2.0) ++false_loops;
+    out.max_t = std::max(out.max_t, e.translation);
+    out.max_r = std::max(out.max_r, e.rotation_deg);
+    if (e.translation > 1.0 || e.rotation_deg > 2.0) ++out.false_loops;
     if (e.translation > 0.10 || e.rotation_deg > 0.5) {
-      ++inaccurate;
+      ++out.inaccurate;
       ADD_FAILURE() << "loop " << loop->from_id << "->" << loop->to_id << " error " << e.translation
                     << " m " << e.rotation_deg << " deg (fitness " << loop->fitness
                     << ", descriptor " << loop->descriptor_distance << ")";
@@ -131,19 +138,43 @@ TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
     EXPECT_GT(loop->information(0, 0), 0.0);
     EXPECT_GE(loop->information(0, 0), loop->information(2, 2) * 0.999);
   }
-  std::cout << "[ loop_detector ] keyframes " << d.keyframes.size() << ", true revisits "
-            << revisits << ", found " << found << ", accepted " << accepted << ", false "
-            << false_loops << ", well-fitting aliases rejected by odometry " << aliases_rejected
-            << ", max error " << max_t << " m " << max_r << " deg\n";
-  EXPECT_GE(revisits, 30);
+  std::cout << "[ loop_detector ] coarse " << params.coarse_method << ": keyframes "
+            << d.keyframes.size() << ", true revisits " << out.revisits << ", found " << out.found
+            << ", accepted " << out.accepted << ", false " << out.false_loops
+            << ", well-fitting aliases rejected by odometry " << out.aliases_rejected
+            << ", ambiguous rejected " << out.ambiguous << ", max error " << out.max_t << " m "
+            << out.max_r << " deg\n";
+  EXPECT_EQ(out.found + out.missed, out.revisits);
+  return out;
+}
+
+TEST(LoopDetector, ClosesRevisitsAccuratelyWithoutFalseLoops) {
+  // Default: correlative search over the odometry tolerance window, then the fine stage.
+  const DriveOutcome out = runDrive(LoopDetectorParams());
+  EXPECT_GE(out.revisits, 30);
+  // Measured 38/39: the whole-window search also closes the facade-street revisits where a
+  // coarse registration from one seed settled 3-5 m off (182, 187, 191 with coarse GICP); the
+  // one miss (159) has no candidate within the descriptor distance.
+  EXPECT_GE(out.found, static_cast<int>(0.95 * out.revisits));
+  EXPECT_EQ(out.false_loops, 0);
+  EXPECT_EQ(out.inaccurate, 0);
+  EXPECT_LE(out.max_t, 0.02);
+}
+
+TEST(LoopDetector, CoarseGicpStageKeepsTheOdometryGuard) {
+  // The previous pipeline (coarse GICP from the odometry and zero-translation seeds).
+  LoopDetectorParams params;
+  params.coarse_method = "gicp";
+  const DriveOutcome out = runDrive(params);
+  EXPECT_GE(out.revisits, 30);
   // Misses happen only in the facade street where 3-5 m of odometry drift along a periodic
   // corridor leaves registration in a wrong alias, which the odometry check then rejects.
-  EXPECT_GE(found, static_cast<int>(0.85 * revisits));
-  EXPECT_EQ(found + missed, revisits);
+  EXPECT_GE(out.found, static_cast<int>(0.85 * out.revisits));
   // The facade trap is real (aliases fit as well as true matches) and the guard catches it.
-  EXPECT_GT(aliases_rejected, 5);
-  EXPECT_EQ(false_loops, 0);
-  EXPECT_EQ(inaccurate, 0);
+  EXPECT_GT(out.aliases_rejected, 5);
+  EXPECT_EQ(out.ambiguous, 0) << "no correlative stage in this configuration";
+  EXPECT_EQ(out.false_loops, 0);
+  EXPECT_EQ(out.inaccurate, 0);
 }
 
 }  // namespace

@@ -4,8 +4,11 @@
 //     space (radius growing with the travelled distance between them to absorb drift);
 //  2. ranking: ring-key distance, then Scan Context distance with column-shift alignment; the
 //     best k survive;
-//  3. verification: 3D registration seeded with the Scan Context yaw; the best candidate is
-//     accepted when fitness, overlap and (when available) odometry consistency all pass.
+//  3. verification: a coarse stage, then 3D registration (fine stage); a candidate is accepted
+//     when fitness, overlap and (when available) odometry consistency all pass. With odometry the
+//     coarse stage is a correlative bird's-eye-view search over every pose the odometry check
+//     could accept, which also rejects ambiguous matches (a second placement fits almost as
+//     well); without odometry it is a coarse GICP seeded with the Scan Context yaw.
 // Without odometry (re-localisation) phase 1 is replaced by the ring-key KD-tree over all
 // keyframes.
 #include <Eigen/Geometry>
@@ -17,6 +20,7 @@
 
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/common/logger.h"
+#include "osm_graph_slam/loop/bev_correlation.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/registration/registration.h"
 
@@ -42,10 +46,21 @@ struct LoopDetectorParams {
   bool verify_odometry_nearest = true;
 
   // Phase 3: verification.
-  double voxel_size = 0.6;         ///< [m] downsampling of the stored clouds (0 = none)
-  int min_points = 200;            ///< keyframes with fewer points are stored without cloud
-  double coarse_voxel_size = 1.5;  ///< [m] coarse stage cloud resolution
-  double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse stage (0 = no coarse stage)
+  double voxel_size = 0.6;  ///< [m] downsampling of the stored clouds (0 = none)
+  int min_points = 200;     ///< keyframes with fewer points are stored without cloud
+  /// Coarse stage with odometry: "correlative" (BEV search over the odometry tolerance window +
+  /// ambiguity test) | "gicp" (coarse GICP from the odometry and zero-translation seeds).
+  /// Without odometry (relocalize) the coarse GICP stage is used in both cases.
+  std::string coarse_method = "correlative";
+  BevCorrelationParams correlative;  ///< heights/ground taken from scan_context at construction
+  /// Reject a match whose runner-up placement scores at least this fraction of the best one.
+  double max_ambiguity = 0.9;
+  /// [m] the fine stage must stay within this of the correlative peak (else it left the basin
+  /// that the whole-window search chose, and the BEV and 3D evidence disagree).
+  double max_refinement_shift = 2.0;
+  int field_cache_size = 64;       ///< likelihood fields of recent candidates kept (LRU; 0: none)
+  double coarse_voxel_size = 1.5;  ///< [m] coarse GICP stage cloud resolution
+  double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse GICP stage (0 = none)
   /// [m^2] early reject: a coarse result with a larger fitness skips the fine stage (<= 0: off).
   double coarse_max_fitness = 0.0;
   RegistrationParams registration;  ///< back-end (method) and fine stage settings
@@ -96,8 +111,11 @@ struct CandidateOutcome {
   double coarse_fitness = -1.0;  ///< [m^2] (-1: no coarse stage)
   double fitness = -1.0;         ///< [m^2] fine stage (-1: rejected before it)
   double overlap = 0.0;
+  double bev_score = -1.0;  ///< correlative best score (-1: no correlative stage)
+  double ambiguity = -1.0;  ///< runner-up / best correlative score
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  ///< of the last stage run
-  /// accepted | coarse_fitness | coarse_odometry | fitness | overlap | odometry
+  /// accepted | coarse_fitness | coarse_odometry | correlative | ambiguous | fitness | overlap |
+  /// odometry | refinement
   std::string verdict;
 };
 
@@ -108,9 +126,13 @@ struct LoopQueryStats {
   double candidates_ms = 0.0;
   double ranking_ms = 0.0;
   double verification_ms = 0.0;
-  double coarse_ms = 0.0;   ///< part of verification_ms
-  double fine_ms = 0.0;     ///< part of verification_ms
-  double overlap_ms = 0.0;  ///< part of verification_ms
+  double prepare_ms = 0.0;      ///< query downsampling and BEV points, part of verification_ms
+  double correlative_ms = 0.0;  ///< part of verification_ms (field + search)
+  double coarse_ms = 0.0;       ///< part of verification_ms
+  double fine_ms = 0.0;         ///< part of verification_ms
+  double fine_target_ms = 0.0;  ///< part of fine_ms: preparing the candidate's cloud (setTarget)
+  int fine_iterations = 0;      ///< summed over the fine registrations
+  double overlap_ms = 0.0;      ///< part of verification_ms
   int phase1_candidates = 0;
   int phase2_candidates = 0;
   int verified = 0;            ///< candidate/seed pairs verified
@@ -119,6 +141,8 @@ struct LoopQueryStats {
   int rejected_fitness = 0;
   int rejected_overlap = 0;
   int rejected_odometry = 0;
+  int rejected_ambiguous = 0;   ///< correlative runner-up too close to the best
+  int rejected_refinement = 0;  ///< fine stage left the correlative peak
   bool accepted = false;
   std::string reason;  ///< why nothing was accepted
 };
@@ -185,6 +209,21 @@ class LoopDetector {
                                               Eigen::Isometry3d guess,
                                               const std::optional<Eigen::Isometry3d>& odom_pose,
                                               double accum_distance);
+  /// Correlative coarse stage + fine stage for one candidate (odometry mode).
+  std::optional<DetectedLoop> verifyCorrelative(const Query& query,
+                                                const RankedCandidate& candidate,
+                                                const Eigen::Isometry3d& odom_pose,
+                                                double accum_distance);
+  /// Fine registration from guess and the checks shared by both coarse stages.
+  std::optional<DetectedLoop> fineStage(const Query& query, const RankedCandidate& candidate,
+                                        const Eigen::Isometry3d& guess,
+                                        const std::optional<Eigen::Isometry3d>& odom_pose,
+                                        double accum_distance, CandidateOutcome& outcome,
+                                        const Eigen::Vector3d* correlative_peak);
+  std::optional<DetectedLoop> rejectCandidate(CandidateOutcome& outcome, const char* verdict,
+                                              int& counter);
+  const BevLikelihoodField& fieldOf(size_t index);
+  bool useCorrelative(const std::optional<Eigen::Isometry3d>& odom_pose) const;
   Matrix6d informationFromFitness(double fitness) const;
   bool consistentWithOdometry(const LoopDatabaseEntry& target, const Eigen::Isometry3d& transform,
                               const Eigen::Isometry3d& odom_pose, double accum_distance) const;
@@ -200,6 +239,8 @@ class LoopDetector {
   std::unique_ptr<Registration> coarse_registration_;
   std::unique_ptr<Registration> fine_registration_;
   LoopQueryStats stats_;
+  struct FieldCache;
+  std::unique_ptr<FieldCache> field_cache_;
 };
 
 /// Fraction of source points (after transform) with a target point within max_distance.
