@@ -10,7 +10,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
+#include "osm_graph_slam/cloud/radius_outlier_grid.h"
 #include "osm_graph_slam/cloud/voxel_filter.h"
 
 namespace osm_graph_slam {
@@ -49,7 +51,11 @@ struct Octant {
 
 }  // namespace
 
-CloudPrefilter::CloudPrefilter(const CloudPrefilterParams& params) : params_(params) {}
+CloudPrefilter::CloudPrefilter(const CloudPrefilterParams& params) : params_(params) {
+  if (params_.radius_backend != "grid" && params_.radius_backend != "pcl")
+    throw std::invalid_argument("CloudPrefilter: radius_backend '" + params_.radius_backend +
+                                "' (grid | pcl)");
+}
 
 void CloudPrefilter::setSensorToBase(const Eigen::Isometry3d& sensor_to_base) {
   params_.sensor_to_base = sensor_to_base;
@@ -131,6 +137,9 @@ PointCloudPtr CloudPrefilter::voxelize(const PointCloudConstPtr& cloud) const {
 PointCloudPtr CloudPrefilter::removeOutliers(const PointCloudConstPtr& cloud,
                                              bool parallel_octants) const {
   if (!cloud || cloud->empty()) return cloud ? emptyLike(*cloud) : PointCloudPtr(new PointCloud);
+  if (params_.outlier_method != "statistical" && params_.radius_backend == "grid")
+    return radiusOutlierRemovalGrid(*cloud, params_.radius_search, params_.radius_min_neighbors,
+                                    params_.num_threads);
   return parallel_octants ? removeOutliersOctants(cloud) : removeOutliersWhole(cloud);
 }
 

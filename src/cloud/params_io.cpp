@@ -14,6 +14,7 @@ void readParams(const ParamReader& r, CloudPrefilterParams& p) {
   r.param("outlier_method", p.outlier_method);
   r.param("radius_search", p.radius_search);
   r.param("radius_min_neighbors", p.radius_min_neighbors);
+  r.param("radius_backend", p.radius_backend);
   r.param("statistical_mean_k", p.statistical_mean_k);
   r.param("statistical_stddev", p.statistical_stddev);
   r.param("parallel_octants", p.parallel_octants);

@@ -119,13 +119,56 @@ TEST(CloudPrefilterTest, RadiusOutlierRemovalDropsIsolatedPoints) {
     for (int j = 0; j < 3; ++j)
       for (int k = 0; k < 3; ++k) input.push_back(pointAt(10 + 0.2f * i, 0.2f * j, 0.2f * k));
   input.push_back(pointAt(-10, 15, 0));
-  for (const bool octants : {false, true}) {
-    auto params = onlyBasicSteps();
+  for (const std::string backend : {"grid", "pcl"})
+    for (const bool octants : {false, true}) {
+      auto params = onlyBasicSteps();
+      params.use_outlier_removal = true;
+      params.radius_backend = backend;
+      params.parallel_octants = octants;
+      const auto result = CloudPrefilter(params).filter(input);
+      EXPECT_EQ(result.cloud->size(), 27u) << backend << " octants=" << octants;
+    }
+}
+
+TEST(CloudPrefilterTest, GridRadiusRemovalKeepsExactlyThePclPoints) {
+  // Border cases first: a neighbour just inside and just outside the radius, a duplicate point,
+  // points on cell borders and negative coordinates.
+  PointCloud edge;
+  for (const float x : {-1.0f, 0.0f, 0.999f, 2.0f, 3.0f, 3.0f, -5.5f, -4.5001f, 7.0f, 8.0001f})
+    edge.push_back(pointAt(x, -0.5f, 0.25f));
+  for (const int min_neighbors : {1, 2}) {
+    CloudPrefilterParams params = onlyBasicSteps();
     params.use_outlier_removal = true;
-    params.parallel_octants = octants;
-    const auto result = CloudPrefilter(params).filter(input);
-    EXPECT_EQ(result.cloud->size(), 27u) << "octants=" << octants;
+    params.radius_min_neighbors = min_neighbors;
+    params.radius_backend = "pcl";
+    const auto pcl_kept = CloudPrefilter(params).removeOutliers(edge.makeShared(), false);
+    params.radius_backend = "grid";
+    const auto grid_kept = CloudPrefilter(params).removeOutliers(edge.makeShared(), false);
+    EXPECT_EQ(sortedPoints(*pcl_kept), sortedPoints(*grid_kept)) << min_neighbors;
   }
+  const auto path = test::sharedDataPath("kitti00/000094.bin");
+  OGS_REQUIRE_SHARED_FILE(path);
+  const auto raw = test::loadScan(path);
+  CloudPrefilterParams params;
+  params.use_outlier_removal = false;
+  const auto voxelized = CloudPrefilter(params).filter(*raw).cloud;
+  params.use_outlier_removal = true;
+  for (const double radius : {0.5, 1.0, 1.5}) {
+    params.radius_search = radius;
+    params.radius_backend = "pcl";
+    const auto whole = CloudPrefilter(params).removeOutliers(voxelized, false);
+    params.radius_backend = "grid";
+    const auto grid = CloudPrefilter(params).removeOutliers(voxelized, false);
+    std::cout << "[radius " << radius << "] " << voxelized->size() << " -> pcl " << whole->size()
+              << ", grid " << grid->size() << "\n";
+    EXPECT_LT(whole->size(), voxelized->size()) << radius << ": nothing was removed";
+    // Same points in the same (input) order.
+    ASSERT_EQ(whole->size(), grid->size()) << radius;
+    for (size_t i = 0; i < whole->size(); ++i)
+      ASSERT_EQ(whole->points[i].getVector3fMap(), grid->points[i].getVector3fMap()) << i;
+  }
+  params.radius_backend = "octree";
+  EXPECT_THROW(CloudPrefilter{params}, std::invalid_argument);
 }
 
 TEST(CloudPrefilterTest, OctantOutlierRemovalEqualsWholeCloudOnRealScan) {
@@ -135,6 +178,7 @@ TEST(CloudPrefilterTest, OctantOutlierRemovalEqualsWholeCloudOnRealScan) {
   for (const std::string method : {"radius", "statistical"}) {
     CloudPrefilterParams params;
     params.outlier_method = method;
+    params.radius_backend = "pcl";  // the octant split is PCL's
     params.use_outlier_removal = false;
     const auto voxelized = CloudPrefilter(params).filter(*raw).cloud;
     params.use_outlier_removal = true;
