@@ -1,0 +1,157 @@
+#include "osm_graph_slam/landmarks/landmark_extraction.h"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace osm_graph_slam {
+
+namespace {
+
+int64_t cellKey(int x, int y) {
+  return (int64_t(x) << 32) ^ (int64_t(y) & 0xffffffffLL);
+}
+
+/// Lowest z per ground cell; cells whose lowest point cannot be ground (more than 1.5 m above
+/// the ground plane under the sensor) are left out: far cells behind trunks see only the trunks.
+class GroundGrid {
+ public:
+  GroundGrid(const std::vector<Eigen::Vector3d>& pts, double cell, double sensor_height)
+      : cell_(cell), fallback_(-sensor_height) {
+    for (const auto& p : pts) {
+      if (p.z() > -sensor_height + 1.5) continue;
+      const int64_t k = cellKey(ix(p.x()), ix(p.y()));
+      const auto it = min_z_.find(k);
+      if (it == min_z_.end() || p.z() < it->second) min_z_[k] = p.z();
+    }
+  }
+  /// Ground height below (x, y): lowest of the 3x3 cells around, else of the 5x5, else the
+  /// plane under the sensor.
+  double height(double x, double y) const {
+    const int cx = ix(x), cy = ix(y);
+    for (int r = 1; r <= 2; ++r) {
+      double best = 1e300;
+      for (int dx = -r; dx <= r; ++dx)
+        for (int dy = -r; dy <= r; ++dy) {
+          const auto it = min_z_.find(cellKey(cx + dx, cy + dy));
+          if (it != min_z_.end()) best = std::min(best, it->second);
+        }
+      if (best < 1e299) return best;
+    }
+    return fallback_;
+  }
+
+ private:
+  int ix(double v) const { return int(std::floor(v / cell_)); }
+  double cell_, fallback_;
+  std::unordered_map<int64_t, double> min_z_;
+};
+
+}  // namespace
+
+std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
+                                       const LandmarkExtractionParams& params) {
+  std::vector<Landmark> out;
+  std::vector<Eigen::Vector3d> pts;
+  pts.reserve(cloud.size());
+  const double r0 = params.min_range * params.min_range, r1 = params.max_range * params.max_range;
+  for (const auto& p : cloud.points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    const double d2 = double(p.x) * p.x + double(p.y) * p.y;
+    if (d2 < r0 || d2 > r1) continue;
+    pts.emplace_back(p.x, p.y, p.z);
+  }
+  if (pts.empty()) return out;
+  const GroundGrid ground(pts, params.ground_cell, params.sensor_height);
+
+  // Trunk band points in a 2D occupancy grid.
+  struct BandPoint {
+    Eigen::Vector2d xy;
+    double h;
+  };
+  std::vector<BandPoint> band;
+  std::unordered_map<int64_t, std::vector<int>> cells;
+  const double cc = params.cluster_cell;
+  for (const auto& p : pts) {
+    const double h = p.z() - ground.height(p.x(), p.y());
+    if (h < params.band_min || h > params.band_max) continue;
+    cells[cellKey(int(std::floor(p.x() / cc)), int(std::floor(p.y() / cc)))].push_back(
+        int(band.size()));
+    band.push_back({p.head<2>(), h});
+  }
+  // 8-connected components of occupied cells.
+  std::unordered_map<int64_t, bool> visited;
+  const int slices = std::max(1, int(std::round((params.band_max - params.band_min) / 0.2)));
+  for (const auto& [start_key, start_pts] : cells) {
+    if (visited.count(start_key)) continue;
+    std::vector<int64_t> stack{start_key};
+    visited[start_key] = true;
+    std::vector<int> members;
+    while (!stack.empty()) {
+      const int64_t k = stack.back();
+      stack.pop_back();
+      const auto& cp = cells.at(k);
+      members.insert(members.end(), cp.begin(), cp.end());
+      const int x = int(k >> 32), y = int(int32_t(k & 0xffffffffLL));
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy) {
+          const int64_t nk = cellKey(x + dx, y + dy);
+          if (cells.count(nk) && !visited.count(nk)) {
+            visited[nk] = true;
+            stack.push_back(nk);
+          }
+        }
+    }
+    if (int(members.size()) < params.min_points) continue;
+    // Vertical coverage of the band.
+    std::vector<bool> filled(slices, false);
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (int i : members) {
+      const int s = std::clamp(int((band[i].h - params.band_min) / 0.2), 0, slices - 1);
+      filled[s] = true;
+      mean += band[i].xy;
+    }
+    mean /= double(members.size());
+    const double coverage = double(std::count(filled.begin(), filled.end(), true)) / slices;
+    if (coverage < params.min_vertical_coverage) continue;
+    // Width across the viewing ray = the diameter; the centre lies one radius behind the
+    // nearest point along the ray (only the near side of a trunk is seen).
+    const double range = mean.norm();
+    if (range < 1e-6) continue;
+    const Eigen::Vector2d u = mean / range, t(-u.y(), u.x());
+    double t_min = 1e300, t_max = -1e300, u_min = 1e300, u_max = -1e300;
+    for (int i : members) {
+      const double a = band[i].xy.dot(t), b = band[i].xy.dot(u);
+      t_min = std::min(t_min, a);
+      t_max = std::max(t_max, a);
+      u_min = std::min(u_min, b);
+      u_max = std::max(u_max, b);
+    }
+    const double radius = std::max(params.min_radius, 0.5 * (t_max - t_min));
+    if (radius > params.max_radius || (u_max - u_min) > 2.0 * params.max_radius) continue;
+    Landmark lm;
+    lm.radius = radius;
+    lm.center = u * (u_min + radius) + t * (0.5 * (t_min + t_max));
+    lm.points = int(members.size());
+    lm.vertical_coverage = coverage;
+    lm.confidence = coverage * (1.0 - std::exp(-double(members.size()) / 15.0));
+    if (lm.confidence >= params.min_confidence) out.push_back(lm);
+  }
+  // Deterministic order (the hash map's is not): by angle then range.
+  std::sort(out.begin(), out.end(), [](const Landmark& a, const Landmark& b) {
+    const double aa = std::atan2(a.center.y(), a.center.x()),
+                 ab = std::atan2(b.center.y(), b.center.x());
+    if (aa != ab) return aa < ab;
+    return a.center.squaredNorm() < b.center.squaredNorm();
+  });
+  return out;
+}
+
+std::vector<Eigen::Vector2d> landmarkCenters(const std::vector<Landmark>& landmarks) {
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(landmarks.size());
+  for (const auto& l : landmarks) out.push_back(l.center);
+  return out;
+}
+
+}  // namespace osm_graph_slam
