@@ -103,21 +103,27 @@ std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
         }
     }
     if (int(members.size()) < params.min_points) continue;
-    // Vertical coverage of the band.
-    std::vector<bool> filled(slices, false);
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (int i : members) {
-      const int s = std::clamp(int((band[i].h - params.band_min) / 0.2), 0, slices - 1);
-      filled[s] = true;
-      mean += band[i].xy;
-    }
+    for (int i : members) mean += band[i].xy;
     mean /= double(members.size());
-    const double coverage = double(std::count(filled.begin(), filled.end(), true)) / slices;
+    const double range = mean.norm();
+    if (range < 1e-6) continue;
+    // Vertical coverage of the part of the band the highest beam reaches at this range.
+    const double ground_z = ground.height(mean.x(), mean.y());
+    const double visible_top = std::min(
+        params.band_max, range * std::tan(params.max_elevation_deg * M_PI / 180.0) - ground_z);
+    const int visible_slices =
+        std::min(slices, int(std::floor((visible_top - params.band_min) / 0.2)));
+    if (visible_slices < 3) continue;  // less than 0.6 m of the band in view
+    std::vector<bool> filled(slices, false);
+    for (int i : members)
+      filled[std::clamp(int((band[i].h - params.band_min) / 0.2), 0, slices - 1)] = true;
+    const double coverage =
+        std::min(1.0, double(std::count(filled.begin(), filled.begin() + visible_slices, true)) /
+                          visible_slices);
     if (coverage < params.min_vertical_coverage) continue;
     // Width across the viewing ray = the diameter; the centre lies one radius behind the
     // nearest point along the ray (only the near side of a trunk is seen).
-    const double range = mean.norm();
-    if (range < 1e-6) continue;
     const Eigen::Vector2d u = mean / range, t(-u.y(), u.x());
     double t_min = 1e300, t_max = -1e300, u_min = 1e300, u_max = -1e300;
     for (int i : members) {

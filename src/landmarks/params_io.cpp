@@ -14,6 +14,7 @@ void readParams(const ParamReader& r, LandmarkExtractionParams& p) {
   r.param("max_radius", p.max_radius);
   r.param("min_radius", p.min_radius);
   r.param("min_vertical_coverage", p.min_vertical_coverage);
+  r.param("max_elevation_deg", p.max_elevation_deg);
   r.param("min_confidence", p.min_confidence);
 }
 
@@ -36,6 +37,13 @@ void readParams(const ParamReader& r, HierarchyMatchParams& p) {
   int seed = int(p.seed);
   r.param("seed", seed);
   p.seed = uint32_t(seed);
+  r.param("triangle_tier_hypotheses", p.triangle_tier_hypotheses);
+  r.param("triangle_tier_max_side_difference", p.triangle_tier_max_side_difference);
+  r.param("hough_translation_bin", p.hough_translation_bin);
+  r.param("hough_rotation_bin", p.hough_rotation_bin);
+  r.param("hough_min_votes", p.hough_min_votes);
+  r.param("probe_landmarks", p.probe_landmarks);
+  r.param("early_exit_ratio", p.early_exit_ratio);
 }
 
 void readParams(const ParamReader& r, LandmarkPlaceRecognitionParams& p) {

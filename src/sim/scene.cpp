@@ -1,5 +1,7 @@
 #include "osm_graph_slam/sim/scene.h"
 
+#include "osm_graph_slam/sim/forest_world.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -230,6 +232,12 @@ Scene sceneFromOsm(const OsmData& osm, const EnuConverter& enu, uint64_t seed,
 }
 
 Scene proceduralCity(const CityParams& params, const GroundModel& ground) {
+  if (params.world == "forest" || params.world == "park") {
+    ForestParams forest;
+    forestPreset(params.world == "park" ? "park" : params.forest_density, forest);
+    forest.seed = params.seed;
+    return forestScene(forest, ground);
+  }
   Scene scene;
   scene.world.ground = ground;
   SimRng rng(hashCombine(params.seed, 0x63697479ULL));

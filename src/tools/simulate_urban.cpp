@@ -6,6 +6,7 @@
 #include <string>
 
 #include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/sim/forest_world.h"
 #include "osm_graph_slam/sim/simulator.h"
 
 using namespace osm_graph_slam;
@@ -25,6 +26,9 @@ void usage() {
                "  --motion-distortion     per-column sensor poses (default off)\n"
                "  --origin LAT,LON[,ALT]  ENU origin (default: extract centre / Karlsruhe)\n"
                "  --no-clutter            buildings and ground only\n"
+               "  --world city|forest|park  procedural world (default city; forest/park: trails,\n"
+               "                          trees, undergrowth; doc/landmarks.md)\n"
+               "  --forest-density sparse|intermediate|dense  (default intermediate)\n"
                "  --blocks NX,NY          procedural city size in blocks (default 7,6)\n"
                "  --prior-translation-sigma M (1.0)  --prior-rotation-sigma-deg D (2.0)\n"
                "  --prior-removal F (0.05)  --prior-phantom F (0.03)\n"
@@ -96,7 +100,23 @@ int main(int argc, char** argv) {
       p.motion_distortion = true;
     else if (a == "--no-clutter")
       p.clutter_enabled = false;
-    else if (a == "--sensor") {
+    else if (a == "--world") {  // forest/park: sim/forest_world.h (issue 24)
+      p.city.world = next();
+      if (p.city.world != "city" && p.city.world != "forest" && p.city.world != "park") {
+        std::fprintf(stderr, "simulate_urban: --world expects city, forest or park\n");
+        return 2;
+      }
+      p.clutter_enabled = p.city.world == "city";  // forests bring their own undergrowth
+    } else if (a == "--forest-density") {
+      p.city.forest_density = next();
+      ForestParams check;
+      if (p.city.forest_density == "park" || !forestPreset(p.city.forest_density, check)) {
+        std::fprintf(stderr,
+                     "simulate_urban: --forest-density expects sparse, intermediate or "
+                     "dense\n");
+        return 2;
+      }
+    } else if (a == "--sensor") {
       const std::string s = next();
       if (s == "hdl64e")
         p.lidar = LidarModel::hdl64e();

@@ -37,6 +37,10 @@ struct CityParams {
   double park_probability = 0.1;
   double round_probability = 0.06;
   double l_shape_probability = 0.25;
+  /// "city" (default), or a forest/park world (sim/forest_world.h; issue 24): "forest" with
+  /// forest_density sparse|intermediate|dense, or "park".
+  std::string world = "city";
+  std::string forest_density = "intermediate";
 };
 
 struct ClutterParams {
