@@ -27,8 +27,6 @@
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
-#include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/osm/gnss_fix_lookup.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_logging.h"
@@ -37,6 +35,7 @@
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/params_io.h"
+#include "osm_graph_slam/slam/sensor_inputs.h"
 
 namespace osm_graph_slam {
 
@@ -62,16 +61,12 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pnh.param("tf_publish_rate", tf_rate_, 20.0);
     pnh.param("map_cloud_resolution", map_resolution_, 0.5);
     pnh.param("warn_throttle_period", warn_period_, 5.0);
-    pnh.param("use_imu", use_imu_, true);
-    pnh.param("imu_max_time_difference", imu_max_dt_, 0.05);
-    pnh.param("initial_heading_max_age", initial_heading_max_age_, 1.0);
-    pnh.param("gnss_max_gap", gnss_max_gap_, 1.5);
-    pnh.param("gnss_max_time_difference", gnss_max_dt_, 0.05);
 
     GraphBackendParams params;
     std::string error;
     if (!readParams(RosParamReader(pnh), params, &error))
       NODELET_ERROR("graph_backend: %s; keeping its default", error.c_str());
+    inputs_ = std::make_unique<SensorInputs>(params.inputs);
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
 
@@ -86,7 +81,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
     floor_sub_ = nh.subscribe("floor_coeffs", 100, &GraphBackendNodelet::onFloor, this);
     origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
-    if (use_imu_) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
+    if (params.inputs.use_imu)
+      imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
     fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
@@ -118,53 +114,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
     }
-    const std::optional<ImuSample> imu = imuAt(msg->header.stamp);
-    if (imu) kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
-    // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
-    // the first keyframe's, which anchors the map.
-    if (!first_keyframe_seen_ || gnssPriors()) {
-      double std_xy = 0.0;
-      kf.gnss_position = gnssPositionAt(msg->header.stamp, &std_xy);
-      if (kf.gnss_position && std_xy > 0.0) kf.gnss_std = std_xy;
-    }
-    if (!first_keyframe_seen_) {
-      if (!gnssPriors()) {
-        std::lock_guard<std::mutex> guard(gnss_mutex_);
-        gnss_.clear();  // and no later fix is kept (onFix)
-      }
-      // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
-      // orientation), else the parameter or the first global matching (OSM thesis §3.4).
-      first_keyframe_seen_ = true;
-      std::optional<double> yaw;
-      std::optional<ImuSample> heading = imu;
-      if (!heading && !backend_->params().initial_yaw_known) {
-        // A drive with one georeference (kitti2bag --scans: one imu/data at the first scan) whose
-        // first scan was lost at start-up (dropped from a full queue, or played before the
-        // subscription was connected): that sample's heading is still far better than none (the
-        // odometry frame's, e.g. 70 deg off on KITTI drive 0005).
-        heading = latestImuBefore(msg->header.stamp, initial_heading_max_age_);
-        if (heading)
-          NODELET_WARN(
-              "no imu/data within %.3f s of the first keyframe: its heading is the one "
-              "%.3f s before it",
-              imu_max_dt_, (msg->header.stamp - heading->stamp).toSec());
-        else if (imuSamples() > 0)
-          NODELET_WARN(
-              "no imu/data within %.1f s before the first keyframe: no initial heading "
-              "from the IMU",
-              initial_heading_max_age_);
-      }
-      if (heading && !backend_->params().initial_yaw_known) {
-        yaw = heading->yaw;
-        backend_->setInitialHeading(heading->yaw);
-        NODELET_INFO("initial heading %.1f deg from imu/data", heading->yaw * 180.0 / M_PI);
-      } else if (backend_->params().initial_yaw_known) {
-        yaw = backend_->params().initial_yaw;
-      }
-      std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
-      map_to_odom_ =
-          initialMapToOdom(kf.odom_pose, yaw, kf.gnss_position.value_or(Eigen::Vector2d::Zero()));
-    }
+    addSensorInputs(kf);
     backend_->addKeyframe(std::move(kf));
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
     const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
@@ -202,90 +152,55 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return last_stamp_;
   }
 
-  struct ImuSample {
-    ros::Time stamp;
-    double roll = 0, pitch = 0, yaw = 0;
-  };
+  /// The keyframe's IMU attitude and GNSS position (SensorInputs matches them by time); the
+  /// first keyframe also decides the initial heading and the map -> odom published until the
+  /// first optimisation.
+  void addSensorInputs(KeyframeInput& kf) {
+    if (const auto imu = inputs_->attitudeAt(kf.stamp))
+      kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
+    // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
+    // the first keyframe's, which anchors the map.
+    if (!first_keyframe_seen_ || gnssPriors()) {
+      if (const auto gnss = inputs_->gnssPositionAt(kf.stamp)) {
+        kf.gnss_position = gnss->xy;
+        if (gnss->std_xy > 0.0) kf.gnss_std = gnss->std_xy;
+      }
+    }
+    if (first_keyframe_seen_) return;
+    first_keyframe_seen_ = true;
+    if (!gnssPriors()) inputs_->stopKeepingFixes();
+    // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
+    // orientation), else the parameter or the first global matching (OSM thesis §3.4).
+    std::optional<double> yaw;
+    if (backend_->params().initial_yaw_known) {
+      yaw = backend_->params().initial_yaw;
+    } else {
+      const InitialHeading heading = inputs_->initialHeading(kf.stamp);
+      if (!heading.warning.empty()) NODELET_WARN("%s", heading.warning.c_str());
+      if (heading.yaw) {
+        yaw = heading.yaw;
+        backend_->setInitialHeading(*yaw);
+        NODELET_INFO("initial heading %.1f deg from imu/data", *yaw * 180.0 / M_PI);
+      }
+    }
+    std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+    map_to_odom_ =
+        initialMapToOdom(kf.odom_pose, yaw, kf.gnss_position.value_or(Eigen::Vector2d::Zero()));
+  }
 
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
     if (msg->orientation_covariance[0] < 0.0) return;  // REP-145: no orientation
     const auto& q = msg->orientation;
-    const Eigen::Quaterniond quat(q.w, q.x, q.y, q.z);
-    if (!std::isfinite(quat.norm()) || quat.norm() < 1e-6) return;
-    const Eigen::Matrix3d r = quat.normalized().toRotationMatrix();
-    ImuSample sample;
-    sample.stamp = msg->header.stamp;
-    sample.roll = std::atan2(r(2, 1), r(2, 2));
-    sample.pitch = std::asin(-std::clamp(r(2, 0), -1.0, 1.0));
-    sample.yaw = std::atan2(r(1, 0), r(0, 0));
-    std::lock_guard<std::mutex> guard(imu_mutex_);
-    imu_.push_back(sample);
-    while (imu_.size() > 2000) imu_.pop_front();
-  }
-
-  /// The IMU attitude closest to stamp, if one is within imu_max_time_difference.
-  std::optional<ImuSample> imuAt(const ros::Time& stamp) {
-    std::lock_guard<std::mutex> guard(imu_mutex_);
-    std::optional<ImuSample> best;
-    double best_dt = imu_max_dt_;
-    for (const auto& sample : imu_) {
-      const double dt = std::abs((sample.stamp - stamp).toSec());
-      if (dt <= best_dt) {
-        best_dt = dt;
-        best = sample;
-      }
-    }
-    return best;
-  }
-
-  size_t imuSamples() {
-    std::lock_guard<std::mutex> guard(imu_mutex_);
-    return imu_.size();
-  }
-
-  /// The newest IMU attitude at most max_age before stamp (the first keyframe's heading when
-  /// none is within imu_max_time_difference).
-  std::optional<ImuSample> latestImuBefore(const ros::Time& stamp, double max_age) {
-    std::lock_guard<std::mutex> guard(imu_mutex_);
-    std::optional<ImuSample> best;
-    for (const auto& sample : imu_) {
-      const double age = (stamp - sample.stamp).toSec();
-      if (age >= 0.0 && age <= max_age && (!best || sample.stamp > best->stamp)) best = sample;
-    }
-    return best;
+    inputs_->addOrientation(msg->header.stamp.toSec(), Eigen::Quaterniond(q.w, q.x, q.y, q.z));
   }
 
   void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
-    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX ||
-        !std::isfinite(msg->latitude) || !std::isfinite(msg->longitude))
-      return;
-    if (first_keyframe_seen_ && !gnssPriors()) return;  // only the first keyframe needs a fix
-    std::lock_guard<std::mutex> guard(gnss_mutex_);
-    const GnssFixSample fix{msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0,
-                            navSatFixStd(*msg)};
-    // In stamp order, whatever order they arrive in (gnssFixAt searches by stamp).
-    gnss_.insert(std::upper_bound(gnss_.begin(), gnss_.end(), fix,
-                                  [](const GnssFixSample& a, const GnssFixSample& b) {
-                                    return a.stamp < b.stamp;
-                                  }),
-                 fix);
-    if (gnss_.size() > 2000) gnss_.erase(gnss_.begin());
+    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX) return;
+    inputs_->addFix(
+        {msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0, navSatFixStd(*msg)});
   }
 
   bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
-
-  /// base_link's GNSS position at stamp in the map frame, once the map origin is known:
-  /// interpolated between the fixes around it (at most gnss_max_gap apart), else the nearest fix
-  /// within gnss_max_time_difference (the next fix may not have arrived yet). std_xy: the fix's
-  /// reported horizontal deviation (0: unknown).
-  std::optional<Eigen::Vector2d> gnssPositionAt(const ros::Time& stamp, double* std_xy) {
-    std::lock_guard<std::mutex> guard(gnss_mutex_);
-    if (!enu_) return std::nullopt;
-    const auto fix = gnssFixAt(gnss_, stamp.toSec(), gnss_max_gap_, gnss_max_dt_);
-    if (!fix) return std::nullopt;
-    *std_xy = fix->std_xy;
-    return Eigen::Vector2d(enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>());
-  }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
     std::vector<LineSegment2> segments;
@@ -334,10 +249,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (backend_->hasOrigin()) return;
     backend_->setOrigin(fix->latitude, fix->longitude,
                         std::isfinite(fix->altitude) ? fix->altitude : 0.0);
-    {
-      std::lock_guard<std::mutex> guard(gnss_mutex_);
-      enu_.emplace(fix->latitude, fix->longitude, 0.0);
-    }
+    inputs_->setOrigin(fix->latitude, fix->longitude);
     NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
   }
 
@@ -476,20 +388,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
-  /// [s] how old an IMU sample may be to give the first keyframe's heading when none is within
-  /// imu_max_time_difference: scans lost at start-up are at most a few queue depths (0.5 s).
-  double initial_heading_max_age_ = 1.0;
-  bool use_imu_ = true;
-  std::atomic<bool> first_keyframe_seen_{false};  ///< read by the gps/fix callback
-  double imu_max_dt_ = 0.05;
-  std::mutex imu_mutex_;
-  std::deque<ImuSample> imu_;
-  ros::Subscriber imu_sub_;
-  double gnss_max_gap_ = 1.5, gnss_max_dt_ = 0.05;
-  std::mutex gnss_mutex_;
-  std::vector<GnssFixSample> gnss_;  ///< until the first keyframe (all, with GNSS priors)
-  std::optional<EnuConverter> enu_;  ///< the map origin (osm/origin)
-  ros::Subscriber fix_sub_;
+  std::unique_ptr<SensorInputs> inputs_;  ///< imu/data and gps/fix by time
+  std::atomic<bool> first_keyframe_seen_{false};
+  ros::Subscriber imu_sub_, fix_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_, floor_sub_;
   ros::ServiceServer save_srv_, dump_srv_;
   ros::WallTimer tf_timer_;

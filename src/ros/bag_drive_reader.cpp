@@ -15,7 +15,6 @@
 #include <set>
 #include <vector>
 
-#include "osm_graph_slam/osm/gnss_fix_lookup.h"
 #include "osm_graph_slam/ros/conversions.h"
 
 namespace osm_graph_slam {
@@ -53,7 +52,6 @@ struct BagDriveReader::Impl {
   rosbag::View::iterator cloud_it;
   size_t num_clouds = 0;
   std::vector<BagFix> fixes;
-  std::vector<GnssFixSample> track;           ///< the fixes in stamp order, for fixAt()
   std::map<int64_t, Eigen::Quaterniond> imu;  ///< orientation of the IMU frame in ENU
   std::string imu_frame;
   std::map<int64_t, Eigen::Isometry3d> ground_truth;
@@ -107,12 +105,6 @@ bool BagDriveReader::open(const std::string& path, const BagDriveTopics& topics,
   try {
     impl_->bag.open(path, rosbag::bagmode::Read);
     impl_->readSmallTopics();
-    for (const BagFix& f : impl_->fixes)
-      impl_->track.push_back(
-          {static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt, f.std_xy});
-    std::stable_sort(
-        impl_->track.begin(), impl_->track.end(),
-        [](const GnssFixSample& a, const GnssFixSample& b) { return a.stamp < b.stamp; });
     impl_->clouds =
         std::make_unique<rosbag::View>(impl_->bag, rosbag::TopicQuery(topicVariants(topics.cloud)));
     impl_->num_clouds = impl_->clouds->size();
@@ -138,30 +130,26 @@ size_t BagDriveReader::numGroundTruth() const {
   return impl_->ground_truth.size();
 }
 
-std::optional<BagFix> BagDriveReader::fixAt(int64_t stamp_ns, double max_gap, double max_dt) const {
-  const auto fix = gnssFixAt(impl_->track, static_cast<double>(stamp_ns) * 1e-9, max_gap, max_dt);
-  if (!fix) return std::nullopt;
-  return BagFix{stamp_ns, fix->lat, fix->lon, fix->alt, fix->std_xy};
-}
-
 std::optional<BagFix> BagDriveReader::firstFix() const {
   if (impl_->fixes.empty()) return std::nullopt;
   return impl_->fixes.front();
 }
 
-std::optional<Eigen::Quaterniond> BagDriveReader::orientationAt(int64_t stamp_ns,
-                                                                double max_dt) const {
-  const Eigen::Quaterniond* q = nearest(impl_->imu, stamp_ns, max_dt);
-  if (!q) return std::nullopt;
-  const std::optional<Eigen::Isometry3d> base_T_imu = baseToFrame(impl_->imu_frame);
-  if (!base_T_imu) return *q;  // no static transform: the IMU is taken to be base_link
-  // R_enu_base = R_enu_imu * R_imu_base.
-  return (*q * Eigen::Quaterniond(base_T_imu->linear()).inverse()).normalized();
+const std::vector<BagFix>& BagDriveReader::fixes() const {
+  return impl_->fixes;
 }
 
-std::optional<Eigen::Quaterniond> BagDriveReader::firstOrientation() const {
-  if (impl_->imu.empty()) return std::nullopt;
-  return orientationAt(impl_->imu.begin()->first, 0.0);
+std::vector<std::pair<int64_t, Eigen::Quaterniond>> BagDriveReader::orientations() const {
+  // R_enu_base = R_enu_imu * R_imu_base; no static transform: the IMU is taken to be base_link.
+  const std::optional<Eigen::Isometry3d> base_T_imu = baseToFrame(impl_->imu_frame);
+  const Eigen::Quaterniond imu_T_base = base_T_imu
+                                            ? Eigen::Quaterniond(base_T_imu->linear()).inverse()
+                                            : Eigen::Quaterniond::Identity();
+  std::vector<std::pair<int64_t, Eigen::Quaterniond>> out;
+  out.reserve(impl_->imu.size());
+  for (const auto& [stamp_ns, q] : impl_->imu)
+    out.emplace_back(stamp_ns, base_T_imu ? (q * imu_T_base).normalized() : q);
+  return out;
 }
 
 std::optional<Eigen::Isometry3d> BagDriveReader::groundTruthAt(int64_t stamp_ns,
@@ -213,16 +201,6 @@ std::optional<BagCloud> BagDriveReader::nextCloud() {
   }
   ++impl_->cloud_it;
   return out;
-}
-
-Eigen::Vector2d rollPitchOf(const Eigen::Quaterniond& q) {
-  const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
-  return {std::atan2(R(2, 1), R(2, 2)), -std::asin(std::clamp(R(2, 0), -1.0, 1.0))};
-}
-
-double yawOf(const Eigen::Quaterniond& q) {
-  const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
-  return std::atan2(R(1, 0), R(0, 0));
 }
 
 }  // namespace osm_graph_slam

@@ -1,4 +1,5 @@
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/common/attitude.h"
 
 #include <cmath>
 
@@ -141,10 +142,7 @@ Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& t) {
 
 Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double pitch, double yaw) {
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                  Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                  Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                     .toRotationMatrix();
+  out.linear() = rotationFromRollPitchYaw(roll, pitch, yaw);
   out.translation() << x, y, z;
   return out;
 }

@@ -1,4 +1,5 @@
 #include "osm_graph_slam/ros/dataset_messages.h"
+#include "osm_graph_slam/common/attitude.h"
 
 #include <sensor_msgs/PointField.h>
 #include <sensor_msgs/image_encodings.h>
@@ -14,9 +15,7 @@ ros::Time toRosTime(StampNs stamp_ns) {
 }
 
 Eigen::Quaterniond quaternionFromRpy(double roll, double pitch, double yaw) {
-  return Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-         Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-         Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+  return Eigen::Quaterniond(rotationFromRollPitchYaw(roll, pitch, yaw));
 }
 
 sensor_msgs::PointCloud2 makeXyziCloud(const std::vector<float>& xyzi, const std::string& frame_id,

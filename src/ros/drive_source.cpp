@@ -1,4 +1,5 @@
 #include "osm_graph_slam/ros/drive_source.h"
+#include "osm_graph_slam/common/attitude.h"
 
 #include <filesystem>
 #include <iostream>
@@ -7,6 +8,7 @@
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/bag_drive_reader.h"
+#include "osm_graph_slam/slam/sensor_inputs.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -19,10 +21,7 @@ std::string argOr(const std::map<std::string, std::string>& args, const std::str
 
 Eigen::Isometry3d oxtsPose(const OxtsRecord& r, const EnuConverter& enu) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = (Eigen::AngleAxisd(r.yaw, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(r.pitch, Eigen::Vector3d::UnitY()) *
-                   Eigen::AngleAxisd(r.roll, Eigen::Vector3d::UnitX()))
-                      .toRotationMatrix();
+  pose.linear() = rotationFromRollPitchYaw(r.roll, r.pitch, r.yaw);
   pose.translation() = enu.toEnu(r.lat, r.lon, r.alt);
   return pose;
 }
@@ -89,9 +88,12 @@ class KittiRawSource : public DriveSource {
   size_t index_ = 0;
 };
 
-/// A bag as kitti2bag writes it; the IMU and ground truth nearest to each cloud's stamp.
+/// A bag as kitti2bag writes it; the IMU and GNSS matched to each cloud's stamp by SensorInputs
+/// (as the graph_backend nodelet does), the ground truth nearest to it.
 class BagSource : public DriveSource {
  public:
+  explicit BagSource(const SensorInputsParams& params) : inputs_(unbounded(params)) {}
+
   bool open(const std::string& path, const BagDriveTopics& topics, std::string* error) {
     if (!reader_.open(path, topics, error)) return false;
     const std::optional<BagFix> fix = reader_.firstFix();
@@ -103,9 +105,18 @@ class BagSource : public DriveSource {
     lon = fix->lon;
     alt = fix->alt;
     enu_.emplace(lat, lon, alt);
-    if (const auto q = reader_.firstOrientation()) initial_yaw = yawOf(*q);
+    for (const BagFix& f : reader_.fixes())
+      inputs_.addFix({static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt, f.std_xy});
+    for (const auto& [stamp_ns, q] : reader_.orientations())
+      inputs_.addOrientation(static_cast<double>(stamp_ns) * 1e-9, q);
     // The sensor mounting from tf_static: base_link -> the first cloud's frame.
     pending_ = reader_.nextCloud();
+    if (pending_) {
+      const InitialHeading heading =
+          inputs_.initialHeading(static_cast<double>(pending_->stamp_ns) * 1e-9);
+      initial_yaw = heading.yaw;
+      if (!heading.warning.empty()) std::cerr << "note: " << heading.warning << "\n";
+    }
     const std::string frame = pending_ ? pending_->frame_id : std::string();
     const auto base_T_sensor = reader_.baseToFrame(frame);
     if (!base_T_sensor) {
@@ -126,13 +137,13 @@ class BagSource : public DriveSource {
     scan.stamp = static_cast<double>(c->stamp_ns) * 1e-9;
     scan.cloud = c->cloud;
     scan.error = c->error;
-    if (const auto q = reader_.orientationAt(c->stamp_ns)) {
-      scan.roll_pitch = rollPitchOf(*q);
-      scan.orientation = *q;
+    if (const auto a = inputs_.attitudeAt(scan.stamp)) {
+      scan.roll_pitch = Eigen::Vector2d(a->roll, a->pitch);
+      scan.orientation = a->orientation;
     }
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
     // The pipeline anchors its first keyframe here, whichever cloud that is.
-    if (const auto f = reader_.fixAt(c->stamp_ns)) {
+    if (const auto f = inputs_.fixAt(scan.stamp)) {
       scan.gnss = enu_->toEnu(f->lat, f->lon, f->alt).head<2>();
       if (f->std_xy > 0.0) scan.gnss_std = f->std_xy;
     }
@@ -140,7 +151,13 @@ class BagSource : public DriveSource {
   }
 
  private:
+  static SensorInputsParams unbounded(SensorInputsParams params) {
+    params.max_samples = 0;  // the whole bag is in memory already
+    return params;
+  }
+
   BagDriveReader reader_;
+  SensorInputs inputs_;
   std::optional<EnuConverter> enu_;
   std::optional<BagCloud> pending_;
 };
@@ -251,7 +268,8 @@ void printProgress(size_t done, size_t total) {
 }
 
 std::unique_ptr<DriveSource> openDriveSource(const std::map<std::string, std::string>& args,
-                                             const std::string& program, std::string* error) {
+                                             const std::string& program, std::string* error,
+                                             const SensorInputsParams& inputs) {
   if (args.count("kitti-raw") + args.count("bag") + args.count("scans") != 1) {
     if (error) *error = "exactly one of --kitti-raw, --bag and --scans is required";
     return nullptr;
@@ -272,7 +290,7 @@ std::unique_ptr<DriveSource> openDriveSource(const std::map<std::string, std::st
   topics.imu = argOr(args, "imu-topic", topics.imu);
   topics.ground_truth = argOr(args, "ground-truth-topic", topics.ground_truth);
   topics.base_frame = argOr(args, "base-frame", topics.base_frame);
-  auto bag = std::make_unique<BagSource>();
+  auto bag = std::make_unique<BagSource>(inputs);
   if (!bag->open(args.at("bag"), topics, error)) return nullptr;
   return bag;
 }

@@ -1,4 +1,5 @@
 #include "osm_graph_slam/sim/simulator.h"
+#include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 
 #include <algorithm>
@@ -206,10 +207,7 @@ Eigen::Isometry3d UrbanSimulator::basePose(double t) const {
   const double pitch = -std::atan(grad.dot(fwd));
   const double roll = std::atan(grad.dot(left));
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(s.yaw, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
+  T.linear() = rotationFromRollPitchYaw(roll, pitch, s.yaw);
   const double imu_height = params_.lidar.mount_height - kVeloInImu.z();
   T.translation() = Eigen::Vector3d(s.position.x(), s.position.y(), z) +
                     T.linear() * Eigen::Vector3d(0, 0, imu_height);
@@ -225,9 +223,10 @@ OxtsRecord UrbanSimulator::oxtsAt(double t) const {
   r.lon = geo.y();
   r.alt = geo.z();
   const Eigen::Matrix3d& R = T.linear();
-  r.yaw = std::atan2(R(1, 0), R(0, 0));
-  r.pitch = -std::asin(std::clamp(R(2, 0), -1.0, 1.0));
-  r.roll = std::atan2(R(2, 1), R(2, 2));
+  r.yaw = yawOf(R);
+  const Eigen::Vector2d roll_pitch = rollPitchOf(R);
+  r.roll = roll_pitch.x();
+  r.pitch = roll_pitch.y();
   const Eigen::Vector3d fwd = R.col(0);
   const Eigen::Vector3d vel = s.speed * fwd;
   r.ve = vel.x();

@@ -1,4 +1,5 @@
 #include "backend_state.h"
+#include "osm_graph_slam/common/attitude.h"
 
 #include <algorithm>
 #include <cmath>
@@ -116,10 +117,7 @@ Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double st
 Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch) {
   const double yaw = planarPose(pose).theta;
   Eigen::Isometry3d z = Eigen::Isometry3d::Identity();
-  z.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
+  z.linear() = rotationFromRollPitchYaw(roll, pitch, yaw);
   z.translation() = pose.translation();
   return z;
 }
@@ -128,11 +126,6 @@ Matrix6d attitudeInformation(double std_rad) {
   Matrix6d info = Matrix6d::Identity() * 1e-9;  // positive definite; effectively unconstrained
   info(3, 3) = info(4, 4) = 1.0 / (std_rad * std_rad);
   return info;
-}
-
-Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose) {
-  const Eigen::Matrix3d r = pose.rotation();
-  return {std::atan2(r(2, 1), r(2, 2)), std::asin(-std::clamp(r(2, 0), -1.0, 1.0))};
 }
 
 }  // namespace osm_graph_slam

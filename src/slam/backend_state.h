@@ -94,6 +94,5 @@ Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double st
 /// rotation error in the measurement frame, whose yaw is the current estimate's).
 Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch);
 Matrix6d attitudeInformation(double std_rad);
-Eigen::Vector2d rollPitch(const Eigen::Isometry3d& pose);
 
 }  // namespace osm_graph_slam

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <set>
 
+#include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/information.h"
 
@@ -197,7 +198,7 @@ void OsmAssociation::addOdometryAttitudePrior(BackendState& s, KeyframeState& kf
     kf.has_attitude = true;
     return;
   }
-  const Eigen::Vector2d rp = rollPitch(kf.map_pose);
+  const Eigen::Vector2d rp = rollPitchOf(Eigen::Matrix3d(kf.map_pose.rotation()));
   s.graph.addPriorSE3(static_cast<int>(kf.id), attitudeMeasurement(kf.map_pose, rp.x(), rp.y()),
                       attitudeInformation(params_.odometry_attitude_std), EdgeOptions{level, {}});
   kf.has_attitude = true;

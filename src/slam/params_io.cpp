@@ -28,6 +28,11 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
     ok = false;
     if (error) *error = "unknown mode '" + mode + "' (prior | rigid | non_rigid)";
   }
+  r.param("use_imu", p.inputs.use_imu);
+  r.param("imu_max_time_difference", p.inputs.imu_max_time_difference);
+  r.param("initial_heading_max_age", p.inputs.initial_heading_max_age);
+  r.param("gnss_max_gap", p.inputs.gnss_max_gap);
+  r.param("gnss_max_time_difference", p.inputs.gnss_max_time_difference);
   r.param("odometry_min_std_xyz", p.odometry.min_std_xyz);
   r.param("odometry_max_std_xyz", p.odometry.max_std_xyz);
   r.param("odometry_min_std_rot", p.odometry.min_std_rot);

@@ -132,7 +132,8 @@ int main(int argc, char** argv) {
                 << " was written by simulate_urban, whose prior misplaces every building on its "
                    "own; its overrides are --config config/sim.yaml (using config/kitti.yaml)\n";
   }
-  const std::unique_ptr<DriveSource> drive = openDriveSource(args, "offline_slam", &error);
+  const std::unique_ptr<DriveSource> drive =
+      openDriveSource(args, "offline_slam", &error, params.backend.inputs);
   if (!drive) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
@@ -191,9 +192,11 @@ int main(int argc, char** argv) {
       continue;
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
+    const bool attitude_priors = use_imu && params.backend.inputs.use_imu;
     pipeline.processScan(
-        scan.stamp, scan.cloud, use_imu ? scan.roll_pitch : std::optional<Eigen::Vector2d>(),
-        scan.gnss, use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>(), scan.gnss_std);
+        scan.stamp, scan.cloud,
+        attitude_priors ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss,
+        use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>(), scan.gnss_std);
     printProgress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

@@ -143,8 +143,7 @@ std::vector<StageConfig> stages() {
          EXPECT_TRUE(readParams(r, p, &error)) << "graph_backend.yaml: " << error;
        },
        {"map_frame", "odom_frame", "base_link_frame", "optimization_period", "tf_publish_rate",
-        "map_cloud_resolution", "warn_throttle_period", "use_imu", "imu_max_time_difference",
-        "initial_heading_max_age", "gnss_max_gap", "gnss_max_time_difference"}},
+        "map_cloud_resolution", "warn_throttle_period"}},
       {"localization",
        [](const ParamReader& r) {
          LocalizationParams p;

@@ -16,6 +16,7 @@
 #include "osm_graph_slam/ros/bag_drive_reader.h"
 #include "osm_graph_slam/ros/dataset_bag.h"
 #include "osm_graph_slam/sim/simulator.h"
+#include "osm_graph_slam/slam/sensor_inputs.h"
 #include "test_data.h"
 
 namespace fs = std::filesystem;
@@ -112,11 +113,20 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
   ASSERT_TRUE(fix);
   EXPECT_DOUBLE_EQ(fix->lat, first.lat);
   EXPECT_DOUBLE_EQ(fix->lon, first.lon);
-  const auto q = reader.firstOrientation();
-  ASSERT_TRUE(q);
-  EXPECT_NEAR(yawOf(*q), first.yaw, 1e-12);
-  EXPECT_NEAR(rollPitchOf(*q).x(), first.roll, 1e-12);
-  EXPECT_NEAR(rollPitchOf(*q).y(), first.pitch, 1e-12);
+  // The bag's IMU and fixes, matched by time as the offline runner and the nodelet do.
+  SensorInputsParams params;
+  params.max_samples = 0;
+  SensorInputs inputs(params);
+  for (const BagFix& f : reader.fixes())
+    inputs.addFix({static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt, f.std_xy});
+  for (const auto& [stamp_ns, q] : reader.orientations())
+    inputs.addOrientation(static_cast<double>(stamp_ns) * 1e-9, q);
+  const auto a = inputs.firstAttitude();
+  ASSERT_TRUE(a);
+  EXPECT_NEAR(a->yaw, first.yaw, 1e-12);
+  EXPECT_NEAR(a->roll, first.roll, 1e-12);
+  EXPECT_NEAR(a->pitch, first.pitch, 1e-12);
+  const auto seconds = [](int64_t ns) { return static_cast<double>(ns) * 1e-9; };
 
   // Clouds in stamp order, bit-exact copies of the .bin scans, with IMU and truth at each stamp.
   size_t n = 0;
@@ -124,7 +134,7 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
     ASSERT_TRUE(c->cloud) << c->error;
     EXPECT_EQ(c->stamp_ns, drive.scan_stamps[n]);
     EXPECT_EQ(c->frame_id, "velo_link");
-    EXPECT_TRUE(reader.orientationAt(c->stamp_ns));
+    EXPECT_TRUE(inputs.attitudeAt(seconds(c->stamp_ns)));
     EXPECT_TRUE(reader.groundTruthAt(c->stamp_ns));
     if (n == kScans / 2) {
       std::ifstream bin(drive.scan_files[n], std::ios::binary | std::ios::ate);
@@ -133,7 +143,7 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
       // apart: 2e-6 deg is 0.2 m).
       OxtsRecord oxts;
       ASSERT_TRUE(readOxtsFile(drive.oxts_files[n], oxts, &error)) << error;
-      const auto at = reader.fixAt(c->stamp_ns);
+      const auto at = inputs.fixAt(seconds(c->stamp_ns));
       ASSERT_TRUE(at);
       EXPECT_NEAR(at->lat, oxts.lat, 2e-6);
       EXPECT_NEAR(at->lon, oxts.lon, 2e-6);
@@ -143,8 +153,8 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
   EXPECT_EQ(n, size_t(kScans));
   // Look-ups further away than max_dt find nothing.
   EXPECT_FALSE(reader.groundTruthAt(drive.scan_stamps.back() + 1000000000LL));
-  EXPECT_FALSE(reader.orientationAt(drive.scan_stamps.front() - 1000000000LL));
-  EXPECT_FALSE(reader.fixAt(drive.scan_stamps.back() + 1000000000LL));
+  EXPECT_FALSE(inputs.attitudeAt(seconds(drive.scan_stamps.front() - 1000000000LL)));
+  EXPECT_FALSE(inputs.fixAt(seconds(drive.scan_stamps.back() + 1000000000LL)));
 }
 
 TEST_F(OfflineSlamBag, BagAndKittiRawGiveTheSameTrajectory) {

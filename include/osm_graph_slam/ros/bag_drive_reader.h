@@ -7,8 +7,11 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/common/attitude.h"  // rollPitchOf, yawOf
 
 namespace osm_graph_slam {
 
@@ -49,14 +52,11 @@ class BagDriveReader {
   size_t numGroundTruth() const;
   /// The first fix with status >= STATUS_FIX and finite coordinates.
   std::optional<BagFix> firstFix() const;
-  /// The fix at stamp, interpolated between the fixes around it (at most max_gap apart) or the
-  /// nearest within max_dt (gnssFixAt).
-  std::optional<BagFix> fixAt(int64_t stamp_ns, double max_gap = 1.5, double max_dt = 0.05) const;
-  /// Orientation of base_link in ENU from the IMU message nearest to stamp (within max_dt),
-  /// with the static base_link -> IMU frame rotation applied.
-  std::optional<Eigen::Quaterniond> orientationAt(int64_t stamp_ns, double max_dt = 0.05) const;
-  /// The first IMU orientation of the bag (base_link in ENU).
-  std::optional<Eigen::Quaterniond> firstOrientation() const;
+  /// Every such fix, in the bag's order (SensorInputs matches them to scans by time).
+  const std::vector<BagFix>& fixes() const;
+  /// Every IMU orientation as base_link in ENU (the static base_link -> IMU frame rotation
+  /// applied), in stamp order.
+  std::vector<std::pair<int64_t, Eigen::Quaterniond>> orientations() const;
   /// Ground-truth pose nearest to stamp (within max_dt).
   std::optional<Eigen::Isometry3d> groundTruthAt(int64_t stamp_ns, double max_dt = 0.05) const;
   /// base_link -> frame from tf_static (chains of static transforms are followed); identity
@@ -70,10 +70,5 @@ class BagDriveReader {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
-
-/// Roll and pitch of R = Rz(yaw) Ry(pitch) Rx(roll) (the OXTS convention).
-Eigen::Vector2d rollPitchOf(const Eigen::Quaterniond& q);
-/// Yaw of R = Rz(yaw) Ry(pitch) Rx(roll).
-double yawOf(const Eigen::Quaterniond& q);
 
 }  // namespace osm_graph_slam

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/slam/sensor_inputs_params.h"
 
 namespace osm_graph_slam {
 
@@ -49,7 +50,8 @@ class DriveSource {
 /// given. Null with the reason in error when the drive cannot be opened. program names the caller
 /// in notes printed on stderr.
 std::unique_ptr<DriveSource> openDriveSource(const std::map<std::string, std::string>& args,
-                                             const std::string& program, std::string* error);
+                                             const std::string& program, std::string* error,
+                                             const SensorInputsParams& inputs = {});
 
 /// Reads the scans on its own thread, a few ahead of the caller. On a cold disk reading a
 /// 2 MB HDL-64E scan takes about as long as processing it (35 vs 40 ms); this way they overlap.

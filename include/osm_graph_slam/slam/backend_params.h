@@ -6,6 +6,7 @@
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/slam/building_contacts.h"
+#include "osm_graph_slam/slam/sensor_inputs_params.h"
 
 namespace osm_graph_slam {
 
@@ -39,6 +40,7 @@ struct InformationParams {
 struct GraphBackendParams {
   bool use_osm = true;
   OsmMode mode = OsmMode::kNonRigid;
+  SensorInputsParams inputs;
   InformationParams odometry;
   /// Odometry edge to a keyframe the tracker re-anchored on a guess after failed matches: weak,
   /// so that loops, GNSS and OSM matches can correct the jump across the gap.
