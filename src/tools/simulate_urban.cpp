@@ -7,6 +7,7 @@
 
 #include "osm_graph_slam/ros/dataset_bag.h"
 #include "osm_graph_slam/sim/forest_world.h"
+#include "osm_graph_slam/sim/radar_sim.h"
 #include "osm_graph_slam/sim/simulator.h"
 
 using namespace osm_graph_slam;
@@ -22,7 +23,8 @@ void usage() {
                "  --length M              route length [m] (default 1500)\n"
                "  --speed V               cruise speed [m/s] (default 8)\n"
                "  --scans N               stop after N scans (default: whole route)\n"
-               "  --sensor hdl64e|os1_64  (default hdl64e)\n"
+               "  --sensor hdl64e|os1_64|navtech  (default hdl64e; navtech radar: doc/radar.md)\n"
+               "  --radar-doppler-beta S (0.049)  --radar-no-skew   (navtech only)\n"
                "  --motion-distortion     per-column sensor poses (default off)\n"
                "  --origin LAT,LON[,ALT]  ENU origin (default: extract centre / Karlsruhe)\n"
                "  --no-clutter            buildings and ground only\n"
@@ -75,6 +77,8 @@ void usage() {
 int main(int argc, char** argv) {
   SimulationParams p;
   std::string out;
+  bool navtech = false;  // radar drive instead of the LiDAR one
+  NavtechModel navtech_model;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -122,11 +126,17 @@ int main(int argc, char** argv) {
         p.lidar = LidarModel::hdl64e();
       else if (s == "os1_64")
         p.lidar = LidarModel::os1_64();
+      else if (s == "navtech")
+        navtech = true;
       else {
         std::fprintf(stderr, "simulate_urban: unknown sensor '%s'\n", s.c_str());
         return 2;
       }
-    } else if (a == "--origin") {
+    } else if (a == "--radar-doppler-beta")
+      navtech_model.doppler_beta = std::atof(next().c_str());
+    else if (a == "--radar-no-skew")
+      navtech_model.motion_skew = false;
+    else if (a == "--origin") {
       const std::string s = next();
       if (std::sscanf(s.c_str(), "%lf,%lf,%lf", &p.origin_lat, &p.origin_lon, &p.origin_alt) < 2) {
         std::fprintf(stderr, "simulate_urban: --origin expects LAT,LON[,ALT]\n");
@@ -245,11 +255,30 @@ int main(int argc, char** argv) {
     usage();
     return 2;
   }
+  if (navtech) {  // --scans counts radar sweeps; the navigation records cover them all
+    navtech_model.max_scans = p.max_scans;
+    p.max_scans = 0;
+  }
   UrbanSimulator sim;
   std::string error;
   if (!sim.build(p, &error)) {
     std::fprintf(stderr, "simulate_urban: %s\n", error.c_str());
     return 1;
+  }
+  if (navtech) {
+    const RadarSimulator radar(sim, navtech_model, p.seed);
+    RadarDriveStats rs;
+    if (!radar.writeMulranDrive(out, rs, stderrProgressBar("simulate_urban"), &error)) {
+      std::fprintf(stderr, "\nsimulate_urban: %s\n", error.c_str());
+      return 1;
+    }
+    std::printf(
+        "drive: %s\nradar_scans: %zu\ngps: %zu\nimu: %zu\nroute_length_m: %.1f\n"
+        "duration_s: %.1f\nmean_returns_per_scan: %.0f\ngeneration_s: %.1f\n"
+        "scans_per_s: %.1f\n",
+        rs.drive_dir.c_str(), rs.scans, rs.gps, rs.imu, rs.route_length_m, rs.duration_s,
+        rs.mean_hits_per_scan, rs.generation_s, rs.scans_per_s);
+    return 0;
   }
   const std::vector<bool> dropped = sim.droppedScans();
   std::fprintf(stderr,

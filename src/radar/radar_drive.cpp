@@ -1,0 +1,110 @@
+#include "osm_graph_slam/radar/radar_drive.h"
+
+#include <chrono>
+#include <functional>
+
+#include "osm_graph_slam/io/mulran.h"
+
+namespace osm_graph_slam::radar {
+
+Eigen::Isometry3d planarTo3d(const Eigen::Isometry2d& T) {
+  Eigen::Isometry3d P = Eigen::Isometry3d::Identity();
+  P.linear().topLeftCorner<2, 2>() = T.linear();
+  P.translation().head<2>() = T.translation();
+  return P;
+}
+
+bool interpolatePose(const Trajectory& poses, double t, double max_gap, Eigen::Isometry3d& out) {
+  if (poses.empty()) return false;
+  auto it = std::lower_bound(poses.begin(), poses.end(), t,
+                             [](const StampedPose& p, double x) { return p.stamp < x; });
+  if (it == poses.begin() || it == poses.end()) {
+    const StampedPose& end = it == poses.begin() ? poses.front() : poses.back();
+    if (std::abs(end.stamp - t) > max_gap) return false;
+    out = end.pose;
+    return true;
+  }
+  const StampedPose &b = *it, &a = *(it - 1);
+  if (b.stamp - a.stamp > max_gap) return false;
+  const double s = (t - a.stamp) / (b.stamp - a.stamp);
+  out = Eigen::Isometry3d::Identity();
+  out.translation() = (1 - s) * a.pose.translation() + s * b.pose.translation();
+  out.linear() = Eigen::Quaterniond(a.pose.linear())
+                     .slerp(s, Eigen::Quaterniond(b.pose.linear()))
+                     .toRotationMatrix();
+  return true;
+}
+
+RadarDriveResult runMulranRadarOdometry(
+    const std::string& root, const RadarOdometryParams& params, const RadarDriveOptions& options,
+    const std::function<void(const RadarOdometryStep&, const RadarPolarScan&)>& on_step) {
+  RadarDriveResult result;
+  MulranSequence seq;
+  if (!readMulranSequence(root, seq, &result.error)) return result;
+  std::vector<int64_t> stamps;
+  for (const MulranStamp& s : seq.stamps)
+    if (s.sensor == "radar") stamps.push_back(s.stamp_ns);
+  if (stamps.empty()) {
+    result.error = "MulRan sequence '" + root + "' lists no radar sweep in data_stamp.csv";
+    return result;
+  }
+  const int64_t origin_ns = stamps.front();
+  Trajectory truth;  // global_pose.csv, times relative to origin
+  for (const MulranPose& p : seq.poses)
+    truth.push_back({double(p.stamp_ns - origin_ns) * 1e-9, p.pose});
+  const double max_gap = 1.0;  // [s] ground truth further away is not interpolated
+  Eigen::Isometry3d first_truth_inverse = Eigen::Isometry3d::Identity();
+  bool have_first_truth = false;
+  RadarOdometry odometry(params);
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  };
+  double first_time = 0, last_time = 0;
+  for (int64_t stamp : stamps) {
+    if (options.max_scans > 0 && result.scans >= options.max_scans) break;
+    const auto t0 = Clock::now();
+    MulranPolarResult read =
+        readMulranPolarPng(seq.radarPolarPath(stamp), stamp, origin_ns, options.layout);
+    if (!read.ok) {
+      result.skipped.push_back(read.error);
+      continue;
+    }
+    result.ms_read += ms(t0);
+    RadarOdometryStep step = odometry.process(read.scan);
+    if (on_step) on_step(step, read.scan);
+    step.feature_set = RadarFeatureSet();
+    if (result.scans == 0) first_time = step.time;
+    last_time = step.time;
+    ++result.scans;
+    if (!step.ok) ++result.failed;
+    result.ms_features += step.ms_features;
+    result.ms_matching += step.ms_matching;
+    result.ms_motion += step.ms_motion;
+    const double absolute = double(origin_ns) * 1e-9 + step.time;
+    result.odometry.push_back({absolute, planarTo3d(step.pose)});
+    Eigen::Isometry3d gt;
+    if (interpolatePose(truth, step.time, max_gap, gt)) {
+      if (!have_first_truth) {
+        first_truth_inverse = gt.inverse();
+        have_first_truth = true;
+      }
+      result.ground_truth.push_back({absolute, first_truth_inverse * gt});
+    }
+    result.steps.push_back(std::move(step));
+  }
+  if (result.scans == 0) {
+    result.error = "no radar sweep of '" + root + "' could be read";
+    return result;
+  }
+  const double n = result.scans;
+  result.ms_read /= n;
+  result.ms_features /= n;
+  result.ms_matching /= n;
+  result.ms_motion /= n;
+  result.span_s = last_time - first_time;
+  result.ok = true;
+  return result;
+}
+
+}  // namespace osm_graph_slam::radar
