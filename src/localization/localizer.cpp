@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <unordered_map>
 #include <vector>
 
@@ -113,6 +114,7 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
   coarse.max_correspondence_distance = params_.global_coarse_max_correspondence;
   impl_->coarse = createRegistration(coarse);
   impl_->fine = createRegistration(params_.registration);
+  learnDescriptorLimit();
   const size_t n = map_->keyframes.size();
   impl_->ring_keys.resize(n > 0 ? map_->keyframes.front().descriptor.ring_key.size() : 0, n);
   for (size_t i = 0; i < n; ++i) {
@@ -127,11 +129,48 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
 
 Localizer::~Localizer() = default;
 
+void Localizer::learnDescriptorLimit() {
+  // Distances between descriptors of different places of this map: what a wrong candidate
+  // looks like with this sensor in this city. Deterministic sampling (a fixed seed).
+  const size_t n = map_->keyframes.size();
+  std::vector<double> impostor;
+  std::mt19937 rng(1);
+  const size_t wanted = static_cast<size_t>(std::max(0, params_.global_impostor_pairs));
+  for (size_t trial = 0; n > 1 && trial < 20 * wanted && impostor.size() < wanted; ++trial) {
+    const MapKeyframe& a = map_->keyframes[rng() % n];
+    const MapKeyframe& b = map_->keyframes[rng() % n];
+    if ((a.pose.translation() - b.pose.translation()).head<2>().norm() <
+        params_.global_impostor_distance)
+      continue;
+    impostor.push_back(matchScanContexts(a.descriptor, b.descriptor, map_->scan_context).distance);
+  }
+  descriptor_limit_ = params_.global_max_descriptor_distance;
+  stats_.global_impostor_pairs = impostor.size();
+  // Too few pairs (a map of one small place): the fixed limit alone.
+  if (impostor.size() >= 100 && params_.global_false_match_rate > 0.0) {
+    const size_t k =
+        std::min(impostor.size() - 1, static_cast<size_t>(params_.global_false_match_rate *
+                                                          static_cast<double>(impostor.size())));
+    std::nth_element(impostor.begin(), impostor.begin() + k, impostor.end());
+    descriptor_limit_ = std::min(descriptor_limit_, impostor[k]);
+  }
+  stats_.global_descriptor_limit = descriptor_limit_;
+}
+
 double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
   double best = std::numeric_limits<double>::infinity();
   for (const auto& xy : impl_->keyframe_xy)
     best = std::min(best, (xy - position.head<2>()).squaredNorm());
   return std::sqrt(best);
+}
+
+void Localizer::reset() {
+  ukf_ = PoseUkf(params_.ukf);
+  failures_in_row_ = 0;
+  searching_ = true;
+  confirming_ = false;
+  recent_fitness_.clear();
+  recent_next_ = 0;
 }
 
 void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
@@ -146,6 +185,11 @@ void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
 }
 
 GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& cloud) {
+  last_global_ = searchGlobally(cloud);
+  return last_global_;
+}
+
+GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& cloud) {
   GlobalLocalizationResult result;
   const auto t0 = Clock::now();
   ++stats_.global_attempts;
@@ -176,8 +220,7 @@ GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& clo
     const int index = by_ring[i].second;
     const ScanContextMatch m =
         matchScanContexts(query, map_->keyframes[index].descriptor, map_->scan_context);
-    if (m.distance <= params_.global_max_descriptor_distance)
-      candidates.push_back({m.distance, index, m.yaw});
+    if (m.distance <= descriptor_limit_) candidates.push_back({m.distance, index, m.yaw});
   }
   std::sort(candidates.begin(), candidates.end(),
             [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
@@ -211,11 +254,18 @@ GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& clo
     const Eigen::Vector2d centre = kf.pose.translation().head<2>();
     const double radius = std::min(params_.local_map_radius, 50.0);
     impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
+    GlobalCandidate& record = result.candidates.emplace_back();
+    record.keyframe_id = kf.id;
+    record.descriptor_distance = c.distance;
+    record.outcome = "coarse_failed";
     const RegistrationResult coarse = impl_->coarse->align(coarse_source, guess);
     if (!coarse.converged) continue;
     const PointCloudPtr target = impl_->grid->crop(centre, radius);
     impl_->fine->setTarget(target);
     const RegistrationResult fine = impl_->fine->align(cloud, coarse.transform);
+    record.pose = fine.transform;
+    record.fitness = fine.fitness;
+    record.outcome = fine.converged ? "fitness" : "fine_failed";
     if (!fine.converged || fine.fitness > params_.global_max_fitness) continue;
     // Overlap: scan points with a map point near them at the solution.
     pcl::KdTreeFLANN<PointT> tree;
@@ -227,10 +277,27 @@ GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& clo
     std::vector<float> d2(1);
     const float max_d2 =
         static_cast<float>(params_.global_overlap_distance * params_.global_overlap_distance);
-    for (const auto& p : aligned)
-      if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) ++inliers;
-    const double overlap = aligned.empty() ? 0.0 : double(inliers) / double(aligned.size());
+    // Only points inside the cropped map region can have a map point near them.
+    const double inside2 = std::pow(std::max(0.0, radius - 1.0), 2);
+    size_t considered = 0, structure = 0, structure_inliers = 0;
+    const double structure_z = params_.global_structure_height - map_->scan_context.sensor_height;
+    for (size_t i = 0; i < aligned.size(); ++i) {
+      const auto& p = aligned[i];
+      if (std::pow(p.x - centre.x(), 2) + std::pow(p.y - centre.y(), 2) > inside2) continue;
+      ++considered;
+      const bool is_structure = (*cloud)[i].z > structure_z;  // base_link: above the ground
+      structure += is_structure ? 1 : 0;
+      if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) {
+        ++inliers;
+        structure_inliers += is_structure ? 1 : 0;
+      }
+    }
+    const double overlap = considered == 0 ? 0.0 : double(inliers) / double(considered);
+    record.overlap = overlap;
+    record.structure_overlap = structure == 0 ? 0.0 : double(structure_inliers) / double(structure);
+    record.outcome = "overlap";
     if (overlap < params_.global_min_overlap) continue;
+    record.outcome = "passed";
     const double score = fine.fitness / overlap;
     passed.push_back({fine.transform, score});
     if (score < best_score) {
@@ -279,7 +346,9 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       ++stats_.uninitialized;
       out.status = LocalizationStatus::kUninitialized;
       if (ukf_.initialized()) {  // diverged: keep predicting, flagged as not localised
+        const Eigen::Isometry3d before = ukf_.pose();
         ukf_.predict(stamp - last_stamp_, gyro);
+        out.motion = before.inverse() * ukf_.pose();
         last_stamp_ = stamp;
         out.pose = ukf_.pose();
         out.covariance = ukf_.poseCovariance();
@@ -306,9 +375,11 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   }
 
   auto t0 = Clock::now();
+  const Eigen::Isometry3d before = ukf_.pose();
   ukf_.predict(stamp - last_stamp_, gyro);
   last_stamp_ = stamp;
   const Eigen::Isometry3d predicted = ukf_.pose();
+  out.motion = before.inverse() * predicted;
   stats_.filter_ms += msSince(t0);
   out.distance_to_map = distanceToMap(predicted.translation());
   out.pose = predicted;

@@ -40,9 +40,13 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_ring_key_candidates", p.global_ring_key_candidates);
   r.param("global_candidates", p.global_candidates);
   r.param("global_max_descriptor_distance", p.global_max_descriptor_distance);
+  r.param("global_false_match_rate", p.global_false_match_rate);
+  r.param("global_impostor_distance", p.global_impostor_distance);
+  r.param("global_impostor_pairs", p.global_impostor_pairs);
   r.param("global_max_fitness", p.global_max_fitness);
   r.param("global_min_overlap", p.global_min_overlap);
   r.param("global_overlap_distance", p.global_overlap_distance);
+  r.param("global_structure_height", p.global_structure_height);
   r.param("global_coarse_max_correspondence", p.global_coarse_max_correspondence);
   r.param("global_voxel_size", p.global_voxel_size);
   r.param("global_ambiguity_ratio", p.global_ambiguity_ratio);

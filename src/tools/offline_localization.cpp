@@ -4,8 +4,8 @@
 //   offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)
 //                        --output DIR [--initial-pose x,y,yaw | --initial-pose truth | --global]
 //                        [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]
-//                        [--map-truth GT_TUM] [--json] [--cloud-topic T ...]   (bag topics as
-//                        offline_slam)
+//                        [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]
+//                        [--cloud-topic T ...]   (bag topics as offline_slam)
 //
 // The map frame is the map package's ENU origin; the drive's own origin (its first fix) is
 // carried over through lat/lon. Without --initial-pose or --global the first GNSS fix and the IMU
@@ -16,6 +16,9 @@
 // report then also gives the error relative to the map (the truth moved by the rigid transform
 // that best aligns the map's keyframes to their truth), which separates the localiser's error
 // from the map's own absolute error (a simulated map is off by its GNSS origin).
+// --kidnap-at N: the vehicle is carried off at drive scan N to where it is kidnap-distance (50 m)
+// away (the scans in between are skipped, the time continues): the report gives the drive time
+// until the divergence was detected and until a correct re-localisation.
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -31,6 +34,7 @@
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/localization/localizer.h"
+#include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -50,7 +54,8 @@ int usage(const std::string& why) {
                "       | --bag FILE.bag) --output DIR\n"
                "       [--initial-pose x,y,yaw | --initial-pose truth | --global]\n"
                "       [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]\n"
-               "       [--map-truth GT_TUM] [--json] [--cloud-topic T] [--gps-topic T]\n"
+               "       [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]\n"
+               "       [--cloud-topic T] [--gps-topic T]\n"
                "       [--imu-topic T]"
                "       [--ground-truth-topic T] [--base-frame F]\n";
   return 2;
@@ -60,36 +65,28 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-/// Rigid map between two ENU frames anchored at different fixes (p_to = T * p_from), from the
-/// geodetic conversion of the origin and three unit axes 100 m long.
-Eigen::Isometry3d enuToEnu(const EnuConverter& from, const EnuConverter& to) {
-  const auto convert = [&](const Eigen::Vector3d& p) {
-    const Eigen::Vector3d g = from.toGeodetic(p);
-    return to.toEnu(g.x(), g.y(), g.z());
-  };
-  const Eigen::Vector3d o = convert(Eigen::Vector3d::Zero());
-  Eigen::Matrix3d axes;
-  for (int i = 0; i < 3; ++i) axes.col(i) = (convert(100.0 * Eigen::Vector3d::Unit(i)) - o) / 100.0;
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(axes, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = svd.matrixU() * svd.matrixV().transpose();
-  t.translation() = o;
-  return t;
-}
-
-/// The height of the map keyframe nearest to position (2D): the filter does not search in z.
-double heightAt(const MapPackage& map, const Eigen::Vector3d& position) {
-  double best = std::numeric_limits<double>::infinity(), z = 0.0;
-  for (const auto& kf : map.keyframes) {
-    const double d = (kf.pose.translation().head<2>() - position.head<2>()).norm();
-    if (d < best) best = d, z = kf.pose.translation().z();
-  }
-  return z;
-}
-
 double yawOfPose(const Eigen::Isometry3d& pose) {
   const Eigen::Vector3d x = pose.linear().col(0);
   return std::atan2(x.y(), x.x());
+}
+
+/// Every place a global attempt registered, with its error against the truth when known.
+void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocalizationResult& g,
+                      const std::optional<Eigen::Isometry3d>& truth) {
+  if (g.candidates.empty())
+    log << stamp << ' ' << (g.success ? "success" : "failure") << " - - none - - - - - - -\n";
+  for (const GlobalCandidate& c : g.candidates) {
+    double e = std::nan(""), yaw_error = std::nan("");
+    if (truth) {
+      e = (c.pose.translation() - truth->translation()).head<2>().norm();
+      yaw_error =
+          Eigen::AngleAxisd(truth->linear().transpose() * c.pose.linear()).angle() * 180 / M_PI;
+    }
+    log << stamp << ' ' << (g.success ? "success" : "failure") << ' ' << c.keyframe_id << ' '
+        << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' ' << c.overlap << ' '
+        << c.structure_overlap << ' ' << c.pose.translation().x() << ' ' << c.pose.translation().y()
+        << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error << '\n';
+  }
 }
 
 struct RunErrors {
@@ -239,6 +236,24 @@ int main(int argc, char** argv) {
   bool started = false, localized_once = false;
   double prefilter_ms = 0, localize_ms = 0, input_ms = 0;
   size_t wrong_relocalizations = 0;
+  std::ostringstream global_log;
+  global_log << std::setprecision(15)
+             << "# stamp result keyframe descriptor_distance outcome fitness overlap "
+                "structure_overlap x y yaw "
+                "error_m error_yaw_deg (one line per place tried; result: the attempt's answer)\n";
+  bool last_relocalization_correct = false;
+  // Kidnapping (--kidnap-at N): from drive scan N on, the scans are skipped until the vehicle is
+  // --kidnap-distance (50 m) from where it was (straight line, by the truth); later stamps are
+  // shifted back by the skipped time, so the filter sees a continuous drive whose pose jumped.
+  const long kidnap_at = args.count("kidnap-at") ? std::stol(args["kidnap-at"]) : -1;
+  const double kidnap_distance =
+      args.count("kidnap-distance") ? std::stod(args["kidnap-distance"]) : 50.0;
+  bool kidnapping = false, kidnapped = false;
+  Eigen::Vector3d kidnap_from = Eigen::Vector3d::Zero();
+  double kidnap_stamp = 0.0, time_shift = 0.0, kidnap_jump = 0.0;
+  double kidnap_detected_s = -1.0, kidnap_recovered_s = -1.0;
+  size_t kidnap_skipped = 0;
+  bool kidnap_recovered_correct = false;
   DriveScan scan;
   const auto t_run = Clock::now();
   for (size_t i = 0; i < n; ++i) {
@@ -246,6 +261,27 @@ int main(int argc, char** argv) {
     if (!prefetcher.next(scan)) break;
     input_ms += msSince(t0);
     if (i < start) continue;
+    if (kidnap_at >= 0 && !kidnapped && !kidnapping && static_cast<long>(i) == kidnap_at) {
+      if (!scan.truth) {
+        std::cerr << "offline_localization: --kidnap-at needs a drive with ground truth\n";
+        return 1;
+      }
+      kidnapping = true;
+      kidnap_from = scan.truth->translation();
+      kidnap_stamp = scan.stamp;
+    }
+    if (kidnapping) {
+      kidnap_jump = scan.truth ? (scan.truth->translation() - kidnap_from).head<2>().norm() : 0.0;
+      if (kidnap_jump < kidnap_distance) {
+        ++kidnap_skipped;
+        printProgress(i + 1, n);
+        continue;
+      }
+      kidnapping = false;
+      kidnapped = true;
+      time_shift = scan.stamp - kidnap_stamp;
+    }
+    scan.stamp -= time_shift;
     if (!scan.cloud) {
       std::cerr << "\noffline_localization: " << scan.error << " (scan skipped)\n";
       ++skipped;
@@ -268,11 +304,7 @@ int main(int argc, char** argv) {
         char c;
         std::istringstream is(initial);
         is >> x >> c >> y >> c >> yaw;
-        Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-        pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-        pose.translation() = Eigen::Vector3d(x, y, 0.0);
-        pose.translation().z() = heightAt(*map, pose.translation());
-        localizer.setInitialPose(pose, scan.stamp);
+        localizer.setInitialPose(mapPoseFromXyYaw(*map, x, y, yaw), scan.stamp);
       } else if (!global) {
         if (!scan.gnss || !scan.orientation) {
           std::cerr << "offline_localization: the first scan has no GNSS fix and IMU orientation; "
@@ -283,19 +315,24 @@ int main(int argc, char** argv) {
         pose.linear() = scan.orientation->toRotationMatrix();
         pose.translation() = Eigen::Vector3d(scan.gnss->x(), scan.gnss->y(), 0.0);
         pose = drive_to_map * pose;
-        pose.translation().z() = heightAt(*map, pose.translation());
+        pose.translation().z() = mapHeightAt(*map, pose.translation());
         localizer.setInitialPose(pose, scan.stamp);
       }
     }
     t0 = Clock::now();
     const CloudPrefilterResult filtered = prefilter.filter(*scan.cloud);
     prefilter_ms += msSince(t0);
+    const size_t global_attempts_before = localizer.stats().global_attempts;
     t0 = Clock::now();
     const LocalizationOutput out =
         localizer.process(scan.stamp, filtered.cloud,
                           use_imu ? scan.angular_velocity : std::optional<Eigen::Vector3d>());
     localize_ms += msSince(t0);
 
+    if (localizer.stats().global_attempts > global_attempts_before)
+      logGlobalAttempt(
+          global_log, scan.stamp, localizer.lastGlobal(),
+          truth && truth_to_map ? std::optional<Eigen::Isometry3d>(*truth_to_map * *truth) : truth);
     double err_t = std::nan(""), err_yaw = std::nan("");
     if (truth) {
       err_t = (out.pose.translation() - truth->translation()).head<2>().norm();
@@ -327,12 +364,21 @@ int main(int argc, char** argv) {
           check_t = (out.pose.translation() - t.translation()).head<2>().norm();
           check_yaw = Eigen::AngleAxisd(t.linear().transpose() * out.pose.linear()).angle();
         }
-        if (out.status == LocalizationStatus::kRelocalized &&
-            (check_t > 0.5 || check_yaw > 2.0 * M_PI / 180))
-          ++wrong_relocalizations;
+        if (out.status == LocalizationStatus::kRelocalized) {
+          last_relocalization_correct = check_t <= 0.5 && check_yaw <= 2.0 * M_PI / 180;
+          if (!last_relocalization_correct) ++wrong_relocalizations;
+        }
       }
     } else if (out.status == LocalizationStatus::kOffMap) {
       off_map.push_back({scan.stamp, out.pose});
+    }
+    if (kidnapped) {
+      if (out.diverged && kidnap_detected_s < 0.0) kidnap_detected_s = scan.stamp - kidnap_stamp;
+      if (out.status == LocalizationStatus::kRelocalized && kidnap_detected_s >= 0.0 &&
+          kidnap_recovered_s < 0.0) {
+        kidnap_recovered_s = scan.stamp - kidnap_stamp;
+        kidnap_recovered_correct = last_relocalization_correct;
+      }
     }
     status_csv << scan.stamp << ' ' << toString(out.status) << ' ' << out.fitness << ' '
                << out.distance_to_map << ' ' << out.pose.translation().x() << ' '
@@ -349,6 +395,7 @@ int main(int argc, char** argv) {
   ok = ok && writeTumTrajectory(out_dir + "/ground_truth_tum.txt", truth_at_estimate, &error);
   ok = ok && writeTumTrajectory(out_dir + "/off_map_tum.txt", off_map, &error);
   ok = ok && writeFileAtomically(out_dir + "/status.csv", status_csv.str(), &error);
+  ok = ok && writeFileAtomically(out_dir + "/global_attempts.csv", global_log.str(), &error);
 
   const LocalizationStats& s = localizer.stats();
   const double per_scan = scans ? 1.0 / scans : 0.0;
@@ -360,9 +407,17 @@ int main(int argc, char** argv) {
     << ", \"relocalized\": " << s.relocalizations << ", \"divergences\": " << s.divergences
     << ", \"global_attempts\": " << s.global_attempts
     << ", \"global_failures\": " << s.global_failures
+    << ", \"global_descriptor_limit\": " << s.global_descriptor_limit
+    << ", \"global_impostor_pairs\": " << s.global_impostor_pairs
     << ", \"first_localized_scan\": " << (localized_once ? long(first_localized) : -1L)
-    << ", \"wrong_relocalizations\": " << wrong_relocalizations
-    << ", \"error_tracking\": " << tracking_error.json() << ", \"error_all\": " << all_error.json()
+    << ", \"wrong_relocalizations\": " << wrong_relocalizations;
+  if (kidnap_at >= 0)
+    j << ", \"kidnap\": {\"at_scan\": " << kidnap_at << ", \"jump_m\": " << kidnap_jump
+      << ", \"skipped_scans\": " << kidnap_skipped
+      << ", \"detected_after_s\": " << kidnap_detected_s
+      << ", \"recovered_after_s\": " << kidnap_recovered_s
+      << ", \"recovered_correct\": " << (kidnap_recovered_correct ? "true" : "false") << "}";
+  j << ", \"error_tracking\": " << tracking_error.json() << ", \"error_all\": " << all_error.json()
     << ", \"error_tracking_vs_map\": " << tracking_error_map.json()
     << ", \"error_all_vs_map\": " << all_error_map.json() << ", \"timing\": {\"wall_s\": " << wall_s
     << ", \"scans_per_s\": " << (wall_s > 0 ? scans / wall_s : 0.0)
@@ -389,9 +444,15 @@ int main(int argc, char** argv) {
         << s.local_map_builds << " builds, filter " << s.filter_ms * per_scan << ")\n"
         << "  global localisation: " << s.global_attempts << " attempts, " << s.global_failures
         << " failed, " << (s.global_attempts ? s.global_ms / s.global_attempts : 0.0)
-        << " ms each\n"
+        << " ms each; Scan Context limit " << s.global_descriptor_limit << " (from "
+        << s.global_impostor_pairs << " pairs of different places)\n"
         << "  map: " << map->keyframes.size() << " keyframes, " << map->map_cloud->size()
         << " points (loaded in " << load_ms << " ms, localizer ready in " << init_ms << " ms)\n";
+  if (kidnap_at >= 0)
+    table << std::setprecision(2) << "  kidnap at scan " << kidnap_at << " (" << kidnap_jump
+          << " m, " << kidnap_skipped << " scans skipped): detected after " << kidnap_detected_s
+          << " s, re-localised after " << kidnap_recovered_s << " s of drive ("
+          << (kidnap_recovered_correct ? "correct" : "WRONG or none") << ")\n";
   if (tracking_error.n)
     table << std::setprecision(3) << "  error while tracking: mean "
           << tracking_error.sum_t / tracking_error.n << " m, max " << tracking_error.max_t

@@ -149,7 +149,8 @@ std::vector<StageConfig> stages() {
          LocalizationParams p;
          readParams(r, p);
        },
-       {"map_frame", "base_link_frame"}},
+       {"map_frame", "base_link_frame", "odom_frame", "publish_tf", "publish_odom_tf", "use_imu",
+        "imu_max_gap", "map_points_voxel", "warn_throttle_period"}},
   };
 }
 

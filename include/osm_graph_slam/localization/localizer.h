@@ -44,12 +44,23 @@ struct LocalizationParams {
   double init_velocity_std = 5.0;      ///< [m/s] unknown at the start
   double init_rate_std = 0.5;          ///< [rad/s]
   // Global localisation.
-  int global_ring_key_candidates = 30;  ///< nearest ring keys searched
-  int global_candidates = 8;            ///< best Scan Context matches registered
-  double global_max_descriptor_distance = 0.6;
-  double global_max_fitness = 0.25;      ///< [m^2] after the fine registration
-  double global_min_overlap = 0.6;       ///< scan points within overlap_distance of the map
+  int global_ring_key_candidates = 30;          ///< nearest ring keys searched
+  int global_candidates = 8;                    ///< best Scan Context matches registered
+  double global_max_descriptor_distance = 0.6;  ///< upper bound of the limit below
+  /// A candidate's Scan Context distance must be below this quantile of the distances between
+  /// different places of the same map (keyframes global_impostor_distance apart): the rate at
+  /// which another place would pass as this one. Sensor- and map-specific, learnt at load.
+  double global_false_match_rate = 0.01;
+  double global_impostor_distance = 40.0;  ///< [m] keyframes this far apart are other places
+  int global_impostor_pairs = 2000;        ///< sampled keyframe pairs (deterministic)
+  double global_max_fitness = 0.25;        ///< [m^2] after the fine registration
+  /// Of the scan points inside the registered map region: fraction within overlap_distance of
+  /// the map (points beyond the region cannot be explained and do not count)
+  double global_min_overlap = 0.6;
   double global_overlap_distance = 0.6;  ///< [m]
+  /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
+  /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
+  double global_structure_height = 0.5;
   double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
   double global_voxel_size = 1.0;                 ///< [m] coarse source/target voxel
   /// Another candidate more than 2 m away scoring (fitness / overlap) within this factor of the
@@ -78,6 +89,20 @@ struct LocalizationOutput {
   double fitness = -1.0;         ///< of this scan's registration (-1: none)
   double distance_to_map = 0.0;  ///< [m] to the nearest keyframe (2D)
   bool diverged = false;         ///< the filter was declared diverged on this scan
+  /// The filter's predicted motion since the previous scan's estimate (base_link frame): a
+  /// continuous dead reckoning without the map's corrections (the nodelet's odom frame).
+  /// Identity when nothing was predicted (not started, or started on this scan).
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+};
+
+/// One place global localisation considered (for diagnosis and tests).
+struct GlobalCandidate {
+  uint64_t keyframe_id = 0;
+  double descriptor_distance = 1.0;
+  std::string outcome;  ///< coarse_failed | fine_failed | fitness | overlap | passed
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< after registration
+  double fitness = -1.0, overlap = 0.0;
+  double structure_overlap = 0.0;  ///< the overlap of the points above the ground only
 };
 
 struct GlobalLocalizationResult {
@@ -89,6 +114,7 @@ struct GlobalLocalizationResult {
   double overlap = 0.0;
   int candidates_tried = 0;
   std::string message;
+  std::vector<GlobalCandidate> candidates;  ///< every place registered, in the order tried
 };
 
 struct LocalizationStats {
@@ -98,12 +124,17 @@ struct LocalizationStats {
   size_t global_disagreements = 0;  ///< a confirming answer disagreed: searched again
   double registration_ms = 0.0, local_map_ms = 0.0, global_ms = 0.0, filter_ms = 0.0;
   size_t local_map_builds = 0;
+  double global_descriptor_limit = 0.0;  ///< the learnt Scan Context limit (see params)
+  size_t global_impostor_pairs = 0;      ///< the pairs it was learnt from
 };
 
 class Localizer {
  public:
   Localizer(const LocalizationParams& params, std::shared_ptr<const MapPackage> map);
   ~Localizer();
+
+  /// Forgets the pose: the next scan is localised globally (time jumped back, bag replayed).
+  void reset();
 
   /// Starts the filter at a known pose (rviz /initialpose, --initial-pose).
   void setInitialPose(const Eigen::Isometry3d& pose, double stamp);
@@ -116,18 +147,25 @@ class Localizer {
   GlobalLocalizationResult globalLocalize(const PointCloudConstPtr& cloud);
 
   bool initialized() const { return ukf_.initialized(); }
+  const LocalizationParams& params() const { return params_; }
   const LocalizationStats& stats() const { return stats_; }
+  /// The last global localisation attempt (diagnosis).
+  const GlobalLocalizationResult& lastGlobal() const { return last_global_; }
   const PoseUkf& filter() const { return ukf_; }
   /// [m] 2D distance from position to the nearest map keyframe.
   double distanceToMap(const Eigen::Vector3d& position) const;
 
  private:
   struct Impl;
+  GlobalLocalizationResult searchGlobally(const PointCloudConstPtr& cloud);
+  void learnDescriptorLimit();
+  double descriptor_limit_ = 0.6;  ///< learnt at construction
   LocalizationParams params_;
   std::shared_ptr<const MapPackage> map_;
   std::unique_ptr<Impl> impl_;
   PoseUkf ukf_;
   LocalizationStats stats_;
+  GlobalLocalizationResult last_global_;
   double last_stamp_ = 0.0;
   int failures_in_row_ = 0;
   bool searching_ = true;    ///< waiting for a global localisation
