@@ -109,6 +109,7 @@ struct LoopDetector::Query {
   ScanContext descriptor;
   PointCloudConstPtr cloud;
   PointCloudConstPtr coarse_cloud;
+  PointCloudConstPtr fine_cloud;            ///< fine-stage source (fine_query_voxel_size)
   std::vector<Eigen::Vector2f> bev_points;  ///< correlative stage
   bool usable = false;
   std::string problem;
@@ -361,7 +362,7 @@ std::optional<DetectedLoop> LoopDetector::fineStage(
   ++stats_.fine_registrations;
   fine_registration_->setTarget(target.cloud);
   stats_.fine_target_ms += msSince(start);
-  const RegistrationResult fine = fine_registration_->align(query.cloud, guess);
+  const RegistrationResult fine = fine_registration_->align(query.fine_cloud, guess);
   stats_.fine_ms += msSince(start);
   stats_.fine_iterations += fine.iterations;
   outcome.fitness = fine.fitness;
@@ -506,6 +507,9 @@ std::optional<DetectedLoop> LoopDetector::prepareAndVerify(
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const auto start = Clock::now();
   query.cloud = storedCloud(cloud, params_.voxel_size);
+  query.fine_cloud = params_.fine_query_voxel_size > params_.voxel_size
+                         ? downsampleForLoop(*query.cloud, params_.fine_query_voxel_size)
+                         : query.cloud;
   if (useCorrelative(odom_pose)) {
     query.bev_points = bevQueryPoints(*query.cloud, params_.correlative);
   } else {

@@ -36,6 +36,7 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("max_descriptor_distance", p.max_descriptor_distance);
   r.param("verify_odometry_nearest", p.verify_odometry_nearest);
   r.param("voxel_size", p.voxel_size);
+  r.param("fine_query_voxel_size", p.fine_query_voxel_size);
   r.param("min_points", p.min_points);
   r.param("coarse_method", p.coarse_method);
   readCorrelativeParams(PrefixedParamReader(r, "correlative"), p.correlative);

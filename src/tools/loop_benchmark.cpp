@@ -5,19 +5,25 @@
 //     over the whole database vs the ring-key KD-tree retrieval.
 //  2. Precision/recall and per-phase time on a simulated drive with revisits (ray-cast town
 //     with a repetitive facade street, drifting odometry).
-// Usage: loop_benchmark [--json] [--queries N] [--reference-queries N] [--sizes 100,1000,5000]
-//                       [--method fast_gicp] [--reference pcl_gicp|none]
+// Both run with the configured pipeline and, in the same run, with the previous one
+// (--baseline-coarse gicp: coarse GICP stage from two seeds instead of the correlative search).
+// Usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N]
+//                       [--sizes 100,1000,5000] [--method fast_gicp] [--reference pcl_gicp|none]
+//                       [--baseline-coarse gicp|none] [--set key=value ...]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "osm_graph_slam/graph/pose_graph.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/loop_detector.h"
+#include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/loop/synthetic_world.h"
 
 using namespace osm_graph_slam;
@@ -29,10 +35,26 @@ double msSince(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
+/// Detector parameters of a run: defaults, --set overrides, then the variant's coarse method.
+LoopDetectorParams g_params;
+
+LoopDetectorParams paramsFor(const std::string& method, const std::string& coarse) {
+  LoopDetectorParams params = g_params;
+  params.registration.method = method;
+  params.coarse_method = coarse;
+  return params;
+}
+
 struct SizeResult {
   int size = 0;
+  std::string coarse;
   double insert_ms = 0, descriptor_ms = 0, candidates_ms = 0, ranking_ms = 0, verification_ms = 0,
          total_ms = 0;
+  // Parts of verification_ms.
+  double prepare_ms = 0, correlative_ms = 0, coarse_ms = 0, fine_ms = 0, fine_target_ms = 0,
+         overlap_ms = 0;
+  double fine_registrations = 0;
+  int ambiguous = 0;  ///< candidates rejected by the ambiguity test
   double tree_retrieval_ms = 0, brute_retrieval_ms = 0;
   double phase1_mean = 0, phase2_mean = 0, registrations_mean = 0;
   int accepted = 0, correct = 0, queries = 0;
@@ -61,9 +83,7 @@ Eigen::Isometry3d lawnmowerPose(int i) {
 const Eigen::Isometry3d kRevisitOffset = isometryFromPlanar(Pose2(1.0, 0.5, 0.2));
 
 std::unique_ptr<LoopDetector> buildDatabase(int size, const SizeWorkload& w,
-                                            const std::string& method, double* insert_ms) {
-  LoopDetectorParams params;
-  params.registration.method = method;
+                                            const LoopDetectorParams& params, double* insert_ms) {
   auto detector = std::make_unique<LoopDetector>(params, [](LogLevel, const std::string&) {});
   const auto start = Clock::now();
   for (int i = 0; i < size; ++i) {
@@ -102,12 +122,83 @@ bool correctLoop(const DetectedLoop& loop, int target, const SizeWorkload& w) {
          Eigen::AngleAxisd(err.linear()).angle() <= 0.5 * M_PI / 180.0;
 }
 
-SizeResult benchmarkSize(int size, int queries, int reference_queries, const SizeWorkload& w,
-                         const std::string& method, const std::string& reference) {
-  SizeResult out;
-  out.size = size;
-  out.queries = queries;
-  auto detector = buildDatabase(size, w, method, &out.insert_ms);
+/// Prints a wrong loop and every verified candidate (--explain): true vs registered vs odometry.
+void explainWrongLoop(const DetectedLoop& loop, int target, const LoopKeyframe& query,
+                      const LoopDetector& detector, const SizeWorkload& w) {
+  const size_t n = w.pool_poses.size();
+  auto planar = [](const Eigen::Isometry3d& p) {
+    std::ostringstream s;
+    s << "(" << p.translation().x() << ", " << p.translation().y() << ", "
+      << std::atan2(p.linear()(1, 0), p.linear()(0, 0)) * 180.0 / M_PI << " deg)";
+    return s.str();
+  };
+  std::cerr << "wrong loop: query revisits " << target << " (pool " << target % n << "), accepted "
+            << loop.to_id << " (pool " << loop.to_id % n << ") fitness " << loop.fitness
+            << " overlap " << loop.overlap << " descriptor " << loop.descriptor_distance << "\n";
+  for (const auto& o : detector.lastStats().outcomes) {
+    const Eigen::Isometry3d truth =
+        w.pool_poses[o.id % n].inverse() * w.pool_poses[target % n] * kRevisitOffset;
+    const Eigen::Isometry3d odom = detector.entry(o.id).odom_pose.inverse() * query.odom_pose;
+    std::cerr << "  candidate " << o.id << " (pool " << o.id % n << ") " << o.verdict << " desc "
+              << o.descriptor_distance << " coarse " << o.coarse_fitness << " fine " << o.fitness
+              << " overlap " << o.overlap << " registered " << planar(o.transform) << " truth "
+              << planar(truth) << " odometry " << planar(odom) << "\n";
+  }
+}
+
+/// A pipeline configuration measured side by side with the others.
+struct Variant {
+  std::string label;  ///< e.g. the coarse method
+  LoopDetectorParams params;
+};
+
+void addQueryStats(SizeResult& out, const LoopQueryStats& s, bool in_reference_subset) {
+  out.descriptor_ms += s.descriptor_ms;
+  out.candidates_ms += s.candidates_ms;
+  out.ranking_ms += s.ranking_ms;
+  out.verification_ms += s.verification_ms;
+  if (in_reference_subset) out.subset_verification_ms += s.verification_ms;
+  out.prepare_ms += s.prepare_ms;
+  out.correlative_ms += s.correlative_ms;
+  out.coarse_ms += s.coarse_ms;
+  out.fine_ms += s.fine_ms;
+  out.fine_target_ms += s.fine_target_ms;
+  out.overlap_ms += s.overlap_ms;
+  out.fine_registrations += s.fine_registrations;
+  out.ambiguous += s.rejected_ambiguous;
+  out.phase1_mean += s.phase1_candidates;
+  out.phase2_mean += s.phase2_candidates;
+  out.registrations_mean += s.verified;
+}
+
+void averageSizeResult(SizeResult& out, int queries) {
+  for (double* v :
+       {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms,
+        &out.phase1_mean, &out.phase2_mean, &out.registrations_mean, &out.tree_retrieval_ms,
+        &out.brute_retrieval_ms, &out.prepare_ms, &out.correlative_ms, &out.coarse_ms, &out.fine_ms,
+        &out.fine_target_ms, &out.overlap_ms, &out.fine_registrations}) {
+    *v /= queries;
+  }
+  out.total_ms = out.descriptor_ms + out.candidates_ms + out.ranking_ms + out.verification_ms;
+}
+
+/// Every variant answers the same queries, interleaved query by query (alternating which goes
+/// first) so that the load of the shared machine falls on all of them alike. The first variant
+/// is the configured pipeline: the place-recognition retrieval and the back-end reference are
+/// measured for it only.
+std::vector<SizeResult> benchmarkSize(int size, int queries, int reference_queries,
+                                      const SizeWorkload& w, const std::vector<Variant>& variants,
+                                      const std::string& reference, bool explain) {
+  std::vector<SizeResult> results(variants.size());
+  std::vector<std::unique_ptr<LoopDetector>> detectors;
+  for (size_t v = 0; v < variants.size(); ++v) {
+    results[v].size = size;
+    results[v].coarse = variants[v].label;
+    results[v].queries = queries;
+    detectors.push_back(buildDatabase(size, w, variants[v].params, &results[v].insert_ms));
+  }
+  SizeResult& out = results.front();
+  LoopDetector* detector = detectors.front().get();
   const LoopDetectorParams& params = detector->params();
   std::mt19937 rng(1);
   std::uniform_int_distribution<int> pick(0, size - 1);
@@ -115,19 +206,16 @@ SizeResult benchmarkSize(int size, int queries, int reference_queries, const Siz
   for (int q = 0; q < queries; ++q) targets.push_back(pick(rng));
   for (int q = 0; q < queries; ++q) {
     const LoopKeyframe kf = revisitQuery(size, q, targets[q], w);
-    const auto loop = detector->detect(kf);
-    const LoopQueryStats& s = detector->lastStats();
-    out.descriptor_ms += s.descriptor_ms;
-    out.candidates_ms += s.candidates_ms;
-    out.ranking_ms += s.ranking_ms;
-    out.verification_ms += s.verification_ms;
-    if (q < reference_queries) out.subset_verification_ms += s.verification_ms;
-    out.phase1_mean += s.phase1_candidates;
-    out.phase2_mean += s.phase2_candidates;
-    out.registrations_mean += s.verified;
-    if (loop) {
-      ++out.accepted;
-      out.correct += correctLoop(*loop, targets[q], w);
+    for (size_t k = 0; k < variants.size(); ++k) {
+      const size_t v = (q % 2 == 0) ? k : variants.size() - 1 - k;
+      const auto loop = detectors[v]->detect(kf);
+      addQueryStats(results[v], detectors[v]->lastStats(), q < reference_queries);
+      if (loop) {
+        ++results[v].accepted;
+        const bool ok = correctLoop(*loop, targets[q], w);
+        results[v].correct += ok;
+        if (!ok && explain) explainWrongLoop(*loop, targets[q], kf, *detectors[v], w);
+      }
     }
     // Place-recognition retrieval: ring-key tree vs brute force over every keyframe.
     const ScanContext sc = computeScanContext(*kf.cloud, params.scan_context);
@@ -143,16 +231,13 @@ SizeResult benchmarkSize(int size, int queries, int reference_queries, const Siz
     out.brute_retrieval_ms += msSince(start);
     if (best > 1.5 || ranked.size() > 1000) std::cerr << "unexpected\n";
   }
-  for (double* v : {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms,
-                    &out.phase1_mean, &out.phase2_mean, &out.registrations_mean,
-                    &out.tree_retrieval_ms, &out.brute_retrieval_ms}) {
-    *v /= queries;
-  }
-  out.total_ms = out.descriptor_ms + out.candidates_ms + out.ranking_ms + out.verification_ms;
+  for (auto& r : results) averageSizeResult(r, queries);
+  detectors.clear();
   out.reference_queries = std::min(reference_queries, queries);
   if (reference != "none" && out.reference_queries > 0) {
-    detector.reset();
-    auto ref = buildDatabase(size, w, reference, nullptr);
+    LoopDetectorParams ref_params = variants.front().params;
+    ref_params.registration.method = reference;
+    auto ref = buildDatabase(size, w, ref_params, nullptr);
     for (int q = 0; q < out.reference_queries; ++q) {
       ref->detect(revisitQuery(size, q, targets[q], w));
       out.reference_verification_ms += ref->lastStats().verification_ms;
@@ -160,11 +245,13 @@ SizeResult benchmarkSize(int size, int queries, int reference_queries, const Siz
     out.reference_verification_ms /= out.reference_queries;
     out.subset_verification_ms /= out.reference_queries;
   }
-  return out;
+  return results;
 }
 
 struct DriveResult {
-  std::string method;
+  std::string method, coarse;
+  int ambiguous = 0;
+  double prepare_ms_per_query = 0, correlative_ms_per_query = 0;
   int keyframes = 0, revisits = 0, found = 0, accepted = 0, correct = 0;
   double precision = 0, recall = 0, max_error_m = 0, max_error_deg = 0;
   double descriptor_ms = 0, candidates_ms = 0, ranking_ms = 0, verification_ms = 0;
@@ -211,48 +298,49 @@ Drive makeDrive() {
   return d;
 }
 
-DriveResult benchmarkDrive(const Drive& d, const std::string& method) {
-  DriveResult out;
-  out.method = method;
-  LoopDetectorParams params;
-  params.registration.method = method;
-  LoopDetector detector(params, [](LogLevel, const std::string&) {});
-  for (size_t i = 0; i < d.keyframes.size(); ++i) {
-    const double s = d.keyframes[i].accum_distance;
-    const auto loop = detector.process(d.keyframes[i]);
-    const auto& st = detector.lastStats();
-    out.descriptor_ms += st.descriptor_ms;
-    out.candidates_ms += st.candidates_ms;
-    out.ranking_ms += st.ranking_ms;
-    out.verification_ms += st.verification_ms;
-    if (st.verified > 0) {
-      out.verification_ms_per_query += st.verification_ms;
-      out.registrations_per_query += st.verified;
-      out.coarse_ms_per_query += st.coarse_ms;
-      out.fine_ms_per_query += st.fine_ms;
-      out.overlap_ms_per_query += st.overlap_ms;
-      ++out.verified_queries;
-    }
-    bool revisit = false;
-    for (size_t j = 0; j < i && s - d.keyframes[j].accum_distance >= params.min_accum_distance_gap;
-         ++j) {
-      if ((d.truth[i].translation() - d.truth[j].translation()).norm() <= 5.0) revisit = true;
-    }
-    out.revisits += revisit;
-    if (loop) {
-      ++out.accepted;
-      const Eigen::Isometry3d err =
-          (d.truth[loop->to_id].inverse() * d.truth[i]).inverse() * loop->relative_pose;
-      const double et = err.translation().norm();
-      const double er = Eigen::AngleAxisd(err.linear()).angle() * 180.0 / M_PI;
-      out.max_error_m = std::max(out.max_error_m, et);
-      out.max_error_deg = std::max(out.max_error_deg, er);
-      const bool correct = et <= 0.10 && er <= 0.5;
-      out.correct += correct;
-      out.found += revisit && correct;
-    }
+/// Accumulates one keyframe's outcome of a variant.
+void addDriveKeyframe(DriveResult& out, const Drive& d, size_t i, const LoopQueryStats& st,
+                      const std::optional<DetectedLoop>& loop, double min_gap, bool explain) {
+  const double s = d.keyframes[i].accum_distance;
+  out.descriptor_ms += st.descriptor_ms;
+  out.candidates_ms += st.candidates_ms;
+  out.ranking_ms += st.ranking_ms;
+  out.verification_ms += st.verification_ms;
+  if (st.verified > 0) {
+    out.verification_ms_per_query += st.verification_ms;
+    out.registrations_per_query += st.verified;
+    out.coarse_ms_per_query += st.coarse_ms;
+    out.fine_ms_per_query += st.fine_ms;
+    out.overlap_ms_per_query += st.overlap_ms;
+    out.prepare_ms_per_query += st.prepare_ms;
+    out.correlative_ms_per_query += st.correlative_ms;
+    ++out.verified_queries;
   }
-  out.keyframes = static_cast<int>(d.keyframes.size());
+  out.ambiguous += st.rejected_ambiguous;
+  bool revisit = false;
+  for (size_t j = 0; j < i && s - d.keyframes[j].accum_distance >= min_gap; ++j) {
+    if ((d.truth[i].translation() - d.truth[j].translation()).norm() <= 5.0) revisit = true;
+  }
+  out.revisits += revisit;
+  if (!loop) return;
+  ++out.accepted;
+  const Eigen::Isometry3d err =
+      (d.truth[loop->to_id].inverse() * d.truth[i]).inverse() * loop->relative_pose;
+  const double et = err.translation().norm();
+  const double er = Eigen::AngleAxisd(err.linear()).angle() * 180.0 / M_PI;
+  out.max_error_m = std::max(out.max_error_m, et);
+  out.max_error_deg = std::max(out.max_error_deg, er);
+  const bool correct = et <= 0.10 && er <= 0.5;
+  out.correct += correct;
+  if (!correct && explain) {
+    std::cerr << "drive [" << out.coarse << "]: wrong loop " << i << " -> " << loop->to_id
+              << " error " << et << " m " << er << " deg\n";
+  }
+  out.found += revisit && correct;
+}
+
+void averageDriveResult(DriveResult& out, int keyframes) {
+  out.keyframes = keyframes;
   out.precision = out.accepted ? static_cast<double>(out.correct) / out.accepted : 1.0;
   out.recall = out.revisits ? static_cast<double>(out.found) / out.revisits : 1.0;
   for (double* v :
@@ -260,57 +348,87 @@ DriveResult benchmarkDrive(const Drive& d, const std::string& method) {
     *v /= out.keyframes;
   }
   if (out.verified_queries) {
-    for (double* v :
-         {&out.verification_ms_per_query, &out.registrations_per_query, &out.coarse_ms_per_query,
-          &out.fine_ms_per_query, &out.overlap_ms_per_query}) {
+    for (double* v : {&out.verification_ms_per_query, &out.registrations_per_query,
+                      &out.coarse_ms_per_query, &out.fine_ms_per_query, &out.overlap_ms_per_query,
+                      &out.prepare_ms_per_query, &out.correlative_ms_per_query}) {
       *v /= out.verified_queries;
     }
   }
-  return out;
+}
+
+/// The drive through every variant in lockstep (keyframe by keyframe, alternating the order).
+std::vector<DriveResult> benchmarkDrive(const Drive& d, const std::vector<Variant>& variants,
+                                        bool explain) {
+  std::vector<DriveResult> results(variants.size());
+  std::vector<std::unique_ptr<LoopDetector>> detectors;
+  for (size_t v = 0; v < variants.size(); ++v) {
+    results[v].method = variants[v].params.registration.method;
+    results[v].coarse = variants[v].label;
+    detectors.push_back(
+        std::make_unique<LoopDetector>(variants[v].params, [](LogLevel, const std::string&) {}));
+  }
+  for (size_t i = 0; i < d.keyframes.size(); ++i) {
+    for (size_t k = 0; k < variants.size(); ++k) {
+      const size_t v = (i % 2 == 0) ? k : variants.size() - 1 - k;
+      const auto loop = detectors[v]->process(d.keyframes[i]);
+      addDriveKeyframe(results[v], d, i, detectors[v]->lastStats(), loop,
+                       variants[v].params.min_accum_distance_gap, explain);
+    }
+  }
+  for (auto& r : results) averageDriveResult(r, static_cast<int>(d.keyframes.size()));
+  return results;
 }
 
 void printDrive(const DriveResult& d) {
   std::printf(
-      "drive [%s]: %d keyframes, %d revisits, %d accepted (%d correct), precision %.3f, recall "
-      "%.3f (%d/%d), max error %.4f m %.3f deg | per keyframe: descriptor %.3f, candidates "
-      "%.3f, ranking %.3f, verification %.2f ms | per verified keyframe (%d): %.2f ms (coarse "
-      "%.2f, fine %.2f, overlap %.2f), %.1f candidate/seed pairs\n",
-      d.method.c_str(), d.keyframes, d.revisits, d.accepted, d.correct, d.precision, d.recall,
-      d.found, d.revisits, d.max_error_m, d.max_error_deg, d.descriptor_ms, d.candidates_ms,
-      d.ranking_ms, d.verification_ms, d.verified_queries, d.verification_ms_per_query,
+      "drive [%s, coarse %s]: %d keyframes, %d revisits, %d accepted (%d correct), precision "
+      "%.3f, recall %.3f (%d/%d), max error %.4f m %.3f deg, %d ambiguous rejected | per "
+      "keyframe: descriptor %.3f, candidates %.3f, ranking %.3f, verification %.2f ms | per "
+      "verified keyframe (%d): %.2f ms (prepare %.2f, correlative %.2f, coarse gicp %.2f, fine "
+      "%.2f, overlap %.2f), %.1f candidate/seed pairs\n",
+      d.method.c_str(), d.coarse.c_str(), d.keyframes, d.revisits, d.accepted, d.correct,
+      d.precision, d.recall, d.found, d.revisits, d.max_error_m, d.max_error_deg, d.ambiguous,
+      d.descriptor_ms, d.candidates_ms, d.ranking_ms, d.verification_ms, d.verified_queries,
+      d.verification_ms_per_query, d.prepare_ms_per_query, d.correlative_ms_per_query,
       d.coarse_ms_per_query, d.fine_ms_per_query, d.overlap_ms_per_query,
       d.registrations_per_query);
 }
 
 void printDriveJson(const DriveResult& d) {
   std::printf(
-      "{\"method\":\"%s\",\"keyframes\":%d,\"revisits\":%d,\"accepted\":%d,\"correct\":%d,"
+      "{\"method\":\"%s\",\"coarse\":\"%s\",\"ambiguous\":%d,\"keyframes\":%d,\"revisits\":%d,"
+      "\"accepted\":%d,\"correct\":%d,"
       "\"found\":%d,\"precision\":%.4f,\"recall\":%.4f,\"max_error_m\":%.5f,"
       "\"max_error_deg\":%.4f,\"descriptor_ms\":%.4f,\"candidates_ms\":%.4f,\"ranking_ms\":%.4f,"
       "\"verification_ms_per_keyframe\":%.3f,\"verification_ms_per_verified_keyframe\":%.3f,"
       "\"coarse_ms_per_verified_keyframe\":%.3f,\"fine_ms_per_verified_keyframe\":%.3f,"
       "\"overlap_ms_per_verified_keyframe\":%.3f,"
       "\"registrations_per_verified_keyframe\":%.2f,\"verified_keyframes\":%d}",
-      d.method.c_str(), d.keyframes, d.revisits, d.accepted, d.correct, d.found, d.precision,
-      d.recall, d.max_error_m, d.max_error_deg, d.descriptor_ms, d.candidates_ms, d.ranking_ms,
-      d.verification_ms, d.verification_ms_per_query, d.coarse_ms_per_query, d.fine_ms_per_query,
-      d.overlap_ms_per_query, d.registrations_per_query, d.verified_queries);
+      d.method.c_str(), d.coarse.c_str(), d.ambiguous, d.keyframes, d.revisits, d.accepted,
+      d.correct, d.found, d.precision, d.recall, d.max_error_m, d.max_error_deg, d.descriptor_ms,
+      d.candidates_ms, d.ranking_ms, d.verification_ms, d.verification_ms_per_query,
+      d.coarse_ms_per_query, d.fine_ms_per_query, d.overlap_ms_per_query, d.registrations_per_query,
+      d.verified_queries);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool json = false;
+  bool json = false, explain = false;
   int queries = 20, reference_queries = 5;
-  std::string method = "fast_gicp", reference = "pcl_gicp";
+  std::string method = "fast_gicp", reference = "pcl_gicp", baseline = "gicp";
   std::vector<int> sizes = {100, 1000, 5000};
+  std::string overrides, baseline_overrides;  // --set / --baseline-set key=value as YAML
   const char* usage =
-      "usage: loop_benchmark [--json] [--queries N] [--reference-queries N] [--sizes "
-      "100,1000,5000] [--method fast_gicp|fast_vgicp|pcl_gicp|pcl_ndt] [--reference M|none]\n";
+      "usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N] [--sizes "
+      "100,1000,5000] [--method fast_gicp|fast_vgicp|pcl_gicp|pcl_ndt] [--reference M|none] "
+      "[--baseline-coarse gicp|correlative|none] [--set key=value]...\n";
   for (int i = 1; i < argc; ++i) {
     const bool has_value = i + 1 < argc;
     if (!std::strcmp(argv[i], "--json")) {
       json = true;
+    } else if (!std::strcmp(argv[i], "--explain")) {
+      explain = true;
     } else if (!std::strcmp(argv[i], "--queries") && has_value) {
       queries = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--reference-queries") && has_value) {
@@ -319,6 +437,22 @@ int main(int argc, char** argv) {
       method = argv[++i];
     } else if (!std::strcmp(argv[i], "--reference") && has_value) {
       reference = argv[++i];
+    } else if (!std::strcmp(argv[i], "--baseline-coarse") && has_value) {
+      baseline = argv[++i];
+    } else if ((!std::strcmp(argv[i], "--set") || !std::strcmp(argv[i], "--baseline-set")) &&
+               has_value) {
+      std::string& target = !std::strcmp(argv[i], "--set") ? overrides : baseline_overrides;
+      const std::string kv = argv[++i];
+      const size_t eq = kv.find('=');
+      if (eq == std::string::npos) {
+        std::cerr << usage;
+        return 2;
+      }
+      const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
+      const size_t slash = key.find('/');
+      target += slash == std::string::npos
+                    ? key + ": " + value + "\n"
+                    : key.substr(0, slash) + ": {" + key.substr(slash + 1) + ": " + value + "}\n";
     } else if (!std::strcmp(argv[i], "--sizes") && has_value) {
       sizes.clear();
       std::stringstream ss(argv[++i]);
@@ -329,10 +463,29 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  std::vector<Variant> variants;
+  if (!overrides.empty()) {
+    const YamlParamReader yaml = YamlParamReader::fromString(overrides);
+    if (!yaml.ok()) {
+      std::cerr << "--set: " << yaml.error() << "\n" << usage;
+      return 2;
+    }
+    readParams(yaml, g_params);
+  }
+  variants.push_back({g_params.coarse_method, paramsFor(method, g_params.coarse_method)});
+  const std::string coarse = g_params.coarse_method;
+  if (baseline == coarse && baseline_overrides.empty()) baseline = "none";
   try {
     for (const auto& m : {method, reference}) {
       if (m != "none") createRegistration(RegistrationParams{m});
     }
+    if (baseline != "none") {
+      LoopDetectorParams b = paramsFor(method, baseline);
+      if (!baseline_overrides.empty())
+        readParams(YamlParamReader::fromString(baseline_overrides), b);
+      variants.push_back({baseline_overrides.empty() ? baseline : "baseline", b});
+    }
+    for (const auto& v : variants) LoopDetector check(v.params);
   } catch (const std::exception& e) {
     std::cerr << e.what() << "\n" << usage;
     return 2;
@@ -356,39 +509,61 @@ int main(int argc, char** argv) {
                                                      SyntheticLidarParams(), 1000 + i));
   }
   std::vector<SizeResult> results;
+  auto printSize = [&](const SizeResult& r) {
+    std::printf(
+        "db %5d keyframes [%s, coarse %s]: insert %.3f ms | per query: descriptor %.3f, "
+        "candidates %.3f (%.0f), ranking %.3f (%.1f), verification %.2f (%.1f pairs; prepare "
+        "%.2f, correlative %.2f, coarse gicp %.2f, fine %.2f of which target %.2f (%.1f), "
+        "overlap %.2f), total %.2f ms, correct %d/%d (accepted %d), %d ambiguous rejected | "
+        "place recognition: tree %.3f ms, brute force %.3f ms, ratio %.1f",
+        r.size, method.c_str(), r.coarse.c_str(), r.insert_ms, r.descriptor_ms, r.candidates_ms,
+        r.phase1_mean, r.ranking_ms, r.phase2_mean, r.verification_ms, r.registrations_mean,
+        r.prepare_ms, r.correlative_ms, r.coarse_ms, r.fine_ms, r.fine_target_ms,
+        r.fine_registrations, r.overlap_ms, r.total_ms, r.correct, r.queries, r.accepted,
+        r.ambiguous, r.tree_retrieval_ms, r.brute_retrieval_ms,
+        r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms));
+    if (r.reference_verification_ms > 0) {
+      std::printf(" | verification on %d queries: %s %.2f ms vs %s %.2f ms, ratio %.1fx",
+                  r.reference_queries, reference.c_str(), r.reference_verification_ms,
+                  method.c_str(), r.subset_verification_ms,
+                  r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
+    }
+    std::printf("\n");
+    std::fflush(stdout);
+  };
   for (int size : sizes) {
-    results.push_back(benchmarkSize(size, queries, reference_queries, w, method, reference));
-    const auto& r = results.back();
-    if (!json) {
-      std::printf(
-          "db %5d keyframes [%s]: insert %.3f ms | per query: descriptor %.3f, candidates %.3f "
-          "(%.0f), ranking %.3f (%.1f), verification %.2f (%.1f registrations), total %.2f ms, "
-          "correct %d/%d (accepted %d) | place recognition: tree %.3f ms, brute force %.3f ms, "
-          "ratio %.1f",
-          r.size, method.c_str(), r.insert_ms, r.descriptor_ms, r.candidates_ms, r.phase1_mean,
-          r.ranking_ms, r.phase2_mean, r.verification_ms, r.registrations_mean, r.total_ms,
-          r.correct, r.queries, r.accepted, r.tree_retrieval_ms, r.brute_retrieval_ms,
-          r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms));
-      if (r.reference_verification_ms > 0) {
-        std::printf(" | verification on %d queries: %s %.2f ms vs %s %.2f ms, ratio %.1fx",
-                    r.reference_queries, reference.c_str(), r.reference_verification_ms,
-                    method.c_str(), r.subset_verification_ms,
-                    r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
-      }
-      std::printf("\n");
-      std::fflush(stdout);
+    const auto measured =
+        benchmarkSize(size, queries, reference_queries, w, variants, reference, explain);
+    for (const auto& r : measured) {
+      results.push_back(r);
+      if (!json) printSize(r);
+    }
+    if (!json && measured.size() > 1) {
+      std::printf("db %5d keyframes: total per query %s / %s = %.2fx (same run, interleaved)\n",
+                  size, measured[1].coarse.c_str(), measured[0].coarse.c_str(),
+                  measured[1].total_ms / std::max(1e-9, measured[0].total_ms));
     }
   }
   const Drive drive = makeDrive();
-  std::vector<DriveResult> drives = {benchmarkDrive(drive, method)};
-  if (!json) printDrive(drives.back());
+  std::vector<DriveResult> drives = benchmarkDrive(drive, variants, explain);
+  if (!json) {
+    for (const auto& r : drives) printDrive(r);
+    if (drives.size() > 1) {
+      std::printf("drive verification per verified keyframe: %s / %s = %.2fx (same run)\n",
+                  drives[1].coarse.c_str(), drives[0].coarse.c_str(),
+                  drives[1].verification_ms_per_query /
+                      std::max(1e-9, drives[0].verification_ms_per_query));
+    }
+  }
   if (reference != "none") {
-    drives.push_back(benchmarkDrive(drive, reference));
+    Variant ref = variants.front();
+    ref.params.registration.method = reference;
+    drives.push_back(benchmarkDrive(drive, {ref}, explain).front());
     if (!json) {
       printDrive(drives.back());
       std::printf("drive verification per verified keyframe: %s / %s = %.1fx\n", reference.c_str(),
                   method.c_str(),
-                  drives[1].verification_ms_per_query /
+                  drives.back().verification_ms_per_query /
                       std::max(1e-9, drives[0].verification_ms_per_query));
     }
   }
@@ -398,18 +573,22 @@ int main(int argc, char** argv) {
   for (size_t i = 0; i < results.size(); ++i) {
     const auto& r = results[i];
     std::printf(
-        "%s{\"keyframes\":%d,\"insert_ms\":%.4f,\"descriptor_ms\":%.4f,\"candidates_ms\":%.4f,"
+        "%s{\"keyframes\":%d,\"coarse\":\"%s\",\"ambiguous\":%d,\"prepare_ms\":%.4f,"
+        "\"correlative_ms\":%.4f,\"coarse_gicp_ms\":%.4f,\"fine_ms\":%.4f,"
+        "\"fine_target_ms\":%.4f,\"overlap_ms\":%.4f,\"insert_ms\":%.4f,\"descriptor_ms\":%.4f,"
+        "\"candidates_ms\":%.4f,"
         "\"phase1_candidates\":%.1f,\"ranking_ms\":%.4f,\"phase2_candidates\":%.2f,"
         "\"registrations\":%.2f,\"verification_ms\":%.3f,\"total_ms\":%.3f,\"queries\":%d,"
         "\"accepted\":%d,\"correct\":%d,\"tree_retrieval_ms\":%.4f,"
         "\"brute_force_retrieval_ms\":%.4f,\"ratio_brute_over_tree\":%.2f,"
         "\"reference_queries\":%d,\"reference_verification_ms\":%.3f,"
         "\"subset_verification_ms\":%.3f,\"ratio_reference_over_method\":%.2f}",
-        i ? "," : "", r.size, r.insert_ms, r.descriptor_ms, r.candidates_ms, r.phase1_mean,
-        r.ranking_ms, r.phase2_mean, r.registrations_mean, r.verification_ms, r.total_ms, r.queries,
-        r.accepted, r.correct, r.tree_retrieval_ms, r.brute_retrieval_ms,
-        r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms), r.reference_queries,
-        r.reference_verification_ms, r.subset_verification_ms,
+        i ? "," : "", r.size, r.coarse.c_str(), r.ambiguous, r.prepare_ms, r.correlative_ms,
+        r.coarse_ms, r.fine_ms, r.fine_target_ms, r.overlap_ms, r.insert_ms, r.descriptor_ms,
+        r.candidates_ms, r.phase1_mean, r.ranking_ms, r.phase2_mean, r.registrations_mean,
+        r.verification_ms, r.total_ms, r.queries, r.accepted, r.correct, r.tree_retrieval_ms,
+        r.brute_retrieval_ms, r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms),
+        r.reference_queries, r.reference_verification_ms, r.subset_verification_ms,
         r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
   }
   std::printf("],\"drive\":[");

@@ -47,7 +47,10 @@ struct LoopDetectorParams {
 
   // Phase 3: verification.
   double voxel_size = 0.6;  ///< [m] downsampling of the stored clouds (0 = none)
-  int min_points = 200;     ///< keyframes with fewer points are stored without cloud
+  /// [m] the query's cloud in the fine stage (source; <= voxel_size: the stored resolution).
+  /// The target keeps voxel_size, and the overlap is measured at voxel_size.
+  double fine_query_voxel_size = 0.0;
+  int min_points = 200;  ///< keyframes with fewer points are stored without cloud
   /// Coarse stage with odometry: "correlative" (BEV search over the odometry tolerance window +
   /// ambiguity test) | "gicp" (coarse GICP from the odometry and zero-translation seeds).
   /// Without odometry (relocalize) the coarse GICP stage is used in both cases.
