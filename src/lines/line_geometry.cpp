@@ -31,14 +31,6 @@ std::vector<Ray> raysAt(double s, double len, const Eigen::Vector2d& d, double t
 
 }  // namespace
 
-double pointSegmentDistance(const Eigen::Vector2d& p, const LineSegment2& s) {
-  const Eigen::Vector2d d = s.end - s.start;
-  const double l2 = d.squaredNorm();
-  if (l2 <= 0.0) return (p - s.start).norm();
-  const double t = std::clamp((p - s.start).dot(d) / l2, 0.0, 1.0);
-  return (p - (s.start + t * d)).norm();
-}
-
 double segmentDistanceNoCoverage(const LineSegment2& source, const LineSegment2& target) {
   return 0.5 *
          (pointSegmentDistance(source.start, target) + pointSegmentDistance(source.end, target));
@@ -122,19 +114,6 @@ std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, co
   return edges;
 }
 
-std::vector<LineSegment2> polygonSegments(const Polygon2& polygon) {
-  std::vector<LineSegment2> out;
-  const size_t n = polygon.size();
-  if (n < 2) return out;
-  for (size_t i = 0; i < n; ++i) {
-    if (n == 2 && i == 1) break;  // an open two-point "polygon" is one wall
-    const Eigen::Vector2d& a = polygon[i];
-    const Eigen::Vector2d& b = polygon[(i + 1) % n];
-    if ((b - a).norm() > 1e-9) out.emplace_back(a, b);
-  }
-  return out;
-}
-
 double polygonOverlapArea(const Polygon2& a, const Polygon2& b) {
   namespace bg = boost::geometry;
   using Point = bg::model::d2::point_xy<double>;
@@ -165,22 +144,6 @@ double polygonOverlapArea(const Polygon2& a, const Polygon2& b) {
   }
 }
 
-double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& polygon) {
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i < polygon.size(); ++i) {
-    const LineSegment2 edge(polygon[i], polygon[(i + 1) % polygon.size()]);
-    best = std::min(best, pointSegmentDistance(p, edge));
-  }
-  return best;
-}
-
-Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T) {
-  Polygon2 out;
-  out.reserve(polygon.size());
-  for (const auto& v : polygon) out.push_back(T.transform(v));
-  return out;
-}
-
 namespace {
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
@@ -209,16 +172,6 @@ bool rayBlocked(const Eigen::Vector2d& from, const Eigen::Vector2d& to, const Po
 }
 
 }  // namespace
-
-double polygonSignedArea(const Polygon2& p) {
-  double a = 0.0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    const Eigen::Vector2d& u = p[i];
-    const Eigen::Vector2d& v = p[(i + 1) % p.size()];
-    a += u.x() * v.y() - v.x() * u.y();
-  }
-  return 0.5 * a;
-}
 
 std::vector<std::pair<size_t, size_t>> nearbyPolygonPairs(
     const std::vector<const Polygon2*>& polygons, double margin) {

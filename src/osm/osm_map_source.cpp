@@ -5,33 +5,12 @@
 #include <cmath>
 #include <sstream>
 
+#include "osm_graph_slam/common/polygon2d.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 
 namespace osm_graph_slam {
 namespace {
-
-double segmentDistance(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                       const Eigen::Vector2d& p) {
-  const Eigen::Vector2d ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
-
-bool insideOutline(const Polygon2& outline, const Eigen::Vector2d& p) {
-  bool inside = false;
-  const size_t n = outline.size();
-  for (size_t i = 0, j = n - 1; i < n; j = i++) {
-    const Eigen::Vector2d& a = outline[i];
-    const Eigen::Vector2d& b = outline[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-      inside = !inside;
-    }
-  }
-  return inside;
-}
 
 /// Equirectangular distance: only for coarse rejection (error well below 1 % within 100 km).
 double approxDistance(const GeoPoint& a, const GeoPoint& b) {
@@ -45,12 +24,8 @@ double approxDistance(const GeoPoint& a, const GeoPoint& b) {
 
 double outlineDistance(const Polygon2& outline, const Eigen::Vector2d& p) {
   if (outline.empty()) return std::numeric_limits<double>::infinity();
-  if (outline.size() >= 3 && insideOutline(outline, p)) return 0.0;
-  double best = (outline.front() - p).norm();
-  for (size_t i = 0; i < outline.size(); ++i) {
-    best = std::min(best, segmentDistance(outline[i], outline[(i + 1) % outline.size()], p));
-  }
-  return best;
+  if (outline.size() >= 3 && pointInPolygon(p, outline)) return 0.0;
+  return distanceToPolygon(p, outline);
 }
 
 // --- Overpass -------------------------------------------------------------------------------

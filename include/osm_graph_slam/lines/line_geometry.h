@@ -1,15 +1,14 @@
 #pragma once
 // Line-segment geometry of the line matcher (OSM thesis §3.3.1, §3.3.4): segment distances with
-// and without coverage, angular and virtual edges, polygon outlines and their overlap.
+// and without coverage, angular and virtual edges, polygon overlap, visibility. Plain polygon
+// geometry (distances, segments, transforms) is in common/polygon2d.h.
 #include <utility>
 #include <vector>
 
 #include "osm_graph_slam/common/geometry2d.h"
+#include "osm_graph_slam/common/polygon2d.h"
 
 namespace osm_graph_slam {
-
-/// Distance of point p to the segment s (to its nearest point).
-double pointSegmentDistance(const Eigen::Vector2d& p, const LineSegment2& s);
 
 /// Line-to-line distance without coverage (§3.3.4, fig. 3.8a): mean distance of the two source
 /// endpoints to the target segment (projection when inside it, else its nearest endpoint).
@@ -47,19 +46,8 @@ struct EdgeParams {
 /// an edge for each side of that segment.
 std::vector<LineEdge> extractEdges(const std::vector<LineSegment2>& segments, const EdgeParams& p);
 
-/// Distance from p to the nearest edge of a closed polygon (0 only on an edge, not inside).
-double distanceToPolygon(const Eigen::Vector2d& p, const Polygon2& polygon);
-
-/// The closed outline of a polygon as segments.
-std::vector<LineSegment2> polygonSegments(const Polygon2& polygon);
-
 /// Area of the intersection of two simple polygons [m^2] (either orientation).
 double polygonOverlapArea(const Polygon2& a, const Polygon2& b);
-
-Polygon2 transformPolygon(const Polygon2& polygon, const Pose2& T);
-
-/// Signed area [m^2]: positive for a counter-clockwise ring (outside is then to the right).
-double polygonSignedArea(const Polygon2& polygon);
 
 /// Pairs (i < j, sorted) of polygons whose bounding boxes, grown by margin [m], intersect: the
 /// candidates for overlap and contact tests. A sweep along x, so a city of thousands of
