@@ -138,8 +138,7 @@ PointCloudPtr CloudPrefilter::removeOutliers(const PointCloudConstPtr& cloud,
                                              bool parallel_octants) const {
   if (!cloud || cloud->empty()) return cloud ? emptyLike(*cloud) : PointCloudPtr(new PointCloud);
   if (params_.outlier_method != "statistical" && params_.radius_backend == "grid")
-    return radiusOutlierRemovalGrid(*cloud, params_.radius_search, params_.radius_min_neighbors,
-                                    params_.num_threads);
+    return removeOutliersGrid(cloud, parallel_octants);
   return parallel_octants ? removeOutliersOctants(cloud) : removeOutliersWhole(cloud);
 }
 
@@ -176,17 +175,55 @@ PointCloudPtr CloudPrefilter::removeOutliersWhole(const PointCloudConstPtr& clou
   return out;
 }
 
-PointCloudPtr CloudPrefilter::removeOutliersOctants(const PointCloudConstPtr& cloud) const {
-  // Split at the per-axis medians so that the octants carry similar loads.
+namespace {
+
+/// The octants' common corner: the per-axis medians, so that the octants carry similar loads.
+Eigen::Vector3f octantCenter(const PointCloud& cloud) {
   std::array<std::vector<float>, 3> coords;
-  for (auto& c : coords) c.reserve(cloud->size());
-  for (const auto& p : cloud->points) {
+  for (auto& c : coords) c.reserve(cloud.size());
+  for (const auto& p : cloud.points) {
     coords[0].push_back(p.x);
     coords[1].push_back(p.y);
     coords[2].push_back(p.z);
   }
-  const Eigen::Vector3f center(medianOf(std::move(coords[0])), medianOf(std::move(coords[1])),
-                               medianOf(std::move(coords[2])));
+  return Eigen::Vector3f(medianOf(std::move(coords[0])), medianOf(std::move(coords[1])),
+                         medianOf(std::move(coords[2])));
+}
+
+int octantOf(const PointT& p, const Eigen::Vector3f& center) {
+  const Eigen::Vector3f d = p.getVector3fMap() - center;
+  return (d.x() >= 0.0f ? 1 : 0) | (d.y() >= 0.0f ? 2 : 0) | (d.z() >= 0.0f ? 4 : 0);
+}
+
+}  // namespace
+
+PointCloudPtr CloudPrefilter::removeOutliersGrid(const PointCloudConstPtr& cloud,
+                                                 bool octant_order) const {
+  const std::vector<uint8_t> keep = radiusInlierMask(
+      *cloud, params_.radius_search, params_.radius_min_neighbors, params_.num_threads);
+  PointCloudPtr out(new PointCloud);
+  out->header = cloud->header;
+  out->is_dense = true;
+  out->reserve(cloud->size());
+  if (!octant_order) {
+    for (size_t i = 0; i < cloud->size(); ++i)
+      if (keep[i]) out->push_back(cloud->points[i]);
+    return out;
+  }
+  // The order the octant-parallel PCL filter gives (octant by octant, input order inside), so
+  // that switching the backend changes nothing downstream: the keyframe clouds' point order
+  // steers the RANSAC samples of walls and floors.
+  const Eigen::Vector3f center = octantCenter(*cloud);
+  std::vector<uint8_t> home(cloud->size());
+  for (size_t i = 0; i < cloud->size(); ++i) home[i] = uint8_t(octantOf(cloud->points[i], center));
+  for (uint8_t o = 0; o < 8; ++o)
+    for (size_t i = 0; i < cloud->size(); ++i)
+      if (keep[i] && home[i] == o) out->push_back(cloud->points[i]);
+  return out;
+}
+
+PointCloudPtr CloudPrefilter::removeOutliersOctants(const PointCloudConstPtr& cloud) const {
+  const Eigen::Vector3f center = octantCenter(*cloud);
   double margin = params_.octant_margin;
   if (margin <= 0.0) margin = params_.outlier_method == "statistical" ? 2.0 : params_.radius_search;
 

@@ -71,15 +71,13 @@ float squaredDistance(const PointT& a, const PointT& b) {
 
 }  // namespace
 
-PointCloudPtr radiusOutlierRemovalGrid(const PointCloud& cloud, double radius, int min_neighbors,
-                                       int num_threads) {
-  PointCloudPtr out(new PointCloud);
-  out->header = cloud.header;
-  if (cloud.empty() || !(radius > 0.0)) return out;
+std::vector<uint8_t> radiusInlierMask(const PointCloud& cloud, double radius, int min_neighbors,
+                                      int num_threads) {
+  std::vector<uint8_t> keep(cloud.size(), 0);
+  if (cloud.empty() || !(radius > 0.0)) return keep;
   const CellGrid grid = buildGrid(cloud, radius);
   const float radius_sq = float(radius * radius);  // as PCL/FLANN: within, squared in float
   const int needed = std::max(0, min_neighbors);
-  std::vector<uint8_t> keep(cloud.size(), 0);
   auto countNeighbours = [&](size_t i) {
     const PointT& p = cloud.points[i];
     const Eigen::Vector3i& c = grid.cell_of[i];
@@ -111,6 +109,14 @@ PointCloudPtr radiusOutlierRemovalGrid(const PointCloud& cloud, double radius, i
   } else {
     run();
   }
+  return keep;
+}
+
+PointCloudPtr radiusOutlierRemovalGrid(const PointCloud& cloud, double radius, int min_neighbors,
+                                       int num_threads) {
+  const std::vector<uint8_t> keep = radiusInlierMask(cloud, radius, min_neighbors, num_threads);
+  PointCloudPtr out(new PointCloud);
+  out->header = cloud.header;
   out->reserve(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i)
     if (keep[i]) out->push_back(cloud.points[i]);

@@ -77,6 +77,8 @@ class CloudPrefilter {
  private:
   PointCloudPtr removeOutliersWhole(const PointCloudConstPtr& cloud) const;
   PointCloudPtr removeOutliersOctants(const PointCloudConstPtr& cloud) const;
+  /// Hash-grid radius removal; octant_order: the points in the order removeOutliersOctants gives.
+  PointCloudPtr removeOutliersGrid(const PointCloudConstPtr& cloud, bool octant_order) const;
   PointCloudPtr voxelize(const PointCloudConstPtr& cloud) const;
 
   CloudPrefilterParams params_;
