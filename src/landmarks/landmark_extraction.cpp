@@ -12,39 +12,55 @@ int64_t cellKey(int x, int y) {
   return (int64_t(x) << 32) ^ (int64_t(y) & 0xffffffffLL);
 }
 
-/// Lowest z per ground cell; cells whose lowest point cannot be ground (more than 1.5 m above
-/// the ground plane under the sensor) are left out: far cells behind trunks see only the trunks.
+/// Lowest z per ground cell on a dense grid over +-max_range; cells whose lowest point cannot be
+/// ground (more than 1.5 m above the ground plane under the sensor) are left out: far cells
+/// behind trunks see only the trunks. The ground of a cell is the lowest of the 3x3 cells around
+/// (else the 5x5, else the plane under the sensor), computed once per cell.
 class GroundGrid {
  public:
-  GroundGrid(const std::vector<Eigen::Vector3d>& pts, double cell, double sensor_height)
-      : cell_(cell), fallback_(-sensor_height) {
+  GroundGrid(const std::vector<Eigen::Vector3d>& pts, double cell, double max_range,
+             double sensor_height)
+      : cell_(cell), half_(int(std::ceil(max_range / cell)) + 1), n_(2 * half_ + 1) {
+    const double fallback = -sensor_height;
+    std::vector<double> min_z(size_t(n_) * n_, kEmpty);
     for (const auto& p : pts) {
-      if (p.z() > -sensor_height + 1.5) continue;
-      const int64_t k = cellKey(ix(p.x()), ix(p.y()));
-      const auto it = min_z_.find(k);
-      if (it == min_z_.end() || p.z() < it->second) min_z_[k] = p.z();
+      if (p.z() > fallback + 1.5) continue;
+      const int i = index(p.x(), p.y());
+      if (i >= 0) min_z[i] = std::min(min_z[i], p.z());
     }
-  }
-  /// Ground height below (x, y): lowest of the 3x3 cells around, else of the 5x5, else the
-  /// plane under the sensor.
-  double height(double x, double y) const {
-    const int cx = ix(x), cy = ix(y);
-    for (int r = 1; r <= 2; ++r) {
-      double best = 1e300;
-      for (int dx = -r; dx <= r; ++dx)
-        for (int dy = -r; dy <= r; ++dy) {
-          const auto it = min_z_.find(cellKey(cx + dx, cy + dy));
-          if (it != min_z_.end()) best = std::min(best, it->second);
+    ground_.assign(size_t(n_) * n_, fallback);
+    for (int y = 0; y < n_; ++y)
+      for (int x = 0; x < n_; ++x) {
+        for (int r = 1; r <= 2; ++r) {
+          double best = kEmpty;
+          for (int dy = -r; dy <= r; ++dy)
+            for (int dx = -r; dx <= r; ++dx) {
+              const int xx = x + dx, yy = y + dy;
+              if (xx >= 0 && yy >= 0 && xx < n_ && yy < n_)
+                best = std::min(best, min_z[size_t(yy) * n_ + xx]);
+            }
+          if (best < kEmpty) {
+            ground_[size_t(y) * n_ + x] = best;
+            break;
+          }
         }
-      if (best < 1e299) return best;
-    }
-    return fallback_;
+      }
+  }
+  double height(double x, double y) const {
+    const int i = index(x, y);
+    return i >= 0 ? ground_[i] : ground_[size_t(half_) * n_ + half_];
   }
 
  private:
-  int ix(double v) const { return int(std::floor(v / cell_)); }
-  double cell_, fallback_;
-  std::unordered_map<int64_t, double> min_z_;
+  static constexpr double kEmpty = 1e300;
+  int index(double x, double y) const {
+    const int cx = int(std::floor(x / cell_)) + half_, cy = int(std::floor(y / cell_)) + half_;
+    if (cx < 0 || cy < 0 || cx >= n_ || cy >= n_) return -1;
+    return cy * n_ + cx;
+  }
+  double cell_;
+  int half_, n_;
+  std::vector<double> ground_;
 };
 
 }  // namespace
@@ -62,7 +78,7 @@ std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
     pts.emplace_back(p.x, p.y, p.z);
   }
   if (pts.empty()) return out;
-  const GroundGrid ground(pts, params.ground_cell, params.sensor_height);
+  const GroundGrid ground(pts, params.ground_cell, params.max_range, params.sensor_height);
 
   // Trunk band points in a 2D occupancy grid.
   struct BandPoint {
