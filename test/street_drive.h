@@ -6,10 +6,11 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
-#include "osm_graph_slam/lines/wall_scan_simulator.h"
+#include "osm_graph_slam/sim/wall_scan_simulator.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
 namespace osm_graph_slam::test {

@@ -171,11 +171,6 @@ int measurementDimension(EdgeType type) {
   return errorDimension(type);
 }
 
-Pose2 planarPose(const Eigen::Isometry3d& pose) {
-  const Eigen::Matrix3d r = pose.linear();
-  return {pose.translation().x(), pose.translation().y(), std::atan2(r(1, 0), r(0, 0))};
-}
-
 // ---- vertices -----------------------------------------------------------------------------------
 
 int PoseGraph::fail(const std::string& message) {

@@ -30,6 +30,7 @@
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_logging.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
@@ -54,13 +55,15 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    pnh.param<std::string>("map_frame", map_frame_, "map");
-    pnh.param<std::string>("odom_frame", odom_frame_, "odom");
-    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
-    pnh.param("optimization_period", optimization_period_, 3.0);
-    pnh.param("tf_publish_rate", tf_rate_, 20.0);
-    pnh.param("map_cloud_resolution", map_resolution_, 0.5);
-    pnh.param("warn_throttle_period", warn_period_, 5.0);
+    GraphBackendNodeletParams np;  // defaults: nodelet_params.h
+    readParams(RosParamReader(pnh), np);
+    map_frame_ = np.map_frame;
+    odom_frame_ = np.odom_frame;
+    base_link_frame_ = np.base_link_frame;
+    optimization_period_ = np.optimization_period;
+    tf_rate_ = np.tf_publish_rate;
+    map_resolution_ = np.map_cloud_resolution;
+    warn_period_ = np.warn_throttle_period;
 
     GraphBackendParams params;
     std::string error;
@@ -370,7 +373,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   std::string map_frame_, odom_frame_, base_link_frame_;
-  double optimization_period_ = 3.0, tf_rate_ = 20.0, map_resolution_ = 0.5, warn_period_ = 5.0;
+  double optimization_period_{}, tf_rate_{}, map_resolution_{}, warn_period_{};  // onInit()
   std::unique_ptr<GraphBackend> backend_;
   std::mutex map_to_odom_mutex_;
   Eigen::Isometry3d map_to_odom_ = Eigen::Isometry3d::Identity();

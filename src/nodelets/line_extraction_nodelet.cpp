@@ -2,7 +2,6 @@
 // Thin adapter: parameters -> core structs, messages <-> core types; the algorithms live in
 // cloud/WallPointExtractor and lines/LineSegmentExtractor.
 #include <nodelet/nodelet.h>
-#include <pcl_conversions/pcl_conversions.h>
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -16,6 +15,8 @@
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/lines/params_io.h"
+#include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
@@ -31,8 +32,10 @@ class LineExtractionNodelet : public nodelet::Nodelet {
     readParams(PrefixedParamReader(reader, "wall"), wp);
     LineSegmentExtractorParams lp;
     readParams(PrefixedParamReader(reader, "segments"), lp);
-    pnh.param<std::string>("base_frame", base_frame_, "base_link");
-    pnh.param("marker_z", marker_z_, 0.0);
+    LineExtractionNodeletParams np;  // defaults: nodelet_params.h
+    readParams(reader, np);
+    base_frame_ = np.base_frame;
+    marker_z_ = np.marker_z;
 
     walls_ = std::make_unique<WallPointExtractor>(wp, logger_);
     segments_ = std::make_unique<LineSegmentExtractor>(lp);
@@ -49,12 +52,12 @@ class LineExtractionNodelet : public nodelet::Nodelet {
  private:
   void onKeyFrame(const KeyFrame::ConstPtr& kf) {
     PointCloud cloud;
-    try {
-      pcl::fromROSMsg(kf->cloud, cloud);
-    } catch (const std::exception& e) {
-      logger_->warnOnce("bad_cloud", std::string("line_extraction: cannot convert the keyframe "
-                                                 "cloud (publishing no segments): ") +
-                                         e.what());
+    std::string error;
+    if (!fromPointCloud2(kf->cloud, cloud, &error)) {
+      logger_->warnOnce("bad_cloud",
+                        "line_extraction: cannot convert the keyframe cloud "
+                        "(publishing no segments): " +
+                            error);
       cloud.clear();
     }
     WallPointStats wstats;
@@ -116,7 +119,7 @@ class LineExtractionNodelet : public nodelet::Nodelet {
   ros::Subscriber keyframe_sub_;
   ros::Publisher segments_pub_, markers_pub_;
   std::string base_frame_;
-  double marker_z_ = 0.0;
+  double marker_z_{};  // onInit()
 };
 
 }  // namespace osm_graph_slam

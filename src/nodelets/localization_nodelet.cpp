@@ -29,6 +29,7 @@
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
@@ -72,18 +73,18 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    pnh.param<std::string>("map_frame", map_frame_, "map");
-    pnh.param<std::string>("odom_frame", odom_frame_, "odom");
-    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
-    pnh.param("publish_tf", publish_tf_, true);
-    pnh.param("publish_odom_tf", publish_odom_tf_, true);
-    pnh.param("use_imu", use_imu_, true);
-    pnh.param("imu_max_gap", imu_max_gap_, 0.2);
-    pnh.param("map_points_voxel", map_points_voxel_, 0.5);
-    pnh.param("warn_throttle_period", warn_period_, 5.0);
-    std::string map_dir, osm_file;
-    pnh.param<std::string>("map_dir", map_dir, "");
-    pnh.param<std::string>("osm_file", osm_file, "");
+    LocalizationNodeletParams np;  // defaults: nodelet_params.h
+    readParams(RosParamReader(pnh), np);
+    map_frame_ = np.map_frame;
+    odom_frame_ = np.odom_frame;
+    base_link_frame_ = np.base_link_frame;
+    publish_tf_ = np.publish_tf;
+    publish_odom_tf_ = np.publish_odom_tf;
+    use_imu_ = np.use_imu;
+    imu_max_gap_ = np.imu_max_gap;
+    map_points_voxel_ = np.map_points_voxel;
+    warn_period_ = np.warn_throttle_period;
+    const std::string map_dir = np.map_dir, osm_file = np.osm_file;
     std::vector<double> initial;
     pnh.param("initial_pose", initial, std::vector<double>());
     LocalizationParams params;
@@ -306,8 +307,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   }
 
   std::string map_frame_, odom_frame_, base_link_frame_;
-  bool publish_tf_ = true, publish_odom_tf_ = true, use_imu_ = true;
-  double imu_max_gap_ = 0.2, map_points_voxel_ = 0.5, warn_period_ = 5.0;
+  bool publish_tf_{}, publish_odom_tf_{}, use_imu_{};  // onInit()
+  double imu_max_gap_{}, map_points_voxel_{}, warn_period_{};
   std::shared_ptr<const MapPackage> map_;
   std::unique_ptr<Localizer> localizer_;
   std::optional<Eigen::Isometry3d> pending_initial_;

@@ -3,7 +3,6 @@
 #include <nodelet/nodelet.h>
 #include <osm_graph_slam/KeyFrame.h>
 #include <osm_graph_slam/LoopClosure.h>
-#include <pcl_conversions/pcl_conversions.h>
 #include <ros/ros.h>
 
 #include <memory>
@@ -13,20 +12,12 @@
 
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
+#include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
 namespace {
-
-Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.translation() << pose.position.x, pose.position.y, pose.position.z;
-  Eigen::Quaterniond q(pose.orientation.w, pose.orientation.x, pose.orientation.y,
-                       pose.orientation.z);
-  if (q.norm() < 1e-9) q = Eigen::Quaterniond::Identity();
-  t.linear() = q.normalized().toRotationMatrix();
-  return t;
-}
 
 geometry_msgs::Pose toMsg(const Eigen::Isometry3d& t) {
   geometry_msgs::Pose pose;
@@ -50,7 +41,9 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     LoopDetectorParams params;
     readParams(RosParamReader(pnh), params);
-    pnh.param<std::string>("mode", mode_, "odometry");
+    LoopDetectionNodeletParams np;  // defaults: nodelet_params.h
+    readParams(RosParamReader(pnh), np);
+    mode_ = np.mode;
     if (mode_ != "odometry" && mode_ != "place_recognition") {
       NODELET_ERROR(
           "loop_detection: unknown mode '%s' (odometry | place_recognition); using "
@@ -74,14 +67,13 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   void onKeyframe(const osm_graph_slam::KeyFrameConstPtr& msg) {
     LoopKeyframe kf;
     kf.id = msg->id;
-    kf.odom_pose = toEigen(msg->odom_pose);
+    kf.odom_pose = fromPoseMsg(msg->odom_pose);
     kf.accum_distance = msg->accum_distance;
     auto cloud = std::make_shared<PointCloud>();
-    try {
-      pcl::fromROSMsg(msg->cloud, *cloud);
-    } catch (const std::exception& e) {
+    std::string error;
+    if (!fromPointCloud2(msg->cloud, *cloud, &error)) {
       NODELET_WARN_THROTTLE(10.0, "loop_detection: keyframe %lu cloud not convertible: %s",
-                            static_cast<unsigned long>(msg->id), e.what());
+                            static_cast<unsigned long>(msg->id), error.c_str());
       return;
     }
     kf.cloud = cloud;

@@ -16,6 +16,7 @@
 
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/osm/params_io.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
@@ -56,14 +57,15 @@ class OsmBufferNodelet : public nodelet::Nodelet {
   }
 
   void readParams() {
-    pnh_.param("source", source_, source_);
-    pnh_.param("osm_file", osm_file_, osm_file_);
-    pnh_.param("map_frame", map_frame_, map_frame_);
-    pnh_.param("update_period", update_period_, update_period_);
-    pnh_.param("min_publish_distance", min_publish_distance_, min_publish_distance_);
-    pnh_.param("origin", origin_param_, origin_param_);
-
+    pnh_.param("origin", origin_param_, origin_param_);  // a list: not a ParamReader type
     const RosParamReader reader(pnh_);
+    OsmBufferNodeletParams np;  // defaults: nodelet_params.h
+    osm_graph_slam::readParams(reader, np);
+    source_ = np.source;
+    osm_file_ = np.osm_file;
+    map_frame_ = np.map_frame;
+    update_period_ = np.update_period;
+    min_publish_distance_ = np.min_publish_distance;
     osm_graph_slam::readParams(reader, buffer_params_);
     osm_graph_slam::readParams(reader, overpass_);
   }
@@ -175,11 +177,8 @@ class OsmBufferNodelet : public nodelet::Nodelet {
   ros::Subscriber fix_sub_, pose_sub_;
   ros::Timer timer_;
 
-  std::string source_ = "overpass";
-  std::string osm_file_;
-  std::string map_frame_ = "map";
-  double update_period_ = 0.5;
-  double min_publish_distance_ = 1.0;
+  std::string source_, osm_file_, map_frame_;  // from OsmBufferNodeletParams
+  double update_period_ = 0.0, min_publish_distance_ = 0.0;
   std::vector<double> origin_param_;
   OsmBufferParams buffer_params_;
   OverpassParams overpass_;

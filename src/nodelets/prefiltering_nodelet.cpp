@@ -14,6 +14,7 @@
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
@@ -24,10 +25,12 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     readParams(RosParamReader(pnh), params_);  // defaults: CloudPrefilterParams
-    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
-    pnh.param("sensor_to_base_from_tf", sensor_to_base_from_tf_, true);
-    pnh.param("tf_timeout", tf_timeout_, 0.2);
-    pnh.param("warn_throttle_period", warn_period_, 5.0);
+    PrefilteringNodeletParams np;              // defaults: nodelet_params.h
+    readParams(RosParamReader(pnh), np);
+    base_link_frame_ = np.base_link_frame;
+    sensor_to_base_from_tf_ = np.sensor_to_base_from_tf;
+    tf_timeout_ = np.tf_timeout;
+    warn_period_ = np.warn_throttle_period;
     std::vector<double> xyzrpy;
     pnh.param("sensor_to_base", xyzrpy, std::vector<double>(6, 0.0));
     if (xyzrpy.size() != 6) {
@@ -106,9 +109,8 @@ class PrefilteringNodelet : public nodelet::Nodelet {
 
   CloudPrefilterParams params_;
   std::string base_link_frame_;
-  bool sensor_to_base_from_tf_ = true;
-  double tf_timeout_ = 0.2;
-  double warn_period_ = 5.0;
+  bool sensor_to_base_from_tf_{};        // onInit()
+  double tf_timeout_{}, warn_period_{};  // onInit()
   Eigen::Isometry3d param_sensor_to_base_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

@@ -21,6 +21,7 @@
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/odometry/tracking_health.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
 namespace osm_graph_slam {
@@ -30,10 +31,12 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    pnh.param<std::string>("odom_frame", odom_frame_, "odom");
-    pnh.param<std::string>("base_link_frame", base_link_frame_, "base_link");
-    pnh.param("publish_tf", publish_tf_, true);
-    pnh.param("warn_throttle_period", warn_period_, 5.0);
+    ScanMatchingNodeletParams np;  // defaults: nodelet_params.h
+    readParams(RosParamReader(pnh), np);
+    odom_frame_ = np.odom_frame;
+    base_link_frame_ = np.base_link_frame;
+    publish_tf_ = np.publish_tf;
+    warn_period_ = np.warn_throttle_period;
     KeyframeTrackerParams params;
     readParams(RosParamReader(pnh), params);
     try {
@@ -190,8 +193,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   }
 
   std::string odom_frame_, base_link_frame_;
-  bool publish_tf_ = true;
-  double warn_period_ = 5.0;
+  bool publish_tf_{};  // onInit()
+  double warn_period_{};
   std::unique_ptr<KeyframeTracker> tracker_;
   std::unique_ptr<TrackingHealth> health_;
   TrackingHealthDisplay health_display_;

@@ -31,6 +31,8 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("pre_tracker_max_fitness", p.pre_tracker.max_fitness);
   r.param("pre_tracker_fitness_ratio", p.pre_tracker.fitness_ratio);
   r.param("pre_tracker_fitness_ratio_floor", p.pre_tracker.fitness_ratio_floor);
+  r.param("pre_tracker_method", p.pre_tracker.method);
+  r.param("pre_tracker_max_iterations", p.pre_tracker.max_iterations);
   r.param("recovery", p.recovery);
   r.param("recovery_yaw_step", p.recovery_yaw_step);
   r.param("recovery_yaw_steps", p.recovery_yaw_steps);

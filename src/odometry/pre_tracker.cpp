@@ -1,5 +1,6 @@
 #include "osm_graph_slam/odometry/pre_tracker.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "osm_graph_slam/cloud/voxel_filter.h"
@@ -11,8 +12,12 @@ PointCloudConstPtr downsample(const PointCloudConstPtr& cloud, double leaf) {
   return voxelDownsample(cloud, leaf);
 }
 
-std::unique_ptr<Registration> scaleRegistration(RegistrationParams p, double max_correspondence) {
+std::unique_ptr<Registration> scaleRegistration(RegistrationParams p, const PreTrackerParams& pre,
+                                                double max_correspondence, double voxel) {
   p.max_correspondence_distance = max_correspondence;
+  if (!pre.method.empty()) p.method = pre.method;
+  if (pre.max_iterations > 0) p.max_iterations = pre.max_iterations;
+  p.vgicp_resolution = std::max(p.vgicp_resolution, 2.0 * voxel);  // a few points per voxel
   return createRegistration(p);
 }
 
@@ -20,8 +25,10 @@ std::unique_ptr<Registration> scaleRegistration(RegistrationParams p, double max
 
 PreTracker::PreTracker(const PreTrackerParams& params, const RegistrationParams& registration)
     : params_(params),
-      coarse_(scaleRegistration(registration, params.coarse_max_correspondence)),
-      fine_(scaleRegistration(registration, params.fine_max_correspondence)),
+      coarse_(scaleRegistration(registration, params, params.coarse_max_correspondence,
+                                params.coarse_voxel)),
+      fine_(scaleRegistration(registration, params, params.fine_max_correspondence,
+                              params.fine_voxel)),
       fitness_gate_(params.fitness_ratio, params.fitness_ratio_floor) {}
 
 PreTracker::~PreTracker() = default;

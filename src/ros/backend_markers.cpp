@@ -2,6 +2,7 @@
 
 #include <map>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 
 namespace osm_graph_slam {

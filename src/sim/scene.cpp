@@ -8,6 +8,7 @@
 #include <set>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/polygon2d.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 #include "osm_graph_slam/sim/sim_random.h"
@@ -16,27 +17,6 @@ namespace osm_graph_slam::sim {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-double pointSegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
-                            const Eigen::Vector2d& b) {
-  const Eigen::Vector2d e = b - a;
-  const double l2 = e.squaredNorm();
-  const double t = l2 > 0 ? std::clamp((p - a).dot(e) / l2, 0.0, 1.0) : 0.0;
-  return (a + t * e - p).norm();
-}
-
-bool pointInPolygon(const Eigen::Vector2d& p, const Polygon2& poly) {
-  bool inside = false;
-  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto& a = poly[i];
-    const auto& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-      inside = !inside;
-    }
-  }
-  return inside;
-}
 
 /// Uniform hash of segments for "is anything within r of p" queries.
 class SegmentHash {
@@ -62,7 +42,8 @@ class SegmentHash {
         auto it = cells_.find(pack(x, y));
         if (it == cells_.end()) continue;
         for (int id : it->second) {
-          best = std::min(best, pointSegmentDistance(p, segs_[id].first, segs_[id].second));
+          best = std::min(best,
+                          pointSegmentDistance(p, LineSegment2(segs_[id].first, segs_[id].second)));
         }
       }
     }

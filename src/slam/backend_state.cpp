@@ -1,5 +1,6 @@
 #include "backend_state.h"
 #include "osm_graph_slam/common/attitude.h"
+#include "osm_graph_slam/common/planar_pose.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,6 @@
 #include "building_constraints.h"
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/building_set.h"
 

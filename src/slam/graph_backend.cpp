@@ -7,6 +7,7 @@
 #include "backend_state.h"
 #include "building_constraints.h"
 #include "osm_association.h"
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/building_set.h"
 #include "osm_graph_slam/slam/information.h"

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/common/xml_escape.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"

@@ -4,6 +4,7 @@
 #include <set>
 
 #include "osm_graph_slam/common/attitude.h"
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/information.h"
 
@@ -30,7 +31,7 @@ void OsmAssociation::process(BackendState& s, BackendUpdateReport& report) const
                  global.matched_segments >= params_.global_min_matched;
     }
     if (unbounded) {
-      if (accepted) initializeHeading(s, robot, global, report);
+      if (accepted) initializeHeading(s, id, robot, global, report);
       continue;  // heading still unknown: try the next keyframe
     }
     Pose2 observed_from = robot;
@@ -77,7 +78,7 @@ OsmAssociation::Neighbourhood OsmAssociation::nearby(BackendState& s, const Pose
   return near;
 }
 
-void OsmAssociation::initializeHeading(BackendState& s, const Pose2& robot,
+void OsmAssociation::initializeHeading(BackendState& s, uint64_t id, const Pose2& robot,
                                        const LineMatchResult& global,
                                        BackendUpdateReport& report) const {
   // Rotate the whole trajectory about the origin so that this keyframe gets the heading.
@@ -85,6 +86,8 @@ void OsmAssociation::initializeHeading(BackendState& s, const Pose2& robot,
   s.rotateTrajectory(dyaw);
   s.heading_initialized = true;
   report.heading_initialized_now = true;
+  report.heading_from_map =
+      BackendUpdateReport::HeadingFromMap{id, global.transform, dyaw, global.fitness};
   logger_.info("initial heading set by global matching: rotated the trajectory by " +
                std::to_string(dyaw * 180.0 / M_PI) + " deg (fitness " +
                std::to_string(global.fitness) + ")");

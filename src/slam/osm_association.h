@@ -30,8 +30,8 @@ class OsmAssociation {
   bool ready(const BackendState& s, uint64_t id, KeyframeState& kf) const;
   Neighbourhood nearby(BackendState& s, const Pose2& robot) const;
   /// Rotates the trajectory to the heading of the first accepted unbounded global match.
-  void initializeHeading(BackendState& s, const Pose2& robot, const LineMatchResult& global,
-                         BackendUpdateReport& report) const;
+  void initializeHeading(BackendState& s, uint64_t id, const Pose2& robot,
+                         const LineMatchResult& global, BackendUpdateReport& report) const;
   void addRigidEdges(BackendState& s, uint64_t id, const Neighbourhood& near,
                      const LineMatchResult& global, BackendUpdateReport& report) const;
   void addNonRigidEdges(BackendState& s, uint64_t id, KeyframeState& kf, const Neighbourhood& near,

@@ -213,6 +213,7 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.shared_walls = report.shared_walls;
   timings_.floor_edges += report.floor_edges;
   timings_.floor_slope_changes += report.floor_slope_changes;
+  if (report.heading_from_map) timings_.heading_from_map = report.heading_from_map;
 }
 
 std::string SlamPipeline::timingTable() const {
@@ -256,50 +257,68 @@ std::string SlamPipeline::timingTable() const {
   std::snprintf(floor, sizeof(floor),
                 "floor: found on %zu keyframes, none on %zu; %zu plane edges, %zu slope changes\n",
                 t.floors_found, t.floors_missing, t.floor_edges, t.floor_slope_changes);
-  return std::string(buf) + track + floor;
+  std::string heading;
+  if (const auto& h = t.heading_from_map) {
+    char line[320];
+    std::snprintf(line, sizeof(line),
+                  "initial heading from the OSM map (global matching) at keyframe %lu: pose "
+                  "(%.2f, %.2f) m, yaw %.2f deg; trajectory rotated by %.2f deg, fitness %.1f\n",
+                  static_cast<unsigned long>(h->keyframe_id), h->matched_pose.x, h->matched_pose.y,
+                  h->matched_pose.theta * 180.0 / M_PI, h->rotation * 180.0 / M_PI, h->fitness);
+    heading = line;
+  }
+  return std::string(buf) + track + floor + heading;
 }
 
 std::string SlamPipeline::timingJson() const {
   const PipelineTimings t = timings();
   const TrackingStats& k = t.tracking;
-  const nlohmann::json doc = {{"scans", t.scans},
-                              {"keyframes", t.keyframes},
-                              {"loops", t.loops},
-                              {"wall_time_s", t.wall_time_s},
-                              {"scans_per_second", t.scansPerSecond()},
-                              {"map_priors",
-                               {{"global_priors", t.global_priors},
-                                {"global_rejected", t.global_rejected},
-                                {"building_edges", t.building_edges},
-                                {"overlap_edges", t.overlap_edges},
-                                {"shared_walls", t.shared_walls}}},
-                              {"floor",
-                               {{"found", t.floors_found},
-                                {"missing", t.floors_missing},
-                                {"plane_edges", t.floor_edges},
-                                {"slope_changes", t.floor_slope_changes}}},
-                              {"ms",
-                               {{"input", t.input_ms},
-                                {"prefilter", t.prefilter_ms},
-                                {"tracking", t.tracking_ms},
-                                {"walls", t.walls_ms},
-                                {"segments", t.segments_ms},
-                                {"loops", t.loops_ms},
-                                {"osm", t.osm_ms},
-                                {"backend", t.backend_ms},
-                                {"floor", t.floor_ms},
-                                {"pre_tracker", t.pre_tracker_ms}}},
-                              {"tracking",
-                               {{"scans", k.scans},
-                                {"matched", k.matched},
-                                {"failed_matches", k.failed_matches},
-                                {"rejected_scans", k.rejected_scans},
-                                {"lost_events", k.lost_events},
-                                {"reanchors", k.reanchors},
-                                {"scans_while_lost", k.scans_while_lost},
-                                {"first_stamp", k.first_stamp},
-                                {"last_stamp", k.last_stamp},
-                                {"longest_no_keyframe_s", k.longest_no_keyframe_s}}}};
+  nlohmann::json doc = {{"scans", t.scans},
+                        {"keyframes", t.keyframes},
+                        {"loops", t.loops},
+                        {"wall_time_s", t.wall_time_s},
+                        {"scans_per_second", t.scansPerSecond()},
+                        {"map_priors",
+                         {{"global_priors", t.global_priors},
+                          {"global_rejected", t.global_rejected},
+                          {"building_edges", t.building_edges},
+                          {"overlap_edges", t.overlap_edges},
+                          {"shared_walls", t.shared_walls}}},
+                        {"floor",
+                         {{"found", t.floors_found},
+                          {"missing", t.floors_missing},
+                          {"plane_edges", t.floor_edges},
+                          {"slope_changes", t.floor_slope_changes}}},
+                        {"ms",
+                         {{"input", t.input_ms},
+                          {"prefilter", t.prefilter_ms},
+                          {"tracking", t.tracking_ms},
+                          {"walls", t.walls_ms},
+                          {"segments", t.segments_ms},
+                          {"loops", t.loops_ms},
+                          {"osm", t.osm_ms},
+                          {"backend", t.backend_ms},
+                          {"floor", t.floor_ms},
+                          {"pre_tracker", t.pre_tracker_ms}}},
+                        {"tracking",
+                         {{"scans", k.scans},
+                          {"matched", k.matched},
+                          {"failed_matches", k.failed_matches},
+                          {"rejected_scans", k.rejected_scans},
+                          {"lost_events", k.lost_events},
+                          {"reanchors", k.reanchors},
+                          {"scans_while_lost", k.scans_while_lost},
+                          {"first_stamp", k.first_stamp},
+                          {"last_stamp", k.last_stamp},
+                          {"longest_no_keyframe_s", k.longest_no_keyframe_s}}}};
+  if (const auto& h = t.heading_from_map) {
+    doc["heading_from_map"] = {{"keyframe", h->keyframe_id},
+                               {"x", h->matched_pose.x},
+                               {"y", h->matched_pose.y},
+                               {"yaw_deg", h->matched_pose.theta * 180.0 / M_PI},
+                               {"rotation_deg", h->rotation * 180.0 / M_PI},
+                               {"fitness", h->fitness}};
+  }
   return doc.dump(2);
 }
 

@@ -88,11 +88,26 @@ std::vector<Variant> variants() {
   light.pre_tracker.coarse_voxel = 3.0;
   light.pre_tracker.fine_voxel = 1.5;
   light.pre_tracker.fine_max_correspondence = 2.0;
+  // Cheaper pre-trackers: voxel correspondences (VGICP) and/or fewer iterations per scale (the
+  // pre-tracker only has to bring the tracker into its basin).
+  KeyframeTrackerParams vgicp = pre;
+  vgicp.pre_tracker.method = "fast_vgicp";
+  KeyframeTrackerParams short_gicp = pre;
+  short_gicp.pre_tracker.max_iterations = 8;
+  KeyframeTrackerParams short_vgicp = vgicp;
+  short_vgicp.pre_tracker.max_iterations = 8;
+  KeyframeTrackerParams coarse_vgicp = short_vgicp;
+  coarse_vgicp.pre_tracker.coarse_voxel = 2.0;
+  coarse_vgicp.pre_tracker.fine_voxel = 1.0;
   return {{"constant_velocity (no recovery: reference)", legacy},
           {"default (no IMU here: constant velocity) + recovery", recovery},
           {"default on the PCL-prefiltered scans", recovery, true},
           {"pre_tracker + recovery", pre},
-          {"pre_tracker 3.0/1.5 m voxels + recovery", light}};
+          {"pre_tracker 3.0/1.5 m voxels + recovery", light},
+          {"pre_tracker fast_vgicp + recovery", vgicp},
+          {"pre_tracker 8 iterations + recovery", short_gicp},
+          {"pre_tracker fast_vgicp, 8 iterations + recovery", short_vgicp},
+          {"pre_tracker fast_vgicp, 8 it., 2.0/1.0 m + recovery", coarse_vgicp}};
 }
 
 Outcome run(const Variant& v, const Scans& scans) {

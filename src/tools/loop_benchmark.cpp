@@ -20,11 +20,12 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
-#include "osm_graph_slam/loop/synthetic_world.h"
+#include "osm_graph_slam/sim/synthetic_world.h"
 
 using namespace osm_graph_slam;
 

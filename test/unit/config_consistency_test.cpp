@@ -24,6 +24,7 @@
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/osm/params_io.h"
 #include "osm_graph_slam/registration/params_io.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/slam/params_io.h"
 #include "test_data.h"
 
@@ -90,7 +91,7 @@ class AuditingReader : public ParamReader {
 struct StageConfig {
   std::string nodelet;
   std::function<void(const ParamReader&)> read;  ///< into default-constructed structs
-  std::set<std::string> nodelet_only;            ///< frames, rates, sources: read by the nodelet
+  std::set<std::string> nodelet_only;            ///< lists, which only the nodelet reads
 };
 
 std::vector<StageConfig> stages() {
@@ -99,15 +100,18 @@ std::vector<StageConfig> stages() {
        [](const ParamReader& r) {
          CloudPrefilterParams p;
          readParams(r, p);
+         PrefilteringNodeletParams n;
+         readParams(r, n);
        },
-       {"base_link_frame", "sensor_to_base_from_tf", "sensor_to_base", "tf_timeout",
-        "warn_throttle_period"}},
+       {"sensor_to_base"}},
       {"scan_matching",
        [](const ParamReader& r) {
          KeyframeTrackerParams p;
          readParams(r, p);
+         ScanMatchingNodeletParams n;
+         readParams(r, n);
        },
-       {"odom_frame", "base_link_frame", "publish_tf", "warn_throttle_period"}},
+       {}},
       {"floor_detection",
        [](const ParamReader& r) {
          FloorDetectorParams p;
@@ -120,37 +124,45 @@ std::vector<StageConfig> stages() {
          readParams(PrefixedParamReader(r, "wall"), wall);
          LineSegmentExtractorParams segments;
          readParams(PrefixedParamReader(r, "segments"), segments);
+         LineExtractionNodeletParams n;
+         readParams(r, n);
        },
-       {"base_frame", "marker_z"}},
+       {}},
       {"loop_detection",
        [](const ParamReader& r) {
          LoopDetectorParams p;
          readParams(r, p);
+         LoopDetectionNodeletParams n;
+         readParams(r, n);
        },
-       {"mode"}},
+       {}},
       {"osm_buffer",
        [](const ParamReader& r) {
          OsmBufferParams buffer;
          readParams(r, buffer);
          OverpassParams overpass;
          readParams(r, overpass);
+         OsmBufferNodeletParams n;
+         readParams(r, n);
        },
-       {"source", "osm_file", "map_frame", "update_period", "min_publish_distance", "origin"}},
+       {"origin"}},
       {"graph_backend",
        [](const ParamReader& r) {
          GraphBackendParams p;
          std::string error;
          EXPECT_TRUE(readParams(r, p, &error)) << "graph_backend.yaml: " << error;
+         GraphBackendNodeletParams n;
+         readParams(r, n);
        },
-       {"map_frame", "odom_frame", "base_link_frame", "optimization_period", "tf_publish_rate",
-        "map_cloud_resolution", "warn_throttle_period"}},
+       {}},
       {"localization",
        [](const ParamReader& r) {
          LocalizationParams p;
          readParams(r, p);
+         LocalizationNodeletParams n;
+         readParams(r, n);
        },
-       {"map_frame", "base_link_frame", "odom_frame", "publish_tf", "publish_odom_tf", "use_imu",
-        "imu_max_gap", "map_points_voxel", "warn_throttle_period"}},
+       {}},
   };
 }
 

@@ -2,6 +2,7 @@
 // the real wall/segment extraction, drifting odometry and perturbed OSM priors.
 #include <gtest/gtest.h>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/lines/line_geometry.h"

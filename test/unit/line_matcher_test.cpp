@@ -11,7 +11,7 @@
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
-#include "osm_graph_slam/lines/wall_scan_simulator.h"
+#include "osm_graph_slam/sim/wall_scan_simulator.h"
 
 using namespace osm_graph_slam;
 

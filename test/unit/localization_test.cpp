@@ -17,8 +17,8 @@
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/localization/pose_ukf.h"
-#include "osm_graph_slam/loop/synthetic_world.h"
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/sim/synthetic_world.h"
 
 using namespace osm_graph_slam;
 namespace fs = std::filesystem;

@@ -6,9 +6,10 @@
 #include <iostream>
 #include <random>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/loop/loop_detector.h"
-#include "osm_graph_slam/loop/synthetic_world.h"
+#include "osm_graph_slam/sim/synthetic_world.h"
 
 namespace osm_graph_slam {
 namespace {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/localization/map_package.h"

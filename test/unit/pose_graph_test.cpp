@@ -6,6 +6,7 @@
 #include <cstring>
 #include <random>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 
 namespace osm_graph_slam {

@@ -6,12 +6,15 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "test_data.h"
@@ -149,6 +152,55 @@ TEST_F(RealDrive, Kitti0005RunsEndToEndWithAndWithoutOsm) {
   EXPECT_LT(corrected_walls, 0.5 * prior_walls);
   EXPECT_LT(corrected_walls, 0.9);
   EXPECT_LT(m["baseline"]["trajectory_difference_max_m"].get<double>(), 0.5);
+}
+
+// Issue 28: the first pose from the map alone. The origin is given without a heading and
+// offline_slam finds it by global matching of a keyframe's wall segments against the OSM
+// buildings; frame 0's pose follows from the matched keyframe's pose and odometry back to frame
+// 0, and is compared with the OXTS record (frame 0 is the map origin; its yaw is field 6).
+TEST_F(RealDrive, Kitti0005FirstPoseFromTheMapAlone) {
+  std::string why;
+  const fs::path scans = unpack("kitti_raw_0005", &why);
+  if (scans.empty()) GTEST_SKIP() << why;
+  const std::string osm = test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm");
+  const std::string oxts = test::sharedDataPath("kitti_raw_0005/oxts_frame0.txt");
+  OGS_REQUIRE_SHARED_FILE(osm);
+  OGS_REQUIRE_SHARED_FILE(oxts);
+  std::ifstream record(oxts);
+  double lat = 0, lon = 0, alt = 0, roll = 0, pitch = 0, yaw = 0;
+  ASSERT_TRUE(record >> lat >> lon >> alt >> roll >> pitch >> yaw);
+  char origin[128];
+  std::snprintf(origin, sizeof(origin), "%.12f,%.12f,%.4f", lat, lon, alt);
+  const fs::path out = kTmp / "heading_from_map";
+  std::string log;
+  ASSERT_EQ(run("'" + tool("offline_slam") + "' --scans '" + scans.string() + "' --origin " +
+                    origin + " --calib '" +
+                    test::sharedDataPath("kitti_raw_0005/calib_2011_09_26.txt") + "' --osm '" +
+                    osm + "' --initial-heading global_matching --output '" + out.string() + "'",
+                &log),
+            0)
+      << log;
+  const nlohmann::json t = readJson(out / "timing.json");
+  ASSERT_TRUE(t.contains("heading_from_map")) << "global matching found no heading:\n" << log;
+  const nlohmann::json& h = t["heading_from_map"];
+  const auto traj = readTrajectory((out / "trajectory_tum.txt").string());
+  ASSERT_TRUE(traj.ok);
+  const size_t k = h["keyframe"].get<size_t>();
+  ASSERT_LT(k, traj.trajectory.size());
+  // Frame 0 as the map alone places it: the matched pose of keyframe k, then the trajectory's
+  // own motion from keyframe k back to frame 0.
+  const Pose2 matched(h["x"].get<double>(), h["y"].get<double>(),
+                      h["yaw_deg"].get<double>() * M_PI / 180.0);
+  const Pose2 frame0 =
+      matched * planarPose(traj.trajectory[k].pose).inverse() * planarPose(traj.trajectory[0].pose);
+  const double heading_error = std::abs(wrapAngle(frame0.theta - yaw)) * 180.0 / M_PI;
+  const double position_error = frame0.translation().norm();  // the origin is frame 0's fix
+  std::cout << "[real_drive] first pose from the map alone (keyframe " << k << ", fitness "
+            << h["fitness"] << "): heading " << frame0.theta * 180.0 / M_PI << " deg vs OXTS "
+            << yaw * 180.0 / M_PI << " deg (" << heading_error << " deg off), position ("
+            << frame0.x << ", " << frame0.y << ") m from the fix (" << position_error << " m)\n";
+  EXPECT_LT(heading_error, 2.0);   // issue 28's target
+  EXPECT_LT(position_error, 3.0);  // issue 28's target
 }
 
 TEST_F(RealDrive, Kitti0048IsTrackedToTheEnd) {

@@ -255,15 +255,4 @@ class PoseGraph {
   std::string last_error_;
 };
 
-/// (x, y, yaw) of an SE3 pose; yaw = atan2(R10, R00) (the Z of a Z-Y-X Euler decomposition).
-Pose2 planarPose(const Eigen::Isometry3d& pose);
-
-/// The SE3 pose of a planar pose: (x, y, 0) and a rotation about z by theta.
-inline Eigen::Isometry3d isometryFromPlanar(const Pose2& pose) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = Eigen::AngleAxisd(pose.theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  t.translation() = Eigen::Vector3d(pose.x, pose.y, 0.0);
-  return t;
-}
-
 }  // namespace osm_graph_slam

@@ -24,6 +24,10 @@ struct PreTrackerParams {
   double max_fitness = 1.0;                ///< [m^2] a worse fine match gives no estimate
   double fitness_ratio = 4.0;  ///< ... or one worse than this times the recent median (0: off)
   double fitness_ratio_floor = 0.2;  ///< [m^2] (see KeyframeTrackerParams)
+  /// Registration back-end of both scales ("": the tracker's). fast_vgicp finds correspondences
+  /// by a voxel lookup instead of a KD-tree search (frontend_benchmark measures both).
+  std::string method;
+  int max_iterations = 0;  ///< per scale (0: the tracker's)
 };
 
 struct PreTrackerEstimate {

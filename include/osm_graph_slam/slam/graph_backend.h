@@ -74,6 +74,16 @@ struct BackendUpdateReport {
   /// they lie too far apart.
   size_t floor_edges = 0, floor_slope_changes = 0, floor_gaps = 0;
   bool heading_initialized_now = false;
+  /// When the heading was just found by global matching (no IMU heading): the keyframe, the pose
+  /// the match gave it from the OSM map alone (map frame), the rotation applied to the trajectory
+  /// and the match's fitness. Measures "the first pose from the map alone" against a fix.
+  struct HeadingFromMap {
+    uint64_t keyframe_id = 0;
+    Pose2 matched_pose;
+    double rotation = 0.0;  ///< [rad]
+    double fitness = 0.0;
+  };
+  std::optional<HeadingFromMap> heading_from_map;
   OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
   double total_ms = 0.0;

@@ -3,6 +3,7 @@
 // segments -> loop detection -> OSM buffer -> graph back-end. The offline runner drives it as
 // fast as the CPU allows; the nodelets run the same stages, connected by topics.
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
@@ -44,6 +45,8 @@ struct PipelineTimings {
   size_t floors_found = 0, floors_missing = 0, floor_edges = 0, floor_slope_changes = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
   TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
+  /// The first heading, when global matching against OSM found it (no IMU heading given).
+  std::optional<BackendUpdateReport::HeadingFromMap> heading_from_map;
   double scansPerSecond() const { return wall_time_s > 0 ? scans / wall_time_s : 0.0; }
 };
 

@@ -1,4 +1,4 @@
-#include "osm_graph_slam/lines/wall_scan_simulator.h"
+#include "osm_graph_slam/sim/wall_scan_simulator.h"
 
 #include <algorithm>
 #include <cmath>

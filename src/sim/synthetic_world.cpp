@@ -1,4 +1,4 @@
-#include "osm_graph_slam/loop/synthetic_world.h"
+#include "osm_graph_slam/sim/synthetic_world.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,0 +1,76 @@
+#pragma once
+// Parameters of the ROS adapters themselves (frames, TF, rates, sources), one struct per nodelet.
+// They are read by readParams() like every core stage's, so their defaults are written once (the
+// initialisers below) and config_consistency_test audits config/<nodelet>.yaml against them.
+// Plain data, no ROS. Lists (sensor_to_base, origin, initial_pose) stay with the nodelets: the
+// ParamReader interface has no list type.
+#include <string>
+
+#include "osm_graph_slam/common/param_reader.h"
+
+namespace osm_graph_slam {
+
+struct PrefilteringNodeletParams {
+  std::string base_link_frame = "base_link";
+  bool sensor_to_base_from_tf = true;  ///< else the sensor_to_base list
+  double tf_timeout = 0.2;             ///< [s]
+  double warn_throttle_period = 5.0;   ///< [s]
+};
+
+struct ScanMatchingNodeletParams {
+  std::string odom_frame = "odom";
+  std::string base_link_frame = "base_link";
+  bool publish_tf = true;
+  double warn_throttle_period = 5.0;  ///< [s]
+};
+
+struct LineExtractionNodeletParams {
+  std::string base_frame = "base_link";
+  double marker_z = 0.0;  ///< [m] height of the segment markers
+};
+
+struct LoopDetectionNodeletParams {
+  std::string mode = "odometry";  ///< odometry | place_recognition
+};
+
+struct OsmBufferNodeletParams {
+  std::string source = "overpass";  ///< overpass | file
+  std::string osm_file;
+  std::string map_frame = "map";
+  double update_period = 0.5;         ///< [s]
+  double min_publish_distance = 1.0;  ///< [m]
+};
+
+struct GraphBackendNodeletParams {
+  std::string map_frame = "map";
+  std::string odom_frame = "odom";
+  std::string base_link_frame = "base_link";
+  double optimization_period = 3.0;   ///< [s]
+  double tf_publish_rate = 20.0;      ///< [Hz]
+  double map_cloud_resolution = 0.5;  ///< [m]
+  double warn_throttle_period = 5.0;  ///< [s]
+};
+
+struct LocalizationNodeletParams {
+  std::string map_frame = "map";
+  std::string odom_frame = "odom";
+  std::string base_link_frame = "base_link";
+  bool publish_tf = true;
+  bool publish_odom_tf = true;
+  bool use_imu = true;
+  double imu_max_gap = 0.2;           ///< [s]
+  double map_points_voxel = 0.5;      ///< [m]
+  double warn_throttle_period = 5.0;  ///< [s]
+  std::string map_dir;
+  std::string osm_file;
+};
+
+void readParams(const ParamReader& r, PrefilteringNodeletParams& p);
+void readParams(const ParamReader& r, ScanMatchingNodeletParams& p);
+void readParams(const ParamReader& r, LineExtractionNodeletParams& p);
+void readParams(const ParamReader& r, LoopDetectionNodeletParams& p);
+void readParams(const ParamReader& r, OsmBufferNodeletParams& p);
+void readParams(const ParamReader& r, GraphBackendNodeletParams& p);
+void readParams(const ParamReader& r, LocalizationNodeletParams& p);
+
+}  // namespace osm_graph_slam

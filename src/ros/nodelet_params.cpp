@@ -1,0 +1,60 @@
+#include "osm_graph_slam/ros/nodelet_params.h"
+
+namespace osm_graph_slam {
+
+void readParams(const ParamReader& r, PrefilteringNodeletParams& p) {
+  r.param("base_link_frame", p.base_link_frame);
+  r.param("sensor_to_base_from_tf", p.sensor_to_base_from_tf);
+  r.param("tf_timeout", p.tf_timeout);
+  r.param("warn_throttle_period", p.warn_throttle_period);
+}
+
+void readParams(const ParamReader& r, ScanMatchingNodeletParams& p) {
+  r.param("odom_frame", p.odom_frame);
+  r.param("base_link_frame", p.base_link_frame);
+  r.param("publish_tf", p.publish_tf);
+  r.param("warn_throttle_period", p.warn_throttle_period);
+}
+
+void readParams(const ParamReader& r, LineExtractionNodeletParams& p) {
+  r.param("base_frame", p.base_frame);
+  r.param("marker_z", p.marker_z);
+}
+
+void readParams(const ParamReader& r, LoopDetectionNodeletParams& p) {
+  r.param("mode", p.mode);
+}
+
+void readParams(const ParamReader& r, OsmBufferNodeletParams& p) {
+  r.param("source", p.source);
+  r.param("osm_file", p.osm_file);
+  r.param("map_frame", p.map_frame);
+  r.param("update_period", p.update_period);
+  r.param("min_publish_distance", p.min_publish_distance);
+}
+
+void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
+  r.param("map_frame", p.map_frame);
+  r.param("odom_frame", p.odom_frame);
+  r.param("base_link_frame", p.base_link_frame);
+  r.param("optimization_period", p.optimization_period);
+  r.param("tf_publish_rate", p.tf_publish_rate);
+  r.param("map_cloud_resolution", p.map_cloud_resolution);
+  r.param("warn_throttle_period", p.warn_throttle_period);
+}
+
+void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
+  r.param("map_frame", p.map_frame);
+  r.param("odom_frame", p.odom_frame);
+  r.param("base_link_frame", p.base_link_frame);
+  r.param("publish_tf", p.publish_tf);
+  r.param("publish_odom_tf", p.publish_odom_tf);
+  r.param("use_imu", p.use_imu);
+  r.param("imu_max_gap", p.imu_max_gap);
+  r.param("map_points_voxel", p.map_points_voxel);
+  r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("map_dir", p.map_dir);
+  r.param("osm_file", p.osm_file);
+}
+
+}  // namespace osm_graph_slam
