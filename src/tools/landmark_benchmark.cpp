@@ -396,8 +396,8 @@ int main(int argc, char** argv) {
         opt.gh_yaw_tolerance_deg, opt.sc_correct_radius);
     std::printf(
         "| density | seed | keyframes | revisits | landmarks/kf | GH precision | GH recall | "
-        "SC@0.15 "
-        "P/R | SC@0.20 P/R | SC@0.25 P/R | GH t err [m] | extract ms | GH query ms | SC ms |\n"
+        "SC@0.30 P/R | SC@0.40 P/R | SC@0.50 P/R | GH t err [m] | extract ms | GH query ms | "
+        "SC ms |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     std::fflush(stdout);
     DriveResult total;
