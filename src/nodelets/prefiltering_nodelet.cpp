@@ -13,6 +13,7 @@
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/cloud/params_io.h"
+#include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
@@ -31,6 +32,10 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     sensor_to_base_from_tf_ = np.sensor_to_base_from_tf;
     tf_timeout_ = np.tf_timeout;
     warn_period_ = np.warn_throttle_period;
+    if (np.reuse_freed_memory && !reuseFreedMemory())
+      NODELET_WARN(
+          "prefiltering: could not tune the allocator (not glibc?): reuse_freed_memory "
+          "has no effect");
     std::vector<double> xyzrpy;
     pnh.param("sensor_to_base", xyzrpy, std::vector<double>(6, 0.0));
     if (xyzrpy.size() != 6) {

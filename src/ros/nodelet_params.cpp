@@ -7,6 +7,7 @@ void readParams(const ParamReader& r, PrefilteringNodeletParams& p) {
   r.param("sensor_to_base_from_tf", p.sensor_to_base_from_tf);
   r.param("tf_timeout", p.tf_timeout);
   r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("reuse_freed_memory", p.reuse_freed_memory);
 }
 
 void readParams(const ParamReader& r, ScanMatchingNodeletParams& p) {

@@ -111,6 +111,9 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
   T_imu_velo_.translation().z() = kVeloInImu.z();
   T_velo_imu_ = T_imu_velo_.inverse();
   double lat0 = params.origin_lat, lon0 = params.origin_lon;
+  GroundModel ground;
+  if (params.flat_ground)
+    for (double& amplitude : ground.amplitude) amplitude = 0.0;
   if (!params.osm_path.empty()) {
     const OsmData osm = readOsmFile(params.osm_path);
     if (!osm.ok)
@@ -131,7 +134,7 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
       lon0 = 0.5 * (lo0 + lo1);
     }
     enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
-    scene_ = sceneFromOsm(osm, *enu_, params.seed);
+    scene_ = sceneFromOsm(osm, *enu_, params.seed, ground);
   } else {
     if (std::isnan(lat0) || std::isnan(lon0)) {
       lat0 = 49.0110;
@@ -140,7 +143,7 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
     enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
     CityParams city = params.city;
     city.seed = params.seed;
-    scene_ = proceduralCity(city);
+    scene_ = proceduralCity(city, ground);
   }
   const RoadGraph roads = RoadGraph::fromPolylines(scene_.roads);
   const RoadGraph graph = roads.drivableCore();

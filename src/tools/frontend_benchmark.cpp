@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
@@ -96,6 +97,11 @@ std::vector<Variant> variants() {
   short_gicp.pre_tracker.max_iterations = 8;
   KeyframeTrackerParams short_vgicp = vgicp;
   short_vgicp.pre_tracker.max_iterations = 8;
+  KeyframeTrackerParams sparse = light;  // a quarter of the points of light at each scale
+  sparse.pre_tracker.coarse_voxel = 4.0;
+  sparse.pre_tracker.fine_voxel = 2.0;
+  sparse.pre_tracker.coarse_max_correspondence = 4.0;
+  sparse.pre_tracker.fine_max_correspondence = 2.5;
   KeyframeTrackerParams coarse_vgicp = short_vgicp;
   coarse_vgicp.pre_tracker.coarse_voxel = 2.0;
   coarse_vgicp.pre_tracker.fine_voxel = 1.0;
@@ -107,7 +113,8 @@ std::vector<Variant> variants() {
           {"pre_tracker fast_vgicp + recovery", vgicp},
           {"pre_tracker 8 iterations + recovery", short_gicp},
           {"pre_tracker fast_vgicp, 8 iterations + recovery", short_vgicp},
-          {"pre_tracker fast_vgicp, 8 it., 2.0/1.0 m + recovery", coarse_vgicp}};
+          {"pre_tracker fast_vgicp, 8 it., 2.0/1.0 m + recovery", coarse_vgicp},
+          {"pre_tracker 4.0/2.0 m voxels + recovery", sparse}};
 }
 
 Outcome run(const Variant& v, const Scans& scans) {
@@ -141,6 +148,7 @@ int usage(const std::string& why) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::string dir;
   int stride = 1, repeat = 3;
   size_t max_scans = 0;

@@ -30,6 +30,7 @@
 #include <string>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
@@ -115,6 +116,7 @@ struct RunErrors {
 }  // namespace
 
 int main(int argc, char** argv) {
+  reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::map<std::string, std::string> args;
   bool json = false, use_imu = true, global = false;
   for (int i = 1; i < argc; ++i) {

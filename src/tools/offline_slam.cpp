@@ -34,6 +34,7 @@
 #include <string>
 #include <thread>
 
+#include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/loop_closure_file.h"
@@ -86,6 +87,7 @@ std::vector<StampedLoopClosure> stampedLoops(const GraphBackend& backend) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::map<std::string, std::string> args;
   bool json = false, use_osm = true, use_loops = true, use_imu = true;
   for (int i = 1; i < argc; ++i) {

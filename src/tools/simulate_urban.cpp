@@ -28,6 +28,7 @@ void usage() {
                "  --motion-distortion     per-column sensor poses (default off)\n"
                "  --origin LAT,LON[,ALT]  ENU origin (default: extract centre / Karlsruhe)\n"
                "  --no-clutter            buildings and ground only\n"
+               "  --flat-ground           level ground (default: gentle slopes of a few percent)\n"
                "  --world city|forest|park  procedural world (default city; forest/park: trails,\n"
                "                          trees, undergrowth; doc/landmarks.md)\n"
                "  --forest-density sparse|intermediate|dense  (default intermediate)\n"
@@ -104,6 +105,8 @@ int main(int argc, char** argv) {
       p.motion_distortion = true;
     else if (a == "--no-clutter")
       p.clutter_enabled = false;
+    else if (a == "--flat-ground")
+      p.flat_ground = true;
     else if (a == "--world") {  // forest/park: sim/forest_world.h (issue 24)
       p.city.world = next();
       if (p.city.world != "city" && p.city.world != "forest" && p.city.world != "park") {

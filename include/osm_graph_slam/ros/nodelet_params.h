@@ -15,6 +15,8 @@ struct PrefilteringNodeletParams {
   bool sensor_to_base_from_tf = true;  ///< else the sensor_to_base list
   double tf_timeout = 0.2;             ///< [s]
   double warn_throttle_period = 5.0;   ///< [s]
+  /// Keep freed scan buffers in the heap (process-wide; common/memory_tuning.h).
+  bool reuse_freed_memory = true;
 };
 
 struct ScanMatchingNodeletParams {

@@ -42,6 +42,9 @@ struct SimulationParams {
   CityParams city;
   ClutterParams clutter;
   bool clutter_enabled = true;
+  /// A level ground (z = 0) instead of the gently sloped GroundModel: floor constraints must do
+  /// no harm where there is no slope to find (issue 19).
+  bool flat_ground = false;
   RouteParams route;
   LidarModel lidar = LidarModel::hdl64e();
   bool motion_distortion = false;
