@@ -55,15 +55,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    GraphBackendNodeletParams np;  // defaults: nodelet_params.h
-    readParams(RosParamReader(pnh), np);
-    map_frame_ = np.map_frame;
-    odom_frame_ = np.odom_frame;
-    base_link_frame_ = np.base_link_frame;
-    optimization_period_ = np.optimization_period;
-    tf_rate_ = np.tf_publish_rate;
-    map_resolution_ = np.map_cloud_resolution;
-    warn_period_ = np.warn_throttle_period;
+    readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
 
     GraphBackendParams params;
     std::string error;
@@ -89,14 +81,15 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
-    if (tf_rate_ > 0.0)
-      tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / tf_rate_),
+    if (node_params_.tf_publish_rate > 0.0)
+      tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / node_params_.tf_publish_rate),
                                      &GraphBackendNodelet::publishTf, this);
     worker_ = std::thread(&GraphBackendNodelet::optimizationLoop, this);
     NODELET_INFO(
         "graph back-end: OSM %s (mode %s), optimisation every %.1f s, frames %s -> %s -> %s",
-        params.use_osm ? "on" : "off", toString(params.mode), optimization_period_,
-        map_frame_.c_str(), odom_frame_.c_str(), base_link_frame_.c_str());
+        params.use_osm ? "on" : "off", toString(params.mode), node_params_.optimization_period,
+        node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(),
+        node_params_.base_link_frame.c_str());
   }
 
   // --- inputs (subscriber threads: convert and queue only) --------------------------------------
@@ -113,7 +106,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (fromPointCloud2(msg->cloud, *cloud, &error)) {
       kf.cloud = cloud;
     } else {
-      NODELET_WARN_THROTTLE(warn_period_,
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
     }
@@ -123,7 +116,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
     geometry_msgs::PoseStamped pose;
     pose.header.stamp = msg->header.stamp;
-    pose.header.frame_id = map_frame_;
+    pose.header.frame_id = node_params_.map_frame;
     pose.pose = toPoseMsg(map_to_odom * fromPoseMsg(msg->odom_pose));
     pose_pub_.publish(pose);
     std::lock_guard<std::mutex> guard(stamp_mutex_);
@@ -135,7 +128,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (!msg->found) return;  // floor_detection logs a floor lost for long
     const Eigen::Vector4d coeffs(msg->coeffs[0], msg->coeffs[1], msg->coeffs[2], msg->coeffs[3]);
     if (!coeffs.allFinite() || coeffs.head<3>().norm() < 1e-6) {
-      NODELET_WARN_THROTTLE(warn_period_, "floor of keyframe %lu is not a plane; ignored",
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "floor of keyframe %lu is not a plane; ignored",
                             static_cast<unsigned long>(msg->keyframe_id));
       return;
     }
@@ -219,9 +213,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   void onBuildings(const BuildingArrayConstPtr& msg) {
-    if (!msg->header.frame_id.empty() && msg->header.frame_id != map_frame_) {
-      NODELET_WARN_THROTTLE(warn_period_, "osm/buildings in frame '%s', expected '%s'; ignored",
-                            msg->header.frame_id.c_str(), map_frame_.c_str());
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != node_params_.map_frame) {
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "osm/buildings in frame '%s', expected '%s'; ignored",
+                            msg->header.frame_id.c_str(), node_params_.map_frame.c_str());
       return;
     }
     // The message carries ENU outlines only: the prior's lat/lon (dump_graph's
@@ -239,9 +234,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     loop.relative_pose = fromPoseMsg(msg->relative_pose);
     for (int i = 0; i < 36; ++i) loop.information(i / 6, i % 6) = msg->information[i];
     if (!loop.information.allFinite() || loop.information.diagonal().minCoeff() <= 0.0) {
-      NODELET_WARN_THROTTLE(
-          warn_period_, "loop %lu -> %lu has an invalid information matrix; ignored",
-          static_cast<unsigned long>(msg->from_id), static_cast<unsigned long>(msg->to_id));
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "loop %lu -> %lu has an invalid information matrix; ignored",
+                            static_cast<unsigned long>(msg->from_id),
+                            static_cast<unsigned long>(msg->to_id));
       return;
     }
     backend_->addLoopClosure(loop);
@@ -260,7 +256,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void optimizationLoop() {
     std::unique_lock<std::mutex> lock(wake_mutex_);
     while (!stop_) {
-      wake_.wait_for(lock, std::chrono::duration<double>(optimization_period_));
+      wake_.wait_for(lock, std::chrono::duration<double>(node_params_.optimization_period));
       if (stop_) break;
       lock.unlock();
       const BackendUpdateReport report = backend_->update();
@@ -289,14 +285,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   void publishOutputs() {
     std_msgs::Header header;
-    header.frame_id = map_frame_;
+    header.frame_id = node_params_.map_frame;
     header.stamp = lastStamp();
     const std::vector<KeyframeState> keyframes = backend_->keyframes();
     nav_msgs::PathPtr path(new nav_msgs::Path);
     path->header = header;
     for (const auto& kf : keyframes) {
       geometry_msgs::PoseStamped p;
-      p.header.frame_id = map_frame_;
+      p.header.frame_id = node_params_.map_frame;
       p.header.stamp = keyframeStamp(kf);
       p.pose = toPoseMsg(kf.map_pose);
       path->poses.push_back(p);
@@ -313,7 +309,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
           backendMarkers(backend_->graphSnapshot(), keyframes, backend_->buildings(), header));
     if (map_pub_.getNumSubscribers() > 0) {  // built only while someone listens
       sensor_msgs::PointCloud2Ptr cloud(new sensor_msgs::PointCloud2);
-      toPointCloud2(*buildMapCloud(keyframes, map_resolution_), *cloud);
+      toPointCloud2(*buildMapCloud(keyframes, node_params_.map_cloud_resolution), *cloud);
       cloud->header = header;
       map_pub_.publish(cloud);
     }
@@ -343,8 +339,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     tf_version_ = version;
     geometry_msgs::TransformStamped tf;
     tf.header.stamp = stamp;
-    tf.header.frame_id = map_frame_;
-    tf.child_frame_id = odom_frame_;
+    tf.header.frame_id = node_params_.map_frame;
+    tf.child_frame_id = node_params_.odom_frame;
     tf.transform = toTransformMsg(map_to_odom);
     tf_broadcaster_.sendTransform(tf);
   }
@@ -372,8 +368,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  std::string map_frame_, odom_frame_, base_link_frame_;
-  double optimization_period_{}, tf_rate_{}, map_resolution_{}, warn_period_{};  // onInit()
+  GraphBackendNodeletParams node_params_;  ///< frames, rates, TF (nodelet_params.h)
   std::unique_ptr<GraphBackend> backend_;
   std::mutex map_to_odom_mutex_;
   Eigen::Isometry3d map_to_odom_ = Eigen::Isometry3d::Identity();

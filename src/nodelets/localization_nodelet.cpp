@@ -73,18 +73,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    LocalizationNodeletParams np;  // defaults: nodelet_params.h
-    readParams(RosParamReader(pnh), np);
-    map_frame_ = np.map_frame;
-    odom_frame_ = np.odom_frame;
-    base_link_frame_ = np.base_link_frame;
-    publish_tf_ = np.publish_tf;
-    publish_odom_tf_ = np.publish_odom_tf;
-    use_imu_ = np.use_imu;
-    imu_max_gap_ = np.imu_max_gap;
-    map_points_voxel_ = np.map_points_voxel;
-    warn_period_ = np.warn_throttle_period;
-    const std::string map_dir = np.map_dir, osm_file = np.osm_file;
+    readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
+    const std::string map_dir = node_params_.map_dir, osm_file = node_params_.osm_file;
     std::vector<double> initial;
     pnh.param("initial_pose", initial, std::vector<double>());
     LocalizationParams params;
@@ -93,7 +83,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
     status_pub_ = nh.advertise<LocalizationReport>("localization/status", 10);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("localization/map_points", 1, true);
-    if (!publish_odom_tf_) {
+    if (!node_params_.publish_odom_tf) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
     }
@@ -152,12 +142,12 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void publishMapPoints() {
     KeyframeState all;
     all.cloud = map_->map_cloud;
-    const PointCloudPtr cloud = map_points_voxel_ > 0.0
-                                    ? buildMapCloud({all}, map_points_voxel_)
+    const PointCloudPtr cloud = node_params_.map_points_voxel > 0.0
+                                    ? buildMapCloud({all}, node_params_.map_points_voxel)
                                     : std::make_shared<PointCloud>(*map_->map_cloud);
     boost::shared_ptr<sensor_msgs::PointCloud2> msg(new sensor_msgs::PointCloud2);
     toPointCloud2(*cloud, *msg);
-    msg->header.frame_id = map_frame_;
+    msg->header.frame_id = node_params_.map_frame;
     msg->header.stamp = ros::Time::now();
     map_pub_.publish(boost::shared_ptr<const sensor_msgs::PointCloud2>(msg));
   }
@@ -171,9 +161,9 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   void onInitialPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
     if (!map_) return;
-    if (!msg->header.frame_id.empty() && msg->header.frame_id != map_frame_) {
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != node_params_.map_frame) {
       NODELET_WARN("initialpose in frame '%s', expected '%s': ignored",
-                   msg->header.frame_id.c_str(), map_frame_.c_str());
+                   msg->header.frame_id.c_str(), node_params_.map_frame.c_str());
       return;
     }
     const Eigen::Isometry3d pose = fromPoseMsg(msg->pose.pose);
@@ -188,18 +178,20 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
     if (!localizer_) {
-      NODELET_ERROR_THROTTLE(warn_period_, "localization: no map loaded, scans ignored");
+      NODELET_ERROR_THROTTLE(node_params_.warn_throttle_period,
+                             "localization: no map loaded, scans ignored");
       return;
     }
     PointCloudPtr cloud(new PointCloud);
     std::string error;
     if (!fromPointCloud2(*msg, *cloud, &error)) {
-      NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());
       return;
     }
-    if (!msg->header.frame_id.empty() && msg->header.frame_id != base_link_frame_)
-      NODELET_WARN_THROTTLE(warn_period_, "filtered_points in frame '%s', expected '%s'",
-                            msg->header.frame_id.c_str(), base_link_frame_.c_str());
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != node_params_.base_link_frame)
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "filtered_points in frame '%s', expected '%s'",
+                            msg->header.frame_id.c_str(), node_params_.base_link_frame.c_str());
     const double stamp = msg->header.stamp.toSec();
     if (last_scan_stamp_ && stamp <= *last_scan_stamp_) {
       // A bag replayed again, or time went backwards: start over rather than predict backwards.
@@ -216,8 +208,9 @@ class LocalizationNodelet : public nodelet::Nodelet {
         localizer_->setInitialPose(*pending_initial_, stamp);
         pending_initial_.reset();
       }
-      if (use_imu_)
-        gyro = gyro_.meanBetween(last_scan_stamp_.value_or(stamp - 0.1), stamp, imu_max_gap_);
+      if (node_params_.use_imu)
+        gyro = gyro_.meanBetween(last_scan_stamp_.value_or(stamp - 0.1), stamp,
+                                 node_params_.imu_max_gap);
     }
     const auto t0 = std::chrono::steady_clock::now();
     const LocalizationOutput out = localizer_->process(stamp, cloud, gyro);
@@ -243,8 +236,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void publishOdometry(const ros::Time& stamp, const LocalizationOutput& out) {
     boost::shared_ptr<nav_msgs::Odometry> odom(new nav_msgs::Odometry);
     odom->header.stamp = stamp;
-    odom->header.frame_id = map_frame_;
-    odom->child_frame_id = base_link_frame_;
+    odom->header.frame_id = node_params_.map_frame;
+    odom->child_frame_id = node_params_.base_link_frame;
     odom->pose.pose = toPoseMsg(out.pose);
     for (int r = 0; r < 6; ++r)
       for (int c = 0; c < 6; ++c) odom->pose.covariance[r * 6 + c] = out.covariance(r, c);
@@ -256,31 +249,34 @@ class LocalizationNodelet : public nodelet::Nodelet {
     odom->twist.twist.angular.y = x.angular_rate.y();
     odom->twist.twist.angular.z = x.angular_rate.z();
     odom_pub_.publish(boost::shared_ptr<const nav_msgs::Odometry>(odom));
-    if (!publish_tf_) return;
+    if (!node_params_.publish_tf) return;
     // map -> odom = map -> base_link * (odom -> base_link)^-1: odom -> base_link is the filter's
     // own dead reckoning, or another odometry's (scan_matching) from TF.
     Eigen::Isometry3d odom_to_base = odom_to_base_;
-    if (!publish_odom_tf_) {
+    if (!node_params_.publish_odom_tf) {
       try {
-        odom_to_base = fromTransformMsg(
-            tf_buffer_->lookupTransform(odom_frame_, base_link_frame_, stamp, ros::Duration(0.1))
-                .transform);
+        odom_to_base = fromTransformMsg(tf_buffer_
+                                            ->lookupTransform(node_params_.odom_frame,
+                                                              node_params_.base_link_frame, stamp,
+                                                              ros::Duration(0.1))
+                                            .transform);
       } catch (const std::exception& e) {
-        NODELET_WARN_THROTTLE(warn_period_, "no %s -> %s at %.3f (%s): map -> odom not sent",
-                              odom_frame_.c_str(), base_link_frame_.c_str(), stamp.toSec(),
-                              e.what());
+        NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                              "no %s -> %s at %.3f (%s): map -> odom not sent",
+                              node_params_.odom_frame.c_str(), node_params_.base_link_frame.c_str(),
+                              stamp.toSec(), e.what());
         return;
       }
     }
-    std::vector<geometry_msgs::TransformStamped> tfs(publish_odom_tf_ ? 2 : 1);
+    std::vector<geometry_msgs::TransformStamped> tfs(node_params_.publish_odom_tf ? 2 : 1);
     tfs[0].header.stamp = stamp;
-    tfs[0].header.frame_id = map_frame_;
-    tfs[0].child_frame_id = odom_frame_;
+    tfs[0].header.frame_id = node_params_.map_frame;
+    tfs[0].child_frame_id = node_params_.odom_frame;
     tfs[0].transform = toTransformMsg(out.pose * odom_to_base.inverse());
-    if (publish_odom_tf_) {
+    if (node_params_.publish_odom_tf) {
       tfs[1].header.stamp = stamp;
-      tfs[1].header.frame_id = odom_frame_;
-      tfs[1].child_frame_id = base_link_frame_;
+      tfs[1].header.frame_id = node_params_.odom_frame;
+      tfs[1].child_frame_id = node_params_.base_link_frame;
       tfs[1].transform = toTransformMsg(odom_to_base);
     }
     tf_broadcaster_.sendTransform(tfs);
@@ -290,7 +286,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
                      double ms) {
     boost::shared_ptr<LocalizationReport> msg(new LocalizationReport);
     msg->header.stamp = stamp;
-    msg->header.frame_id = map_frame_;
+    msg->header.frame_id = node_params_.map_frame;
     msg->state = toString(out.status);
     msg->localized = localized;
     msg->fitness = out.fitness;
@@ -306,9 +302,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
     status_pub_.publish(boost::shared_ptr<const LocalizationReport>(msg));
   }
 
-  std::string map_frame_, odom_frame_, base_link_frame_;
-  bool publish_tf_{}, publish_odom_tf_{}, use_imu_{};  // onInit()
-  double imu_max_gap_{}, map_points_voxel_{}, warn_period_{};
+  LocalizationNodeletParams node_params_;  ///< frames, rates, TF (nodelet_params.h)
   std::shared_ptr<const MapPackage> map_;
   std::unique_ptr<Localizer> localizer_;
   std::optional<Eigen::Isometry3d> pending_initial_;

@@ -25,14 +25,9 @@ class PrefilteringNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    readParams(RosParamReader(pnh), params_);  // defaults: CloudPrefilterParams
-    PrefilteringNodeletParams np;              // defaults: nodelet_params.h
-    readParams(RosParamReader(pnh), np);
-    base_link_frame_ = np.base_link_frame;
-    sensor_to_base_from_tf_ = np.sensor_to_base_from_tf;
-    tf_timeout_ = np.tf_timeout;
-    warn_period_ = np.warn_throttle_period;
-    if (np.reuse_freed_memory && !reuseFreedMemory())
+    readParams(RosParamReader(pnh), params_);       // defaults: CloudPrefilterParams
+    readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
+    if (node_params_.reuse_freed_memory && !reuseFreedMemory())
       NODELET_WARN(
           "prefiltering: could not tune the allocator (not glibc?): reuse_freed_memory "
           "has no effect");
@@ -44,27 +39,28 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     }
     param_sensor_to_base_ =
         fromXyzRpy(xyzrpy[0], xyzrpy[1], xyzrpy[2], xyzrpy[3], xyzrpy[4], xyzrpy[5]);
-    if (sensor_to_base_from_tf_) {
+    if (node_params_.sensor_to_base_from_tf) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
     }
     pub_ = nh.advertise<sensor_msgs::PointCloud2>("filtered_points", 5);
     sub_ = nh.subscribe("velodyne_points", 5, &PrefilteringNodelet::onCloud, this);
-    NODELET_INFO(
-        "prefiltering: voxel %.2f m (%s), range [%.1f, %.1f] m, outliers %s%s -> %s",
-        params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off", params_.min_range,
-        params_.max_range, params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
-        params_.parallel_octants ? " (8 octants in parallel)" : "", base_link_frame_.c_str());
+    NODELET_INFO("prefiltering: voxel %.2f m (%s), range [%.1f, %.1f] m, outliers %s%s -> %s",
+                 params_.voxel_leaf_size, params_.use_voxel_grid ? "on" : "off", params_.min_range,
+                 params_.max_range,
+                 params_.use_outlier_removal ? params_.outlier_method.c_str() : "off",
+                 params_.parallel_octants ? " (8 octants in parallel)" : "",
+                 node_params_.base_link_frame.c_str());
   }
 
   /// sensor -> base_link for a frame: identity for base_link itself, else TF (cached: static)
   /// or the sensor_to_base parameter.
   bool sensorToBase(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d* out) {
-    if (frame == base_link_frame_ || frame.empty()) {
+    if (frame == node_params_.base_link_frame || frame.empty()) {
       *out = Eigen::Isometry3d::Identity();
       return true;
     }
-    if (!sensor_to_base_from_tf_) {
+    if (!node_params_.sensor_to_base_from_tf) {
       *out = param_sensor_to_base_;
       return true;
     }
@@ -74,14 +70,15 @@ class PrefilteringNodelet : public nodelet::Nodelet {
       return true;
     }
     try {
-      const auto t = tf_buffer_->lookupTransform(base_link_frame_, frame, ros::Time(0),
-                                                 ros::Duration(tf_timeout_));
+      const auto t = tf_buffer_->lookupTransform(node_params_.base_link_frame, frame, ros::Time(0),
+                                                 ros::Duration(node_params_.tf_timeout));
       *out = fromTransformMsg(t.transform);
       tf_cache_[frame] = *out;
       return true;
     } catch (const std::exception& e) {
-      NODELET_WARN_THROTTLE(warn_period_, "no transform %s -> %s yet (%s); dropping scans",
-                            frame.c_str(), base_link_frame_.c_str(), e.what());
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "no transform %s -> %s yet (%s); dropping scans", frame.c_str(),
+                            node_params_.base_link_frame.c_str(), e.what());
       return false;
     }
   }
@@ -90,7 +87,7 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     PointCloud cloud;
     std::string error;
     if (!fromPointCloud2(*msg, cloud, &error)) {
-      NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());
       return;
     }
     Eigen::Isometry3d sensor_to_base;
@@ -99,7 +96,7 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     prefilter.setSensorToBase(sensor_to_base);
     const CloudPrefilterResult result = prefilter.filter(cloud);
     if (!result.ok) {
-      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f publishes nothing: %s",
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "scan at %.3f publishes nothing: %s",
                             msg->header.stamp.toSec(), result.reason.c_str());
       return;
     }
@@ -108,14 +105,12 @@ class PrefilteringNodelet : public nodelet::Nodelet {
     boost::shared_ptr<sensor_msgs::PointCloud2> out(new sensor_msgs::PointCloud2);
     toPointCloud2(*result.cloud, *out);
     out->header.stamp = msg->header.stamp;
-    out->header.frame_id = base_link_frame_;
+    out->header.frame_id = node_params_.base_link_frame;
     pub_.publish(boost::shared_ptr<const sensor_msgs::PointCloud2>(out));
   }
 
   CloudPrefilterParams params_;
-  std::string base_link_frame_;
-  bool sensor_to_base_from_tf_{};        // onInit()
-  double tf_timeout_{}, warn_period_{};  // onInit()
+  PrefilteringNodeletParams node_params_;  ///< frames, rates, TF (nodelet_params.h)
   Eigen::Isometry3d param_sensor_to_base_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

@@ -31,12 +31,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    ScanMatchingNodeletParams np;  // defaults: nodelet_params.h
-    readParams(RosParamReader(pnh), np);
-    odom_frame_ = np.odom_frame;
-    base_link_frame_ = np.base_link_frame;
-    publish_tf_ = np.publish_tf;
-    warn_period_ = np.warn_throttle_period;
+    readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
     KeyframeTrackerParams params;
     readParams(RosParamReader(pnh), params);
     try {
@@ -59,8 +54,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     imu_sub_ = nh.subscribe("imu/data", 200, &ScanMatchingNodelet::onImu, this);
     NODELET_INFO("scan matching: %s, keyframe every %.2f m / %.3f rad / %.1f s, %s -> %s",
                  params.registration.method.c_str(), params.keyframe_delta_trans,
-                 params.keyframe_delta_angle, params.keyframe_delta_time, odom_frame_.c_str(),
-                 base_link_frame_.c_str());
+                 params.keyframe_delta_angle, params.keyframe_delta_time,
+                 node_params_.odom_frame.c_str(), node_params_.base_link_frame.c_str());
   }
 
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
@@ -84,15 +79,16 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     PointCloudPtr cloud(new PointCloud);
     std::string error;
     if (!fromPointCloud2(*msg, *cloud, &error)) {
-      NODELET_WARN_THROTTLE(warn_period_, "dropping scan: %s", error.c_str());
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());
       if (const auto event = health_->updateRejected(msg->header.stamp.toSec(), error))
         NODELET_WARN("%s", event->message.c_str());
       publishHealthMarker(msg->header.stamp, false);
       return;
     }
-    if (!msg->header.frame_id.empty() && msg->header.frame_id != base_link_frame_) {
-      NODELET_WARN_THROTTLE(warn_period_, "filtered_points in frame '%s', expected '%s'",
-                            msg->header.frame_id.c_str(), base_link_frame_.c_str());
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != node_params_.base_link_frame) {
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "filtered_points in frame '%s', expected '%s'",
+                            msg->header.frame_id.c_str(), node_params_.base_link_frame.c_str());
     }
     const double stamp = msg->header.stamp.toSec();
     const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp));
@@ -102,12 +98,13 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     publishStatus(msg->header.stamp, result);
     publishHealthMarker(msg->header.stamp, result.new_keyframe);
     if (!result.has_pose()) {
-      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f ignored: %s", msg->header.stamp.toSec(),
-                            result.message.c_str());
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "scan at %.3f ignored: %s",
+                            msg->header.stamp.toSec(), result.message.c_str());
       return;
     }
     if (result.failed()) {
-      NODELET_WARN_THROTTLE(warn_period_, "scan at %.3f: %s (constant-velocity prediction kept)",
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "scan at %.3f: %s (constant-velocity prediction kept)",
                             msg->header.stamp.toSec(), result.message.c_str());
     }
     publishOdometry(msg->header.stamp, result.pose);
@@ -117,14 +114,14 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void publishOdometry(const ros::Time& stamp, const Eigen::Isometry3d& pose) {
     boost::shared_ptr<nav_msgs::Odometry> odom(new nav_msgs::Odometry);
     odom->header.stamp = stamp;
-    odom->header.frame_id = odom_frame_;
-    odom->child_frame_id = base_link_frame_;
+    odom->header.frame_id = node_params_.odom_frame;
+    odom->child_frame_id = node_params_.base_link_frame;
     odom->pose.pose = toPoseMsg(pose);
     odom_pub_.publish(boost::shared_ptr<const nav_msgs::Odometry>(odom));
-    if (publish_tf_) {
+    if (node_params_.publish_tf) {
       geometry_msgs::TransformStamped tf;
       tf.header = odom->header;
-      tf.child_frame_id = base_link_frame_;
+      tf.child_frame_id = node_params_.base_link_frame;
       tf.transform = toTransformMsg(pose);
       tf_broadcaster_.sendTransform(tf);
     }
@@ -134,7 +131,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     const Keyframe& kf = tracker_->keyframe();
     boost::shared_ptr<KeyFrame> msg(new KeyFrame);
     msg->header.stamp = cloud.header.stamp;
-    msg->header.frame_id = odom_frame_;
+    msg->header.frame_id = node_params_.odom_frame;
     msg->id = kf.id;
     msg->odom_pose = toPoseMsg(kf.pose);
     msg->accum_distance = kf.accum_distance;
@@ -148,7 +145,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void publishStatus(const ros::Time& stamp, const TrackResult& result) {
     boost::shared_ptr<ScanMatchingStatus> msg(new ScanMatchingStatus);
     msg->header.stamp = stamp;
-    msg->header.frame_id = odom_frame_;
+    msg->header.frame_id = node_params_.odom_frame;
     msg->has_converged = result.registration.converged;
     msg->failed = result.failed();
     msg->method = tracker_->params().registration.method;
@@ -175,7 +172,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     if (!label) return;
     boost::shared_ptr<visualization_msgs::Marker> m(new visualization_msgs::Marker);
     m->header.stamp = stamp;
-    m->header.frame_id = base_link_frame_;
+    m->header.frame_id = node_params_.base_link_frame;
     m->ns = "tracking_health";
     m->id = 0;
     m->type = visualization_msgs::Marker::TEXT_VIEW_FACING;
@@ -192,9 +189,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     marker_pub_.publish(boost::shared_ptr<const visualization_msgs::Marker>(m));
   }
 
-  std::string odom_frame_, base_link_frame_;
-  bool publish_tf_{};  // onInit()
-  double warn_period_{};
+  ScanMatchingNodeletParams node_params_;  ///< frames, rates, TF (nodelet_params.h)
   std::unique_ptr<KeyframeTracker> tracker_;
   std::unique_ptr<TrackingHealth> health_;
   TrackingHealthDisplay health_display_;
