@@ -65,21 +65,6 @@ struct Fixture {
 };
 Fixture* R = nullptr;
 
-double param(const std::string& name, double fallback) {
-  double v = fallback;
-  ros::NodeHandle("~").param(name, v, fallback);
-  return v;
-}
-
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (done()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return done();
-}
-
 /// The map drive and offline_slam's map package, the localised drive's bag; from the cache when
 /// the commands and tools are unchanged.
 std::string prepareFixture(Fixture& r) {

@@ -1,5 +1,5 @@
 #pragma once
-// Shared by the two regression rostests (slam_regression_offline, slam_regression_nodelets):
+// Shared by the rostest nodes (slam_regression_offline, slam_regression_nodelets, localization):
 // the simulated drive, generated once per build tree at test time and reused (a lock-protected
 // cache), offline_slam runs, and the accuracy evaluation against the simulator's truth.
 //
@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <functional>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -26,7 +27,9 @@
 
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
+#include <ros/init.h>
 #include <ros/node_handle.h>
+#include <ros/time.h>
 
 #include "osm_graph_slam/eval/slam_evaluation.h"
 #include "osm_graph_slam/graph/g2o_io.h"
@@ -39,6 +42,23 @@
 namespace osm_graph_slam::regression {
 
 namespace fs = std::filesystem;
+
+/// A double test parameter from the node's private namespace (the .test file's <param>).
+inline double param(const std::string& name, double fallback) {
+  double v = fallback;
+  ros::NodeHandle("~").param(name, v, fallback);
+  return v;
+}
+
+/// Polls done() every 50 ms until it holds or `seconds` of wall time have passed.
+inline bool waitFor(const std::function<bool()>& done, double seconds) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (done()) return true;
+    ros::WallDuration(0.05).sleep();
+  }
+  return done();
+}
 
 struct DriveOptions {
   int scans = 600;        ///< 60 s at 10 Hz

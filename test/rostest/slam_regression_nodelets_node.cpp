@@ -47,25 +47,10 @@ struct NodeletRun {
 };
 NodeletRun* R = nullptr;
 
-double param(const std::string& name, double fallback) {
-  double v = fallback;
-  ros::NodeHandle("~").param(name, v, fallback);
-  return v;
-}
-
 std::string managerName() {
   std::string manager = "/osm_graph_slam_manager";
   ros::NodeHandle("~").param("manager", manager, manager);
   return manager;
-}
-
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (done()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return done();
 }
 
 /// Swaps the launch file's osm_buffer (stand-in URL) for one pointed at the test server.

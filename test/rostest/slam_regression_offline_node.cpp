@@ -21,12 +21,6 @@ struct Runs {
 };
 Runs* R = nullptr;
 
-double param(const std::string& name, double fallback) {
-  double v = fallback;
-  ros::NodeHandle("~").param(name, v, fallback);
-  return v;
-}
-
 class SlamRegressionOffline : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
