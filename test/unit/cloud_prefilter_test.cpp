@@ -3,12 +3,18 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <limits>
 #include <tuple>
 
 #include "frontend_test_utils.h"
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/common/memory_tuning.h"
 #include "test_data.h"
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 namespace osm_graph_slam {
 namespace {
@@ -219,6 +225,22 @@ TEST(CloudPrefilterTest, RealScanIsReducedAndStaysInRange) {
     ASSERT_GT(r, params.min_range - params.voxel_leaf_size);
     ASSERT_LT(r, params.max_range + params.voxel_leaf_size);
   }
+}
+
+// reuseFreedMemory() did nothing for two sessions: its #if tested __GLIBC__ before any libc
+// header had defined it. A scan-sized block must now come from the heap, not a fresh mapping
+// (glibc's default threshold maps anything above 128 KiB at first).
+TEST(MemoryTuning, ScanSizedBlocksComeFromTheHeapNotFreshMappings) {
+#if defined(__GLIBC__)
+  ASSERT_TRUE(reuseFreedMemory());
+  const size_t mapped_before = mallinfo2().hblkhd;
+  void* block = std::malloc(8 * 1024 * 1024);
+  ASSERT_NE(block, nullptr);
+  EXPECT_EQ(mallinfo2().hblkhd, mapped_before);
+  std::free(block);
+#else
+  GTEST_SKIP() << "allocator tuning is glibc-only";
+#endif
 }
 
 }  // namespace
