@@ -1,9 +1,10 @@
 #include "osm_graph_slam/ros/drive_source.h"
-#include "osm_graph_slam/common/attitude.h"
 
+#include <chrono>
 #include <filesystem>
 #include <iostream>
 
+#include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -222,8 +223,12 @@ class ScanFolderSource : public DriveSource {
 
 }  // namespace
 
-ScanPrefetcher::ScanPrefetcher(DriveSource& source, size_t max_scans, size_t depth)
-    : source_(source), max_scans_(max_scans), depth_(depth), thread_([this] { run(); }) {}
+ScanPrefetcher::ScanPrefetcher(DriveSource& source, size_t max_scans, size_t depth, Prepare prepare)
+    : source_(source),
+      max_scans_(max_scans),
+      depth_(depth),
+      prepare_(std::move(prepare)),
+      thread_([this] { run(); }) {}
 
 ScanPrefetcher::~ScanPrefetcher() {
   {
@@ -248,6 +253,12 @@ void ScanPrefetcher::run() {
   for (size_t i = 0; i < max_scans_; ++i) {
     DriveScan scan;
     if (!source_.next(scan)) break;
+    if (prepare_ && scan.cloud) {
+      const auto t0 = std::chrono::steady_clock::now();
+      prepare_(scan);
+      scan.prepare_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
     std::unique_lock<std::mutex> lock(mutex_);
     changed_.wait(lock, [this] { return queue_.size() < depth_ || stop_; });
     if (stop_) break;

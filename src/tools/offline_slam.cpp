@@ -180,7 +180,14 @@ int main(int argc, char** argv) {
   if (args.count("max-scans")) n = std::min<size_t>(n, std::stoul(args["max-scans"]));
   std::map<double, Eigen::Isometry3d> truth_by_stamp;
   DriveScan scan;
-  ScanPrefetcher prefetcher(*drive, n, 8);
+  // The prefilter runs on the reading thread, so that it overlaps the tracking of the scans
+  // before it (on 2 cores the tracker's threads leave a core partly idle).
+  const CloudPrefilter& prefilter = pipeline.prefilter();
+  pipeline.startClock();
+  ScanPrefetcher prefetcher(*drive, n, 8, [&prefilter](DriveScan& s) {
+    s.filtered = prefilter.filter(*s.cloud);
+    s.cloud.reset();  // the raw scan is not needed any more
+  });
   auto readScan = [&] {
     const auto t0 = std::chrono::steady_clock::now();
     const bool ok = prefetcher.next(scan);
@@ -189,14 +196,14 @@ int main(int argc, char** argv) {
     return ok;
   };
   for (size_t i = 0; i < n && readScan(); ++i) {
-    if (!scan.cloud) {
+    if (!scan.filtered) {
       std::cerr << "\noffline_slam: " << scan.error << " (scan skipped)\n";
       continue;
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
     const bool attitude_priors = use_imu && params.backend.inputs.use_imu;
-    pipeline.processScan(
-        scan.stamp, scan.cloud,
+    pipeline.processFiltered(
+        scan.stamp, *scan.filtered, scan.prepare_ms,
         attitude_priors ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss,
         use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>(), scan.gnss_std);
     printProgress(i + 1, n);

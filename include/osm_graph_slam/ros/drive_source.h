@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -13,6 +14,7 @@
 #include <string>
 #include <thread>
 
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/slam/sensor_inputs_params.h"
 
@@ -29,6 +31,10 @@ struct DriveScan {
   std::optional<Eigen::Isometry3d> truth;           ///< base_link in ENU at the first fix
   std::optional<Eigen::Vector2d> gnss;              ///< the GNSS fix in the same frame
   std::optional<double> gnss_std;  ///< [m] its horizontal deviation, when the receiver reports it
+  /// Set by a ScanPrefetcher's prepare step (offline_slam: the prefilter, run on the reading
+  /// thread so that it overlaps the tracking of the scans before); prepare_ms is its time.
+  std::optional<CloudPrefilterResult> filtered;
+  double prepare_ms = 0.0;
 };
 
 /// A drive: origin, initial heading, sensor mounting and the scans in order.
@@ -57,7 +63,9 @@ std::unique_ptr<DriveSource> openDriveSource(const std::map<std::string, std::st
 /// 2 MB HDL-64E scan takes about as long as processing it (35 vs 40 ms); this way they overlap.
 class ScanPrefetcher {
  public:
-  ScanPrefetcher(DriveSource& source, size_t max_scans, size_t depth);
+  /// prepare (optional) runs on the prefetch thread on every readable scan before it is queued.
+  using Prepare = std::function<void(DriveScan&)>;
+  ScanPrefetcher(DriveSource& source, size_t max_scans, size_t depth, Prepare prepare = {});
   ~ScanPrefetcher();
   /// The next scan in order; false at the end of the drive (or after max_scans).
   bool next(DriveScan& scan);
@@ -67,6 +75,7 @@ class ScanPrefetcher {
 
   DriveSource& source_;
   const size_t max_scans_, depth_;
+  const Prepare prepare_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<DriveScan> queue_;

@@ -40,8 +40,9 @@ struct PipelineTimings {
   double input_ms = 0;      ///< reading the scans (measured by the caller: addInputTime)
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
-  double pre_tracker_ms = 0;  ///< inside tracking_ms: the pre-tracker's registrations
-  double floor_ms = 0;        ///< floor detection (keyframes only)
+  double pre_tracker_ms = 0;     ///< inside tracking_ms: the pre-tracker's registrations
+  double floor_ms = 0;           ///< floor detection (keyframes only)
+  bool prefilter_ahead = false;  ///< prefiltered on another thread (processFiltered): overlapped
   size_t floors_found = 0, floors_missing = 0, floor_edges = 0, floor_slope_changes = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
   TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
@@ -72,6 +73,18 @@ class SlamPipeline {
                    const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
                    const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
                    std::optional<double> gnss_std = std::nullopt);
+  /// processScan for a scan prefiltered elsewhere with prefilter() (offline_slam runs it on its
+  /// reading thread, one scan ahead of the tracking); prefilter_ms is reported in its stage.
+  bool processFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
+                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
+                       const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
+                       const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
+                       std::optional<double> gnss_std = std::nullopt);
+  /// Starts the wall clock of the throughput report (else the first scan starts it): a caller
+  /// that reads or prefilters ahead starts it before, so that work is counted too.
+  void startClock();
+  /// The pipeline's prefilter; filter() is const and may run on another thread.
+  const CloudPrefilter& prefilter() const { return prefilter_; }
   /// Flushes every queue and runs the final optimisation.
   BackendUpdateReport finish();
   /// Time the caller waited for input (files, a bag), so the report shows it next to the
@@ -84,6 +97,12 @@ class SlamPipeline {
   std::string timingJson() const;
 
  private:
+  bool processFilteredScan(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
+                           bool prefiltered_here,
+                           const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                           const std::optional<Eigen::Vector2d>& gnss_position,
+                           const std::optional<Eigen::Quaterniond>& imu_orientation,
+                           std::optional<double> gnss_std);
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
