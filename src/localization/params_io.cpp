@@ -53,4 +53,25 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_confirm_after", p.global_confirm_after);
 }
 
+void readParams(const ParamReader& r, OsmLocalizerParams& p) {
+  r.param("use_osm", p.use_osm);
+  r.param("use_gnss", p.use_gnss);
+  r.param("odometry_std_per_m", p.odometry_std_per_m);
+  r.param("odometry_yaw_std_per_m", p.odometry_yaw_std_per_m);
+  r.param("odometry_yaw_std_per_rad", p.odometry_yaw_std_per_rad);
+  r.param("gnss_std", p.gnss_std);
+  r.param("gnss_gate_chi2", p.gnss_gate_chi2);
+  r.param("datum_std", p.datum_std);
+  r.param("datum_walk_std_per_m", p.datum_walk_std_per_m);
+  r.param("match_every_distance", p.match_every_distance);
+  r.param("query_radius", p.query_radius);
+  r.param("min_segments", p.min_segments);
+  r.param("min_fitness", p.min_fitness);
+  r.param("min_matched", p.min_matched);
+  r.param("osm_std_xy", p.osm_std_xy);
+  r.param("osm_std_yaw", p.osm_std_yaw);
+  r.param("osm_gate_chi2", p.osm_gate_chi2);
+  r.param("init_yaw_std", p.init_yaw_std);
+}
+
 }  // namespace osm_graph_slam

@@ -103,18 +103,6 @@ Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_
   return R.transpose() * info_map * R;
 }
 
-Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
-                                  double std_theta, const LineMatcherParams& m) {
-  Eigen::Matrix3d info = matcher_info;
-  const double sxy = 1.0 / (std_xy * std_xy * m.edge_information_xy);
-  const double sth = 1.0 / (std_theta * std_theta * m.edge_information_theta);
-  info.topLeftCorner<2, 2>() *= sxy;
-  info(2, 2) *= sth;
-  info.topRightCorner<2, 1>() *= std::sqrt(sxy * sth);
-  info.bottomLeftCorner<1, 2>() *= std::sqrt(sxy * sth);
-  return info;
-}
-
 Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch) {
   const double yaw = planarPose(pose).theta;
   Eigen::Isometry3d z = Eigen::Isometry3d::Identity();

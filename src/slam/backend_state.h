@@ -86,10 +86,6 @@ RobustKernel kernelNamed(const std::string& name, double width);
 /// Information of a 2D match (translation in map axes) re-expressed in the axes of an edge whose
 /// error is measured in a frame rotated by `frame_yaw` (the g2o SE2 error convention).
 Eigen::Matrix3d rotateInformation(const Eigen::Matrix3d& info_map, double frame_yaw);
-/// The matcher's information (§3.3.5: by feature type, scaled by fitness) rescaled so that the
-/// best possible match (edge feature, full fitness) has the given standard deviations.
-Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
-                                  double std_theta, const LineMatcherParams& m);
 /// A unary SE3 measurement that constrains only roll and pitch (the x/y components of the
 /// rotation error in the measurement frame, whose yaw is the current estimate's).
 Eigen::Isometry3d attitudeMeasurement(const Eigen::Isometry3d& pose, double roll, double pitch);

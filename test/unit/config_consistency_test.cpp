@@ -163,6 +163,12 @@ std::vector<StageConfig> stages() {
          readParams(r, n);
        },
        {}},
+      {"osm_localization",
+       [](const ParamReader& r) {
+         OsmLocalizerParams p;
+         readParams(r, p);
+       },
+       {}},
   };
 }
 

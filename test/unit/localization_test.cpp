@@ -12,13 +12,16 @@
 
 #include <unistd.h>
 
+#include "osm_graph_slam/common/polygon2d.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/localization/localizer.h"
 #include "osm_graph_slam/localization/map_package.h"
+#include "osm_graph_slam/localization/osm_localizer.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/localization/pose_ukf.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/sim/synthetic_world.h"
+#include "osm_graph_slam/sim/wall_scan_simulator.h"
 
 using namespace osm_graph_slam;
 namespace fs = std::filesystem;
@@ -314,6 +317,100 @@ LocalizationParams defaultParams() {
   readParams(yaml, params);
   params.registration.num_threads = 2;
   return params;
+}
+
+// --- Localisation from OSM alone (OsmLocalizer) ---------------------------------------------
+
+/// A street of 16 buildings (makeStreetScene), its OSM map shifted by `map_offset`, and a drive
+/// along it with drifting odometry (1 % scale, 0.0005 rad/m yaw) and GNSS fixes (white noise +
+/// bias). Returns the mean and final 2D error and the final datum estimate.
+struct OsmDriveResult {
+  double mean_error = 0.0, final_error = 0.0, max_error = 0.0;
+  Eigen::Vector2d datum = Eigen::Vector2d::Zero();
+  OsmLocalizationStats stats;
+};
+
+OsmDriveResult driveThroughStreet(OsmLocalizerParams params, const Eigen::Vector2d& map_offset,
+                                  double gnss_noise, const Eigen::Vector2d& gnss_bias) {
+  const std::vector<SimBuilding> scene = makeStreetScene(16, 7);
+  std::vector<Building> osm;
+  for (size_t i = 0; i < scene.size(); ++i) {
+    Building b;
+    b.id = static_cast<int64_t>(i + 1);
+    for (const Eigen::Vector2d& v : scene[i].outline) b.outline_enu.push_back(v + map_offset);
+    b.segments = polygonSegments(b.outline_enu);
+    osm.push_back(std::move(b));
+  }
+  OsmLocalizer localizer(params, osm);
+  localizer.initialize({-45.0, 0.0, 0.0}, 0.5, 0.02);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, gnss_noise);
+  WallScanParams scan_params;
+  scan_params.beams_per_ring = 900;
+  OsmDriveResult r;
+  Pose2 odom;  // drifting odometry
+  int n = 0;
+  for (double x = -45.0; x <= 45.0; x += 1.0, ++n) {
+    const Pose2 truth(x, 0.5 * std::sin(x / 15.0), 0.03 * std::cos(x / 15.0));
+    if (n > 0) odom = odom * Pose2(1.01, 0.0, 0.0005);
+    Eigen::Isometry3d odom3 = Eigen::Isometry3d::Identity();
+    odom3.linear() = Eigen::AngleAxisd(odom.theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    odom3.translation() << odom.x, odom.y, 0.0;
+    scan_params.seed = static_cast<uint32_t>(n + 1);
+    const PointCloudPtr scan = simulateWallScan(scene, truth, scan_params);
+    const Eigen::Vector2d fix =
+        truth.translation() + gnss_bias + Eigen::Vector2d(noise(rng), noise(rng));
+    const OsmLocalizationOutput out =
+        localizer.process(0.1 * n, odom3, scan, fix, gnss_noise + gnss_bias.norm(), std::nullopt);
+    const double e = (out.pose.translation().head<2>() - truth.translation()).norm();
+    r.mean_error += e;
+    r.max_error = std::max(r.max_error, e);
+    r.final_error = e;
+    r.datum = out.datum;
+  }
+  r.mean_error /= n;
+  r.stats = localizer.stats();
+  return r;
+}
+
+TEST(OsmLocalizer, WallsHoldTheDriveWhereOdometryDrifts) {
+  OsmLocalizerParams p;
+  p.use_gnss = false;
+  p.datum_std = 0.01;  // the map is right here: no offset to estimate
+  p.min_fitness = -100.0;
+  p.min_matched = 2;
+  const OsmDriveResult with_walls = driveThroughStreet(p, {0, 0}, 1.0, {0, 0});
+  p.use_osm = false;
+  const OsmDriveResult dead_reckoning = driveThroughStreet(p, {0, 0}, 1.0, {0, 0});
+  // 90 m at 1 % scale and 0.0005 rad/m: dead reckoning ends metres off.
+  // Measured: walls mean 0.25, max 0.57 (the 1 % scale drift along the street is what the
+  // facades constrain least), 46 matches accepted; dead reckoning ends 2.14 m off.
+  EXPECT_GT(dead_reckoning.final_error, 1.8);
+  EXPECT_GT(with_walls.stats.osm_accepted, 30u);
+  EXPECT_LT(with_walls.max_error, 0.8);
+  EXPECT_LT(with_walls.mean_error, 0.35);
+  EXPECT_LT(with_walls.final_error, 0.4 * dead_reckoning.final_error);
+  std::printf("walls: mean %.3f max %.3f final %.3f accepted %zu; dead reckoning final %.3f\n",
+              with_walls.mean_error, with_walls.max_error, with_walls.final_error,
+              with_walls.stats.osm_accepted, dead_reckoning.final_error);
+}
+
+TEST(OsmLocalizer, MapShiftedAsAWholeIsEstimatedAsTheDatum) {
+  OsmLocalizerParams p;
+  p.min_fitness = -100.0;
+  p.min_matched = 2;
+  const Eigen::Vector2d offset(2.0, -1.5);
+  const OsmDriveResult r = driveThroughStreet(p, offset, 1.0, {0, 0});
+  // Unbiased fixes place the map: the datum converges to the offset; the walls do not drag
+  // the vehicle with the shifted map.
+  // Measured: datum (2.04, -1.52), mean 0.35 / final 0.63 m; odometry + GNSS mean 0.39 m.
+  EXPECT_LT((r.datum - offset).norm(), 0.3) << r.datum.transpose();
+  EXPECT_LT(r.final_error, 0.9);
+  p.use_osm = false;
+  const OsmDriveResult gnss_only = driveThroughStreet(p, offset, 1.0, {0, 0});
+  EXPECT_LE(r.mean_error, gnss_only.mean_error);
+  std::printf("shifted map: datum %.2f %.2f, mean %.3f final %.3f; odometry + GNSS mean %.3f\n",
+              r.datum.x(), r.datum.y(), r.mean_error, r.final_error, gnss_only.mean_error);
 }
 
 }  // namespace
