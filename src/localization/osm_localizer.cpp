@@ -1,5 +1,6 @@
 #include "osm_graph_slam/localization/osm_localizer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -14,9 +15,10 @@ namespace osm_graph_slam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using Vec5 = Eigen::Matrix<double, 5, 1>;
-using Mat5 = Eigen::Matrix<double, 5, 5>;
-constexpr int kX = 0, kY = 1, kYaw = 2, kDx = 3, kDy = 4;
+constexpr int kN = OsmLocalizer::kStateSize;
+using VecN = Eigen::Matrix<double, kN, 1>;
+using MatN = Eigen::Matrix<double, kN, kN>;
+constexpr int kX = 0, kY = 1, kYaw = 2, kDx = 3, kDy = 4, kBx = 5, kBy = 6;
 
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -26,7 +28,7 @@ double msSince(Clock::time_point t0) {
 /// information (a match along one street constrains only across it). Returns false (and
 /// changes nothing) when the innovation's squared Mahalanobis distance exceeds gate_chi2.
 template <int M>
-bool informationUpdate(Vec5& x, Mat5& P, const Eigen::Matrix<double, M, 5>& H,
+bool informationUpdate(VecN& x, MatN& P, const Eigen::Matrix<double, M, kN>& H,
                        const Eigen::Matrix<double, M, 1>& innovation,
                        const Eigen::Matrix<double, M, M>& info, double gate_chi2) {
   using MatM = Eigen::Matrix<double, M, M>;
@@ -35,9 +37,9 @@ bool informationUpdate(Vec5& x, Mat5& P, const Eigen::Matrix<double, M, 5>& H,
   const MatM s_inv = info * (MatM::Identity() + A * info).inverse();
   const double d2 = innovation.dot(s_inv * innovation);
   if (!std::isfinite(d2) || d2 > gate_chi2) return false;
-  const Eigen::Matrix<double, 5, M> K = P * H.transpose() * s_inv;
+  const Eigen::Matrix<double, kN, M> K = P * H.transpose() * s_inv;
   x += K * innovation;
-  P = (Mat5::Identity() - K * H) * P;
+  P = (MatN::Identity() - K * H) * P;
   P = 0.5 * (P + P.transpose());
   return true;
 }
@@ -114,11 +116,12 @@ void OsmLocalizer::initialize(const Eigen::Vector3d& pose, double position_std, 
   cov_(kX, kX) = cov_(kY, kY) = position_std * position_std;
   cov_(kYaw, kYaw) = yaw_std * yaw_std;
   cov_(kDx, kDx) = cov_(kDy, kDy) = params_.datum_std * params_.datum_std;
+  cov_(kBx, kBx) = cov_(kBy, kBy) = params_.gnss_bias_std * params_.gnss_bias_std;
   initialized_ = true;
   since_match_ = 1e9;
 }
 
-OsmLocalizationOutput OsmLocalizer::process(double /*stamp*/, const Eigen::Isometry3d& odom_pose,
+OsmLocalizationOutput OsmLocalizer::process(double stamp, const Eigen::Isometry3d& odom_pose,
                                             const PointCloudConstPtr& cloud,
                                             const std::optional<Eigen::Vector2d>& gnss,
                                             std::optional<double> gnss_std,
@@ -135,12 +138,14 @@ OsmLocalizationOutput OsmLocalizer::process(double /*stamp*/, const Eigen::Isome
       return {};
     }
     last_odom_ = odom_pose;
+    last_stamp_ = stamp;
     OsmLocalizationOutput out = output(odom_pose);
     out.status = OsmLocalizationStatus::kGnss;
     return out;
   }
   const auto t0 = Clock::now();
-  predict(odom_pose);
+  predict(odom_pose, std::max(0.0, stamp - last_stamp_));
+  last_stamp_ = stamp;
   OsmLocalizationOutput out;
   out.status = OsmLocalizationStatus::kDeadReckoning;
   if (params_.use_gnss && gnss) {
@@ -164,7 +169,7 @@ OsmLocalizationOutput OsmLocalizer::process(double /*stamp*/, const Eigen::Isome
   return out;
 }
 
-void OsmLocalizer::predict(const Eigen::Isometry3d& odom_pose) {
+void OsmLocalizer::predict(const Eigen::Isometry3d& odom_pose, double dt) {
   const Pose2 step =
       last_odom_ ? planarPose(*last_odom_).inverse() * planarPose(odom_pose) : Pose2();
   last_odom_ = odom_pose;
@@ -172,13 +177,13 @@ void OsmLocalizer::predict(const Eigen::Isometry3d& odom_pose) {
   since_match_ += dist;
   const double yaw = state_(kYaw);
   const double c = std::cos(yaw), s = std::sin(yaw);
-  Mat5 F = Mat5::Identity();
+  MatN F = MatN::Identity();
   F(kX, kYaw) = -s * step.x - c * step.y;
   F(kY, kYaw) = c * step.x - s * step.y;
   state_(kX) += c * step.x - s * step.y;
   state_(kY) += s * step.x + c * step.y;
   state_(kYaw) = wrapAngle(yaw + step.theta);
-  Mat5 Q = Mat5::Zero();
+  MatN Q = MatN::Zero();
   const double st = params_.odometry_std_per_m * dist + 1e-4;
   const double sy = params_.odometry_yaw_std_per_m * dist +
                     params_.odometry_yaw_std_per_rad * std::abs(step.theta) + 1e-5;
@@ -186,13 +191,23 @@ void OsmLocalizer::predict(const Eigen::Isometry3d& odom_pose) {
   Q(kX, kX) = Q(kY, kY) = st * st;
   Q(kYaw, kYaw) = sy * sy;
   Q(kDx, kDx) = Q(kDy, kDy) = sd * sd;
+  // The receiver's bias: first-order Gauss-Markov (decays towards 0, stationary deviation kept).
+  if (params_.gnss_bias_tau > 0.0) {
+    const double decay = std::exp(-dt / params_.gnss_bias_tau);
+    F(kBx, kBx) = F(kBy, kBy) = decay;
+    state_(kBx) *= decay;
+    state_(kBy) *= decay;
+    Q(kBx, kBx) = Q(kBy, kBy) =
+        params_.gnss_bias_std * params_.gnss_bias_std * (1.0 - decay * decay);
+  }
   cov_ = F * cov_ * F.transpose() + Q;
 }
 
 bool OsmLocalizer::correctGnss(const Eigen::Vector2d& fix, double std) {
-  Eigen::Matrix<double, 2, 5> H = Eigen::Matrix<double, 2, 5>::Zero();
+  Eigen::Matrix<double, 2, kN> H = Eigen::Matrix<double, 2, kN>::Zero();
   H(0, kX) = H(1, kY) = 1.0;
-  const Eigen::Vector2d innovation = fix - state_.head<2>();
+  H(0, kBx) = H(1, kBy) = 1.0;  // a fix is where the vehicle is plus the receiver's bias
+  const Eigen::Vector2d innovation = fix - state_.head<2>() - state_.segment<2>(kBx);
   const Eigen::Matrix2d info = Eigen::Matrix2d::Identity() / (std * std);
   return informationUpdate<2>(state_, cov_, H, innovation, info, params_.gnss_gate_chi2);
 }
@@ -238,7 +253,7 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
       leverInformation(scaledInformation(match.information, params_.osm_std_xy, params_.osm_std_yaw,
                                          impl_->matcher.params()),
                        match.matched_centre - match.transform.translation());
-  Eigen::Matrix<double, 3, 5> H = Eigen::Matrix<double, 3, 5>::Zero();
+  Eigen::Matrix<double, 3, kN> H = Eigen::Matrix<double, 3, kN>::Zero();
   H(0, kX) = H(1, kY) = H(2, kYaw) = 1.0;
   H(0, kDx) = H(1, kDy) = 1.0;
   const Eigen::Vector3d innovation(match.transform.x - guess.x, match.transform.y - guess.y,
@@ -277,7 +292,7 @@ OsmLocalizationOutput OsmLocalizer::output(const Eigen::Isometry3d& odom_pose) c
   out.pose.linear() = rotationFromRollPitchYaw(rp.x(), rp.y(), state_(kYaw));
   out.pose.translation() = Eigen::Vector3d(state_(kX), state_(kY), odom_pose.translation().z());
   out.covariance = cov_.topLeftCorner<3, 3>();
-  out.datum = state_.tail<2>();
+  out.datum = state_.segment<2>(kDx);
   return out;
 }
 

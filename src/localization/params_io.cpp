@@ -61,6 +61,8 @@ void readParams(const ParamReader& r, OsmLocalizerParams& p) {
   r.param("odometry_yaw_std_per_rad", p.odometry_yaw_std_per_rad);
   r.param("gnss_std", p.gnss_std);
   r.param("gnss_gate_chi2", p.gnss_gate_chi2);
+  r.param("gnss_bias_std", p.gnss_bias_std);
+  r.param("gnss_bias_tau", p.gnss_bias_tau);
   r.param("datum_std", p.datum_std);
   r.param("datum_walk_std_per_m", p.datum_walk_std_per_m);
   r.param("match_every_distance", p.match_every_distance);

@@ -28,17 +28,21 @@ struct OsmLocalizerParams {
   double odometry_yaw_std_per_m = 5e-4;    ///< [rad/m]
   double odometry_yaw_std_per_rad = 0.01;  ///< [rad/rad] of the turn
   // GNSS.
-  double gnss_std = 2.0;         ///< [m] when the fix reports none
+  double gnss_std = 2.0;         ///< [m] white noise of a fix when the receiver reports none
   double gnss_gate_chi2 = 13.8;  ///< 2 DOF, 99.9 %: a fix further off is rejected (multipath)
+  /// The receiver's slowly varying bias (first-order Gauss-Markov), estimated so that hundreds of
+  /// fixes do not average into false certainty: only the white part averages out.
+  double gnss_bias_std = 1.0;   ///< [m] stationary deviation per axis
+  double gnss_bias_tau = 90.0;  ///< [s] correlation time (0: no bias state)
   // The OSM map's offset from the GNSS frame (translation only).
-  double datum_std = 3.0;               ///< [m] initial uncertainty of the offset
+  double datum_std = 1.5;               ///< [m] initial uncertainty of the offset
   double datum_walk_std_per_m = 0.005;  ///< [m/m] the offset may change slowly along the drive
   // OSM wall matching.
   double match_every_distance = 2.0;  ///< [m] driven between two matching attempts
   double query_radius = 45.0;         ///< [m] buildings within this of the prediction are matched
   int min_segments = 3;               ///< fewer wall segments in the scan: no attempt
-  double min_fitness = -20.0;         ///< line matcher fitness below this: no update
-  int min_matched = 3;                ///< matched wall segments below this: no update
+  double min_fitness = -100.0;        ///< line matcher fitness below this: no update
+  int min_matched = 2;                ///< matched wall segments below this: no update
   /// Deviation of the best possible match (weaker matches scale down, as the back-end's global
   /// priors); besides the matcher's own error it stands for each building's own OSM error, which
   /// the datum (common to all) cannot absorb.
@@ -78,6 +82,7 @@ struct OsmLocalizationStats {
 
 class OsmLocalizer {
  public:
+  static constexpr int kStateSize = 7;
   /// buildings: outlines and wall segments in the same ENU frame as the GNSS fixes.
   OsmLocalizer(const OsmLocalizerParams& params, std::vector<Building> buildings,
                const WallPointExtractorParams& walls = {},
@@ -102,7 +107,7 @@ class OsmLocalizer {
 
  private:
   struct Impl;
-  void predict(const Eigen::Isometry3d& odom_pose);
+  void predict(const Eigen::Isometry3d& odom_pose, double dt);
   bool correctGnss(const Eigen::Vector2d& fix, double std);
   void correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOutput& out);
   bool tryStartWithoutHeading(const PointCloudConstPtr& cloud, const Eigen::Vector2d& fix,
@@ -112,8 +117,11 @@ class OsmLocalizer {
   OsmLocalizerParams params_;
   std::unique_ptr<Impl> impl_;
   bool initialized_ = false;
-  Eigen::Matrix<double, 5, 1> state_ = Eigen::Matrix<double, 5, 1>::Zero();  ///< x y yaw dx dy
-  Eigen::Matrix<double, 5, 5> cov_ = Eigen::Matrix<double, 5, 5>::Zero();
+  /// x y yaw (GNSS frame), dx dy (the OSM map's offset), bx by (the GNSS receiver's bias)
+  Eigen::Matrix<double, kStateSize, 1> state_ = Eigen::Matrix<double, kStateSize, 1>::Zero();
+  Eigen::Matrix<double, kStateSize, kStateSize> cov_ =
+      Eigen::Matrix<double, kStateSize, kStateSize>::Zero();
+  double last_stamp_ = 0.0;
   std::optional<Eigen::Isometry3d> last_odom_;
   double since_match_ = 1e9;  ///< [m] driven since the last matching attempt
   OsmLocalizationStats stats_;
