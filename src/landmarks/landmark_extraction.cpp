@@ -127,10 +127,9 @@ std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
     if (range < 1e-6) continue;
     // Vertical coverage of the part of the band the highest beam reaches at this range.
     const double ground_z = ground.height(mean.x(), mean.y());
-    const double visible_top =
-        std::min(params.band_max, params.sensor_above_origin +
-                                      range * std::tan(params.max_elevation_deg * M_PI / 180.0) -
-                                      ground_z);
+    const double visible_top = std::min(
+        params.band_max, params.sensor_above_origin +
+                             range * std::tan(params.max_elevation_deg * M_PI / 180.0) - ground_z);
     if (visible_top - params.band_min < 0.6) continue;  // less than 0.6 m of the band in view
     const int visible_slices =
         std::min(slices, int(std::floor((visible_top - params.band_min) / slice)));

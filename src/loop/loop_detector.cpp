@@ -485,8 +485,8 @@ void LoopDetector::addLandmarkCandidate(const Query& query, const PointCloudCons
   RankedCandidate c;
   c.index = proposal->index;
   if (useScanContext()) {
-    c.match = matchScanContexts(query.descriptor, entries_[c.index].descriptor,
-                                params_.scan_context);
+    c.match =
+        matchScanContexts(query.descriptor, entries_[c.index].descriptor, params_.scan_context);
   }
   c.landmark_guess = proposal->relative_pose;
   // Landmarks are planar: the height difference (terrain) comes from odometry when there is one.
@@ -507,7 +507,8 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
     stats_.reason = "keyframe " + std::to_string(keyframe.id) + " has no points";
     return std::nullopt;
   }
-  if (useScanContext()) query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  if (useScanContext())
+    query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
   stats_.descriptor_ms = msSince(start);
 
   start = Clock::now();
@@ -550,7 +551,8 @@ std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyfram
   auto start = Clock::now();
   Query query;
   query.id = keyframe.id;
-  if (useScanContext()) query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  if (useScanContext())
+    query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
   stats_.descriptor_ms = msSince(start);
   const size_t limit = keyframe.accum_distance < 0.0
                            ? entries_.size()

@@ -358,8 +358,8 @@ void averageDriveResult(DriveResult& out, int keyframes) {
   out.keyframes = keyframes;
   out.precision = out.accepted ? static_cast<double>(out.correct) / out.accepted : 1.0;
   out.recall = out.revisits ? static_cast<double>(out.found) / out.revisits : 1.0;
-  for (double* v : {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms,
-                    &out.verification_ms, &out.total_ms, &out.landmark_ms, &out.landmarks_mean}) {
+  for (double* v : {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms,
+                    &out.total_ms, &out.landmark_ms, &out.landmarks_mean}) {
     *v /= out.keyframes;
   }
   if (out.verified_queries) {
@@ -429,7 +429,7 @@ void printDriveJson(const DriveResult& d) {
 }
 
 struct CandidateOptions {
-  std::vector<std::string> methods;                            ///< loop_detection `method`s
+  std::vector<std::string> methods;  ///< loop_detection `method`s
   std::vector<std::string> worlds = {"forest:sparse", "forest:intermediate", "forest:dense",
                                      "city"};  ///< world[:forest density]
   std::vector<uint64_t> seeds = {1};
@@ -481,9 +481,10 @@ int runCandidateComparison(const CandidateOptions& opt, bool explain) {
     p.method = m;
     variants.push_back({m, p});
   }
-  std::printf("# candidate sources: %.0f m routes, keyframes every %.1f m, revisit <= 5 m and >= "
-              "%.0f m back, correct within 0.10 m / 0.5 deg\n",
-              opt.length, opt.spacing, g_params.min_accum_distance_gap);
+  std::printf(
+      "# candidate sources: %.0f m routes, keyframes every %.1f m, revisit <= 5 m and >= "
+      "%.0f m back, correct within 0.10 m / 0.5 deg\n",
+      opt.length, opt.spacing, g_params.min_accum_distance_gap);
   for (const auto& world : opt.worlds) {
     std::vector<DriveResult> sums(variants.size());
     for (uint64_t seed : opt.seeds) {

@@ -24,7 +24,7 @@ struct LandmarkProposal {
 };
 
 struct LandmarkSourceStats {
-  int landmarks = 0;          ///< extracted from the last cloud
+  int landmarks = 0;           ///< extracted from the last cloud
   double extraction_ms = 0.0;  ///< 0 when the last cloud's landmarks were cached
   double query_ms = 0.0;       ///< hierarchy + retrieval + hierarchical matching
 };

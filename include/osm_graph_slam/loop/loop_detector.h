@@ -116,9 +116,9 @@ struct DetectedLoop {
   Eigen::Isometry3d relative_pose = Eigen::Isometry3d::Identity();  ///< from in to's frame
   Matrix6d information = Matrix6d::Identity();                      ///< x y z roll pitch yaw
   double descriptor_distance = 1.0;
-  double descriptor_yaw = 0.0;  ///< [rad] Scan Context estimate used as seed
-  double fitness = 0.0;         ///< [m^2]
-  double overlap = 0.0;         ///< inlier fraction
+  double descriptor_yaw = 0.0;          ///< [rad] Scan Context estimate used as seed
+  double fitness = 0.0;                 ///< [m^2]
+  double overlap = 0.0;                 ///< inlier fraction
   std::string source = "scan_context";  ///< candidate source: scan_context | geometric_hierarchy
   int landmark_inliers = 0;             ///< geometric_hierarchy: landmark inliers of the proposal
 };
@@ -161,7 +161,7 @@ struct LoopQueryStats {
   int phase2_candidates = 0;
   int verified = 0;            ///< candidate/seed pairs verified
   int fine_registrations = 0;  ///< of which reached the fine stage
-  int rejected_coarse = 0;  ///< early rejects: coarse stage (fitness, odometry), landmark guess
+  int rejected_coarse = 0;     ///< early rejects: coarse stage (fitness, odometry), landmark guess
   int rejected_fitness = 0;
   int rejected_overlap = 0;
   int rejected_odometry = 0;
@@ -226,8 +226,8 @@ class LoopDetector {
   bool useScanContext() const { return params_.method != "geometric_hierarchy"; }
   /// Appends the landmark proposal among entries with index < index_limit unless it names a
   /// keyframe already in ranked.
-  void addLandmarkCandidate(const Query& query, const PointCloudConstPtr& cloud,
-                            size_t index_limit, const std::optional<Eigen::Isometry3d>& odom_pose,
+  void addLandmarkCandidate(const Query& query, const PointCloudConstPtr& cloud, size_t index_limit,
+                            const std::optional<Eigen::Isometry3d>& odom_pose,
                             std::vector<RankedCandidate>& ranked);
   /// Seeds of the coarse GICP stage for one candidate.
   std::vector<Eigen::Isometry3d> seedsFor(const RankedCandidate& candidate,

@@ -13,14 +13,14 @@
 namespace osm_graph_slam::sim {
 
 struct LoopDriveParams {
-  std::string world = "forest";            ///< city | forest | park
+  std::string world = "forest";                 ///< city | forest | park
   std::string forest_density = "intermediate";  ///< sparse | intermediate | dense
   uint64_t seed = 1;
-  double length = 500.0;               ///< [m] route (it returns to its start)
-  double spacing = 4.0;                ///< [m] between keyframes
+  double length = 500.0;                ///< [m] route (it returns to its start)
+  double spacing = 4.0;                 ///< [m] between keyframes
   double odometry_scale_error = 0.005;  ///< travelled distance overestimated by this fraction
   double odometry_yaw_bias = 0.003 * M_PI / 180.0;  ///< [rad/m] heading drift
-  int max_keyframes = 0;                         ///< 0: the whole route
+  int max_keyframes = 0;                            ///< 0: the whole route
 };
 
 struct LoopDrive {
