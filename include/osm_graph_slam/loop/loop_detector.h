@@ -11,7 +11,7 @@
 //     well); without odometry it is a coarse GICP seeded with the Scan Context yaw.
 // Without odometry (re-localisation) phase 1 is replaced by the ring-key KD-tree over all
 // keyframes.
-// Candidate source (`method`): scan_context (phases 2 above), geometric_hierarchy (the landmark
+// Candidate source (`method`): scan_context (phase 2 above), geometric_hierarchy (the landmark
 // layout proposes one keyframe and a planar transform, LandmarkLoopSource) or combined (Scan
 // Context's candidates first, then the hierarchy's). Every candidate gets the same verification.
 #include <Eigen/Geometry>
