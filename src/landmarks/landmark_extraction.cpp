@@ -97,7 +97,8 @@ std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
   }
   // 8-connected components of occupied cells.
   std::unordered_map<int64_t, bool> visited;
-  const int slices = std::max(1, int(std::round((params.band_max - params.band_min) / 0.2)));
+  const double slice = params.slice_height;
+  const int slices = std::max(1, int(std::round((params.band_max - params.band_min) / slice)));
   for (const auto& [start_key, start_pts] : cells) {
     if (visited.count(start_key)) continue;
     std::vector<int64_t> stack{start_key};
@@ -127,13 +128,15 @@ std::vector<Landmark> extractLandmarks(const PointCloud& cloud,
     // Vertical coverage of the part of the band the highest beam reaches at this range.
     const double ground_z = ground.height(mean.x(), mean.y());
     const double visible_top = std::min(
-        params.band_max, range * std::tan(params.max_elevation_deg * M_PI / 180.0) - ground_z);
+        params.band_max, params.sensor_above_origin +
+                             range * std::tan(params.max_elevation_deg * M_PI / 180.0) - ground_z);
+    if (visible_top - params.band_min < 0.6) continue;  // less than 0.6 m of the band in view
     const int visible_slices =
-        std::min(slices, int(std::floor((visible_top - params.band_min) / 0.2)));
-    if (visible_slices < 3) continue;  // less than 0.6 m of the band in view
+        std::min(slices, int(std::floor((visible_top - params.band_min) / slice)));
+    if (visible_slices < 1) continue;
     std::vector<bool> filled(slices, false);
     for (int i : members)
-      filled[std::clamp(int((band[i].h - params.band_min) / 0.2), 0, slices - 1)] = true;
+      filled[std::clamp(int((band[i].h - params.band_min) / slice), 0, slices - 1)] = true;
     const double coverage =
         std::min(1.0, double(std::count(filled.begin(), filled.begin() + visible_slices, true)) /
                           visible_slices);

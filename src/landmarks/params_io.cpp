@@ -14,7 +14,9 @@ void readParams(const ParamReader& r, LandmarkExtractionParams& p) {
   r.param("max_radius", p.max_radius);
   r.param("min_radius", p.min_radius);
   r.param("min_vertical_coverage", p.min_vertical_coverage);
+  r.param("slice_height", p.slice_height);
   r.param("max_elevation_deg", p.max_elevation_deg);
+  r.param("sensor_above_origin", p.sensor_above_origin);
   r.param("min_confidence", p.min_confidence);
 }
 

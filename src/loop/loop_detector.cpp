@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "osm_graph_slam/loop/dynamic_kd_index.h"
+#include "osm_graph_slam/loop/landmark_loop_source.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -128,6 +129,15 @@ LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
       ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
       position_index_(std::make_unique<DynamicKdIndex>(3)),
       field_cache_(std::make_unique<FieldCache>()) {
+  if (params_.method != "scan_context" && params_.method != "geometric_hierarchy" &&
+      params_.method != "combined") {
+    throw std::invalid_argument("loop detection: unknown method '" + params_.method +
+                                "' (scan_context | geometric_hierarchy | combined)");
+  }
+  if (params_.method != "scan_context") {
+    landmark_source_ =
+        std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
+  }
   if (params_.coarse_method != "correlative" && params_.coarse_method != "gicp") {
     throw std::invalid_argument("loop detection: unknown coarse_method '" + params_.coarse_method +
                                 "' (correlative | gicp)");
@@ -292,6 +302,7 @@ std::optional<DetectedLoop> LoopDetector::verifyCorrelative(const Query& query,
   ++stats_.verified;
   CandidateOutcome outcome;
   outcome.id = target.id;
+  if (candidate.landmark_guess) outcome.source = "geometric_hierarchy";
   outcome.descriptor_distance = candidate.match.distance;
   // The window is every pose the odometry check could accept: the best pose in it is the one
   // the evidence prefers, and a second placement in it that fits as well makes the match
@@ -329,6 +340,7 @@ std::optional<DetectedLoop> LoopDetector::verifyCandidate(
   ++stats_.verified;
   CandidateOutcome outcome;
   outcome.id = target.id;
+  if (candidate.landmark_guess) outcome.source = "geometric_hierarchy";
   outcome.descriptor_distance = candidate.match.distance;
   if (coarse_registration_) {
     auto start = Clock::now();
@@ -400,43 +412,90 @@ std::optional<DetectedLoop> LoopDetector::fineStage(
   return loop;
 }
 
+std::vector<Eigen::Isometry3d> LoopDetector::seedsFor(
+    const RankedCandidate& candidate, const std::optional<Eigen::Isometry3d>& odom_pose) const {
+  if (candidate.landmark_guess) return {*candidate.landmark_guess};
+  const LoopDatabaseEntry& target = entries_[candidate.index];
+  // Rotation from the descriptor. Translation: first from odometry when there is one (so that
+  // on repetitive facades registration settles in the alias nearest to the odometry), then,
+  // if that fails, zero (revisits in the other lane are closer to zero than drifted odometry).
+  std::vector<Eigen::Isometry3d> seeds;
+  Eigen::Isometry3d seed = Eigen::Isometry3d::Identity();
+  seed.linear() = Eigen::AngleAxisd(candidate.match.yaw, Eigen::Vector3d::UnitZ()).matrix();
+  if (odom_pose && params_.seed_translation_from_odometry) {
+    Eigen::Isometry3d from_odometry = seed;
+    from_odometry.translation() = (target.odom_pose.inverse() * (*odom_pose)).translation();
+    seeds.push_back(from_odometry);
+    if (params_.retry_zero_translation_seed) seeds.push_back(seed);
+  } else {
+    seeds.push_back(seed);
+  }
+  return seeds;
+}
+
 std::optional<DetectedLoop> LoopDetector::verify(const Query& query,
                                                  const std::vector<RankedCandidate>& ranked,
                                                  const std::optional<Eigen::Isometry3d>& odom_pose,
                                                  double accum_distance) {
   std::optional<DetectedLoop> best;
   for (const auto& candidate : ranked) {
-    if (useCorrelative(odom_pose)) {
+    std::optional<DetectedLoop> loop;
+    if (candidate.landmark_guess && odom_pose && params_.check_odometry_consistency &&
+        !consistentWithOdometry(entries_[candidate.index], *candidate.landmark_guess, *odom_pose,
+                                accum_distance)) {
+      // The landmark transform is the proposal's own evidence: if odometry rules it out, no
+      // registration is spent on it.
+      CandidateOutcome outcome;
+      outcome.id = entries_[candidate.index].id;
+      outcome.source = "geometric_hierarchy";
+      outcome.transform = *candidate.landmark_guess;
+      rejectCandidate(outcome, "landmark_odometry", stats_.rejected_coarse);
+    } else if (useCorrelative(odom_pose)) {
       // One search covers every seed the odometry check could accept.
-      auto loop = verifyCorrelative(query, candidate, *odom_pose, accum_distance);
-      if (loop && (!best || loop->fitness < best->fitness)) best = loop;
-      if (best && params_.stop_at_first_accepted) break;
-      continue;
-    }
-    const LoopDatabaseEntry& target = entries_[candidate.index];
-    // Rotation from the descriptor. Translation: first from odometry when there is one (so that
-    // on repetitive facades registration settles in the alias nearest to the odometry), then,
-    // if that fails, zero (revisits in the other lane are closer to zero than drifted odometry).
-    std::vector<Eigen::Isometry3d> seeds;
-    Eigen::Isometry3d seed = Eigen::Isometry3d::Identity();
-    seed.linear() = Eigen::AngleAxisd(candidate.match.yaw, Eigen::Vector3d::UnitZ()).matrix();
-    if (odom_pose && params_.seed_translation_from_odometry) {
-      Eigen::Isometry3d from_odometry = seed;
-      from_odometry.translation() = (target.odom_pose.inverse() * (*odom_pose)).translation();
-      seeds.push_back(from_odometry);
-      if (params_.retry_zero_translation_seed) seeds.push_back(seed);
+      loop = verifyCorrelative(query, candidate, *odom_pose, accum_distance);
     } else {
-      seeds.push_back(seed);
+      for (const auto& guess : seedsFor(candidate, odom_pose)) {
+        loop = verifyCandidate(query, candidate, guess, odom_pose, accum_distance);
+        if (loop) break;
+      }
     }
-    for (const auto& guess : seeds) {
-      auto loop = verifyCandidate(query, candidate, guess, odom_pose, accum_distance);
-      if (!loop) continue;
-      if (!best || loop->fitness < best->fitness) best = loop;
-      break;
+    if (loop && candidate.landmark_guess) {
+      loop->source = "geometric_hierarchy";
+      loop->landmark_inliers = candidate.landmark_inliers;
     }
+    if (loop && (!best || loop->fitness < best->fitness)) best = loop;
     if (best && params_.stop_at_first_accepted) break;
   }
   return best;
+}
+
+void LoopDetector::addLandmarkCandidate(const Query& query, const PointCloudConstPtr& cloud,
+                                        size_t index_limit,
+                                        const std::optional<Eigen::Isometry3d>& odom_pose,
+                                        std::vector<RankedCandidate>& ranked) {
+  const auto proposal = landmark_source_->propose(cloud, index_limit);
+  const LandmarkSourceStats& ls = landmark_source_->lastStats();
+  stats_.landmark_extraction_ms = ls.extraction_ms;
+  stats_.landmark_query_ms = ls.query_ms;
+  stats_.landmarks = ls.landmarks;
+  stats_.landmark_proposal = proposal.has_value();
+  if (!proposal) return;
+  for (const auto& c : ranked)
+    if (c.index == proposal->index) return;  // Scan Context's candidate is verified already
+  RankedCandidate c;
+  c.index = proposal->index;
+  if (useScanContext()) {
+    c.match =
+        matchScanContexts(query.descriptor, entries_[c.index].descriptor, params_.scan_context);
+  }
+  c.landmark_guess = proposal->relative_pose;
+  // Landmarks are planar: the height difference (terrain) comes from odometry when there is one.
+  if (odom_pose) {
+    c.landmark_guess->translation().z() =
+        (entries_[c.index].odom_pose.inverse() * (*odom_pose)).translation().z();
+  }
+  c.landmark_inliers = proposal->inliers;
+  ranked.push_back(c);
 }
 
 std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
@@ -448,7 +507,8 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
     stats_.reason = "keyframe " + std::to_string(keyframe.id) + " has no points";
     return std::nullopt;
   }
-  query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  if (useScanContext())
+    query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
   stats_.descriptor_ms = msSince(start);
 
   start = Clock::now();
@@ -460,11 +520,20 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
     return std::nullopt;
   }
   start = Clock::now();
-  const size_t nearest = candidates.front();  // phase 1 returns the closest first
-  auto ranked = rankCandidates(query.descriptor, std::move(candidates));
-  if (params_.verify_odometry_nearest) addOdometryNearest(query.descriptor, nearest, ranked);
-  stats_.phase2_candidates = static_cast<int>(ranked.size());
+  std::vector<RankedCandidate> ranked;
+  if (useScanContext()) {
+    const size_t nearest = candidates.front();  // phase 1 returns the closest first
+    ranked = rankCandidates(query.descriptor, std::move(candidates));
+    if (params_.verify_odometry_nearest) addOdometryNearest(query.descriptor, nearest, ranked);
+  }
   stats_.ranking_ms = msSince(start);
+  // The hierarchy searches every keyframe far enough back, not only phase 1's: its proposal
+  // carries a transform that the odometry check tests before any registration.
+  if (landmark_source_) {
+    addLandmarkCandidate(query, keyframe.cloud, indexLimitForDistance(keyframe.accum_distance),
+                         keyframe.odom_pose, ranked);
+  }
+  stats_.phase2_candidates = static_cast<int>(ranked.size());
   if (ranked.empty()) {
     stats_.reason = "no candidate within the descriptor distance";
     return std::nullopt;
@@ -482,19 +551,24 @@ std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyfram
   auto start = Clock::now();
   Query query;
   query.id = keyframe.id;
-  query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  if (useScanContext())
+    query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
   stats_.descriptor_ms = msSince(start);
-  start = Clock::now();
   const size_t limit = keyframe.accum_distance < 0.0
                            ? entries_.size()
                            : indexLimitForDistance(keyframe.accum_distance);
-  auto candidates = ringKeyCandidates(query.descriptor, limit);
-  stats_.phase1_candidates = static_cast<int>(candidates.size());
-  stats_.candidates_ms = msSince(start);
-  start = Clock::now();
-  const auto ranked = rankCandidates(query.descriptor, std::move(candidates));
+  std::vector<RankedCandidate> ranked;
+  if (useScanContext()) {
+    start = Clock::now();
+    auto candidates = ringKeyCandidates(query.descriptor, limit);
+    stats_.phase1_candidates = static_cast<int>(candidates.size());
+    stats_.candidates_ms = msSince(start);
+    start = Clock::now();
+    ranked = rankCandidates(query.descriptor, std::move(candidates));
+    stats_.ranking_ms = msSince(start);
+  }
+  if (landmark_source_) addLandmarkCandidate(query, keyframe.cloud, limit, std::nullopt, ranked);
   stats_.phase2_candidates = static_cast<int>(ranked.size());
-  stats_.ranking_ms = msSince(start);
   if (ranked.empty()) {
     stats_.reason = "no keyframe within the descriptor distance";
     return std::nullopt;
@@ -553,6 +627,8 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   entry.coarse_cloud = coarse_registration_
                            ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size)
                            : entry.cloud;
+  // Numbered like entries_: the landmark source's index is the database index.
+  if (landmark_source_) landmark_source_->add(keyframe.cloud);
   const Eigen::Vector3f position = keyframe.odom_pose.translation().cast<float>();
   ring_key_index_->add(entry.descriptor.ring_key.data());
   position_index_->add(position.data());
@@ -562,8 +638,12 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
 
 std::optional<DetectedLoop> LoopDetector::process(const LoopKeyframe& keyframe) {
   auto loop = detect(keyframe);
-  const LoopQueryStats stats = stats_;
-  addKeyframe(keyframe);
+  LoopQueryStats stats = stats_;
+  if (addKeyframe(keyframe) && landmark_source_) {
+    // Extracted here when the query stopped before the hierarchy (no odometry candidates).
+    stats.landmark_extraction_ms += landmark_source_->lastStats().extraction_ms;
+    stats.landmarks = landmark_source_->lastStats().landmarks;
+  }
   stats_ = stats;
   return loop;
 }

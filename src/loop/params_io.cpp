@@ -1,5 +1,6 @@
 #include "osm_graph_slam/loop/params_io.h"
 
+#include "osm_graph_slam/landmarks/params_io.h"
 #include "osm_graph_slam/registration/params_io.h"
 
 namespace osm_graph_slam {
@@ -26,7 +27,12 @@ static void readCorrelativeParams(const ParamReader& r, BevCorrelationParams& p)
 }
 
 void readParams(const ParamReader& r, LoopDetectorParams& p) {
+  r.param("method", p.method);
   readParams(PrefixedParamReader(r, "scan_context"), p.scan_context);
+  // Same layout as config/landmarks.yaml, under "landmarks/".
+  const PrefixedParamReader landmarks(r, "landmarks");
+  readParams(PrefixedParamReader(landmarks, "extraction"), p.landmark_extraction);
+  readParams(landmarks, p.landmarks);
   r.param("min_accum_distance_gap", p.min_accum_distance_gap);
   r.param("search_radius_base", p.search_radius_base);
   r.param("search_radius_per_meter", p.search_radius_per_meter);

@@ -7,9 +7,16 @@
 //     with a repetitive facade street, drifting odometry).
 // Both run with the configured pipeline and, in the same run, with the previous one
 // (--baseline-coarse gicp: coarse GICP stage from two seeds instead of the correlative search).
+//  3. --candidates: the candidate sources (loop_detection `method`: scan_context,
+//     geometric_hierarchy, combined) in lockstep on simulated drives through the forest worlds
+//     and the procedural city (sim/loop_drive.h: prefiltered HDL-64E keyframes, drifting
+//     odometry); only this part runs then.
 // Usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N]
 //                       [--sizes 100,1000,5000] [--method fast_gicp] [--reference pcl_gicp|none]
 //                       [--baseline-coarse gicp|none] [--set key=value ...]
+//        loop_benchmark --candidates scan_context,geometric_hierarchy,combined
+//                       [--worlds forest:sparse,forest:intermediate,forest:dense,city]
+//                       [--seeds 1] [--length M] [--spacing M] [--set key=value ...]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -25,6 +32,7 @@
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
+#include "osm_graph_slam/sim/loop_drive.h"
 #include "osm_graph_slam/sim/synthetic_world.h"
 
 using namespace osm_graph_slam;
@@ -259,6 +267,9 @@ struct DriveResult {
   double verification_ms_per_query = 0, registrations_per_query = 0;
   double coarse_ms_per_query = 0, fine_ms_per_query = 0, overlap_ms_per_query = 0;
   int verified_queries = 0;
+  double total_ms = 0;  ///< wall time of process() (query + insertion) per keyframe
+  double landmark_ms = 0, landmarks_mean = 0;  ///< extraction + hierarchy query per keyframe
+  int landmark_accepted = 0;                   ///< accepted loops proposed by the hierarchy
 };
 
 /// The drive of loop_detector_test: a loop around the town every 4 m, then the facade street
@@ -318,6 +329,8 @@ void addDriveKeyframe(DriveResult& out, const Drive& d, size_t i, const LoopQuer
     ++out.verified_queries;
   }
   out.ambiguous += st.rejected_ambiguous;
+  out.landmark_ms += st.landmark_extraction_ms + st.landmark_query_ms;
+  out.landmarks_mean += st.landmarks;
   bool revisit = false;
   for (size_t j = 0; j < i && s - d.keyframes[j].accum_distance >= min_gap; ++j) {
     if ((d.truth[i].translation() - d.truth[j].translation()).norm() <= 5.0) revisit = true;
@@ -325,6 +338,7 @@ void addDriveKeyframe(DriveResult& out, const Drive& d, size_t i, const LoopQuer
   out.revisits += revisit;
   if (!loop) return;
   ++out.accepted;
+  out.landmark_accepted += loop->source == "geometric_hierarchy";
   const Eigen::Isometry3d err =
       (d.truth[loop->to_id].inverse() * d.truth[i]).inverse() * loop->relative_pose;
   const double et = err.translation().norm();
@@ -344,8 +358,8 @@ void averageDriveResult(DriveResult& out, int keyframes) {
   out.keyframes = keyframes;
   out.precision = out.accepted ? static_cast<double>(out.correct) / out.accepted : 1.0;
   out.recall = out.revisits ? static_cast<double>(out.found) / out.revisits : 1.0;
-  for (double* v :
-       {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms}) {
+  for (double* v : {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms,
+                    &out.total_ms, &out.landmark_ms, &out.landmarks_mean}) {
     *v /= out.keyframes;
   }
   if (out.verified_queries) {
@@ -371,7 +385,9 @@ std::vector<DriveResult> benchmarkDrive(const Drive& d, const std::vector<Varian
   for (size_t i = 0; i < d.keyframes.size(); ++i) {
     for (size_t k = 0; k < variants.size(); ++k) {
       const size_t v = (i % 2 == 0) ? k : variants.size() - 1 - k;
+      const auto start = Clock::now();
       const auto loop = detectors[v]->process(d.keyframes[i]);
+      results[v].total_ms += msSince(start);
       addDriveKeyframe(results[v], d, i, detectors[v]->lastStats(), loop,
                        variants[v].params.min_accum_distance_gap, explain);
     }
@@ -412,6 +428,99 @@ void printDriveJson(const DriveResult& d) {
       d.verified_queries);
 }
 
+struct CandidateOptions {
+  std::vector<std::string> methods;  ///< loop_detection `method`s
+  std::vector<std::string> worlds = {"forest:sparse", "forest:intermediate", "forest:dense",
+                                     "city"};  ///< world[:forest density]
+  std::vector<uint64_t> seeds = {1};
+  double length = 500.0, spacing = 4.0;
+};
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+/// Sum of per-drive results of one method (counts added, per-keyframe times weighted).
+void accumulate(DriveResult& sum, const DriveResult& r) {
+  sum.method = r.method;
+  sum.coarse = r.coarse;
+  const double w = r.keyframes;
+  sum.keyframes += r.keyframes;
+  sum.revisits += r.revisits;
+  sum.found += r.found;
+  sum.accepted += r.accepted;
+  sum.correct += r.correct;
+  sum.landmark_accepted += r.landmark_accepted;
+  sum.max_error_m = std::max(sum.max_error_m, r.max_error_m);
+  sum.max_error_deg = std::max(sum.max_error_deg, r.max_error_deg);
+  sum.total_ms += r.total_ms * w;
+  sum.landmark_ms += r.landmark_ms * w;
+  sum.landmarks_mean += r.landmarks_mean * w;
+}
+
+void printCandidateLine(const std::string& what, const DriveResult& d) {
+  std::printf(
+      "%-26s %-20s kf %4d revisits %4d | accepted %4d (by hierarchy %4d) correct %4d | "
+      "precision %.3f recall %.3f (%d/%d) | max error %.3f m %.2f deg | %.2f ms/kf (landmarks "
+      "%.2f ms, %.1f per kf)\n",
+      what.c_str(), d.coarse.c_str(), d.keyframes, d.revisits, d.accepted, d.landmark_accepted,
+      d.correct, d.precision, d.recall, d.found, d.revisits, d.max_error_m, d.max_error_deg,
+      d.total_ms, d.landmark_ms, d.landmarks_mean);
+  std::fflush(stdout);
+}
+
+/// Every world x seed drive through every candidate method in lockstep; a summary per world.
+int runCandidateComparison(const CandidateOptions& opt, bool explain) {
+  std::vector<Variant> variants;
+  for (const auto& m : opt.methods) {
+    LoopDetectorParams p = g_params;
+    p.method = m;
+    variants.push_back({m, p});
+  }
+  std::printf(
+      "# candidate sources: %.0f m routes, keyframes every %.1f m, revisit <= 5 m and >= "
+      "%.0f m back, correct within 0.10 m / 0.5 deg\n",
+      opt.length, opt.spacing, g_params.min_accum_distance_gap);
+  for (const auto& world : opt.worlds) {
+    std::vector<DriveResult> sums(variants.size());
+    for (uint64_t seed : opt.seeds) {
+      sim::LoopDriveParams dp;
+      const size_t colon = world.find(':');
+      dp.world = world.substr(0, colon);
+      if (colon != std::string::npos) dp.forest_density = world.substr(colon + 1);
+      dp.seed = seed;
+      dp.length = opt.length;
+      dp.spacing = opt.spacing;
+      sim::LoopDrive sim_drive;
+      std::string error;
+      if (!sim::simulateLoopDrive(dp, sim_drive, &error)) {
+        std::fprintf(stderr, "loop_benchmark: %s: %s\n", world.c_str(), error.c_str());
+        return 1;
+      }
+      Drive drive{sim_drive.truth, sim_drive.keyframes};
+      const auto results = benchmarkDrive(drive, variants, explain);
+      for (size_t v = 0; v < results.size(); ++v) {
+        printCandidateLine(world + " seed " + std::to_string(seed), results[v]);
+        accumulate(sums[v], results[v]);
+      }
+    }
+    for (auto& sum : sums) {
+      const double kf = std::max(1, sum.keyframes);
+      sum.total_ms /= kf;
+      sum.landmark_ms /= kf;
+      sum.landmarks_mean /= kf;
+      sum.precision = sum.accepted ? double(sum.correct) / sum.accepted : 1.0;
+      sum.recall = sum.revisits ? double(sum.found) / sum.revisits : 1.0;
+      printCandidateLine(world + " (all seeds)", sum);
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -420,10 +529,14 @@ int main(int argc, char** argv) {
   std::string method = "fast_gicp", reference = "pcl_gicp", baseline = "gicp";
   std::vector<int> sizes = {100, 1000, 5000};
   std::string overrides, baseline_overrides;  // --set / --baseline-set key=value as YAML
+  CandidateOptions candidates;
   const char* usage =
       "usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N] [--sizes "
       "100,1000,5000] [--method fast_gicp|fast_vgicp|pcl_gicp|pcl_ndt] [--reference M|none] "
-      "[--baseline-coarse gicp|correlative|none] [--set key=value]...\n";
+      "[--baseline-coarse gicp|correlative|none] [--set key=value]...\n"
+      "       loop_benchmark --candidates scan_context,geometric_hierarchy,combined [--worlds "
+      "forest:sparse,forest:intermediate,forest:dense,city] [--seeds 1,2,3] [--length M] "
+      "[--spacing M] [--set key=value]...\n";
   for (int i = 1; i < argc; ++i) {
     const bool has_value = i + 1 < argc;
     if (!std::strcmp(argv[i], "--json")) {
@@ -454,6 +567,17 @@ int main(int argc, char** argv) {
       target += slash == std::string::npos
                     ? key + ": " + value + "\n"
                     : key.substr(0, slash) + ": {" + key.substr(slash + 1) + ": " + value + "}\n";
+    } else if (!std::strcmp(argv[i], "--candidates") && has_value) {
+      candidates.methods = splitList(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--worlds") && has_value) {
+      candidates.worlds = splitList(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--seeds") && has_value) {
+      candidates.seeds.clear();
+      for (const auto& seed : splitList(argv[++i])) candidates.seeds.push_back(std::stoull(seed));
+    } else if (!std::strcmp(argv[i], "--length") && has_value) {
+      candidates.length = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--spacing") && has_value) {
+      candidates.spacing = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--sizes") && has_value) {
       sizes.clear();
       std::stringstream ss(argv[++i]);
@@ -472,6 +596,19 @@ int main(int argc, char** argv) {
       return 2;
     }
     readParams(yaml, g_params);
+  }
+  if (!candidates.methods.empty()) {
+    try {
+      for (const auto& m : candidates.methods) {
+        LoopDetectorParams p = g_params;
+        p.method = m;
+        LoopDetector check(p);
+      }
+    } catch (const std::exception& e) {
+      std::cerr << e.what() << "\n" << usage;
+      return 2;
+    }
+    return runCandidateComparison(candidates, explain);
   }
   variants.push_back({g_params.coarse_method, paramsFor(method, g_params.coarse_method)});
   const std::string coarse = g_params.coarse_method;

@@ -26,9 +26,15 @@ struct LandmarkExtractionParams {
   /// Fraction of the band's 0.2 m height slices that must hold points: a cylinder fills the
   /// band, a bush or a crown reaches into it only partly.
   double min_vertical_coverage = 0.7;
+  /// [m] height of those slices: about the cloud's vertical point spacing (raw scans: 0.2; a
+  /// voxel-filtered cloud: its leaf size, else one point per voxel looks like a gappy cylinder).
+  double slice_height = 0.2;
   /// Highest beam elevation of the sensor [deg] (HDL-64E +2; OS1-64 +16.6): close to the
   /// sensor the top of the band is above the highest beam, so coverage counts the visible part.
   double max_elevation_deg = 2.0;
+  /// [m] the sensor above the cloud's origin (0: sensor frame; KITTI base_link: 0.80), where the
+  /// beams of max_elevation_deg start.
+  double sensor_above_origin = 0.0;
   /// Landmarks with a lower confidence are dropped (see Landmark::confidence).
   double min_confidence = 0.3;
 };

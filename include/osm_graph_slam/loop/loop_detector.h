@@ -11,6 +11,9 @@
 //     well); without odometry it is a coarse GICP seeded with the Scan Context yaw.
 // Without odometry (re-localisation) phase 1 is replaced by the ring-key KD-tree over all
 // keyframes.
+// Candidate source (`method`): scan_context (phase 2 above), geometric_hierarchy (the landmark
+// layout proposes one keyframe and a planar transform, LandmarkLoopSource) or combined (Scan
+// Context's candidates first, then the hierarchy's). Every candidate gets the same verification.
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
@@ -20,6 +23,8 @@
 
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/common/logger.h"
+#include "osm_graph_slam/landmarks/landmark_extraction.h"
+#include "osm_graph_slam/landmarks/landmark_place_recognizer.h"
 #include "osm_graph_slam/loop/bev_correlation.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/registration/registration.h"
@@ -28,8 +33,17 @@ namespace osm_graph_slam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
+/// Landmark extraction for loop detection: the keyframe cloud it gets is the prefiltered one
+/// (0.5 m voxels), sparser than the raw scans LandmarkExtractionParams' defaults are set for.
+LandmarkExtractionParams loopLandmarkExtractionDefaults();
+
 struct LoopDetectorParams {
+  /// Candidate source: scan_context | geometric_hierarchy | combined.
+  std::string method = "scan_context";
   ScanContextParams scan_context;
+  /// geometric_hierarchy / combined: trunk and pole extraction and the place recognizer.
+  LandmarkExtractionParams landmark_extraction = loopLandmarkExtractionDefaults();
+  LandmarkPlaceRecognitionParams landmarks;
 
   // Phase 1: odometry candidates.
   double min_accum_distance_gap = 25.0;   ///< [m] along the trajectory
@@ -102,14 +116,17 @@ struct DetectedLoop {
   Eigen::Isometry3d relative_pose = Eigen::Isometry3d::Identity();  ///< from in to's frame
   Matrix6d information = Matrix6d::Identity();                      ///< x y z roll pitch yaw
   double descriptor_distance = 1.0;
-  double descriptor_yaw = 0.0;  ///< [rad] Scan Context estimate used as seed
-  double fitness = 0.0;         ///< [m^2]
-  double overlap = 0.0;         ///< inlier fraction
+  double descriptor_yaw = 0.0;          ///< [rad] Scan Context estimate used as seed
+  double fitness = 0.0;                 ///< [m^2]
+  double overlap = 0.0;                 ///< inlier fraction
+  std::string source = "scan_context";  ///< candidate source: scan_context | geometric_hierarchy
+  int landmark_inliers = 0;             ///< geometric_hierarchy: landmark inliers of the proposal
 };
 
 /// Verification of one candidate.
 struct CandidateOutcome {
   uint64_t id = 0;
+  std::string source = "scan_context";  ///< scan_context | geometric_hierarchy
   double descriptor_distance = 1.0;
   double coarse_fitness = -1.0;  ///< [m^2] (-1: no coarse stage)
   double fitness = -1.0;         ///< [m^2] fine stage (-1: rejected before it)
@@ -117,8 +134,8 @@ struct CandidateOutcome {
   double bev_score = -1.0;  ///< correlative best score (-1: no correlative stage)
   double ambiguity = -1.0;  ///< runner-up / best correlative score
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  ///< of the last stage run
-  /// accepted | coarse_fitness | coarse_odometry | correlative | ambiguous | fitness | overlap |
-  /// odometry | refinement
+  /// accepted | coarse_fitness | coarse_odometry | landmark_odometry | correlative | ambiguous |
+  /// fitness | overlap | odometry | refinement
   std::string verdict;
 };
 
@@ -136,11 +153,15 @@ struct LoopQueryStats {
   double fine_target_ms = 0.0;  ///< part of fine_ms: preparing the candidate's cloud (setTarget)
   int fine_iterations = 0;      ///< summed over the fine registrations
   double overlap_ms = 0.0;      ///< part of verification_ms
+  double landmark_extraction_ms = 0.0;  ///< geometric_hierarchy: trunks/poles of the query cloud
+  double landmark_query_ms = 0.0;       ///< geometric_hierarchy: hierarchy + retrieval + matching
+  int landmarks = 0;                    ///< extracted from the query cloud
+  bool landmark_proposal = false;       ///< the hierarchy proposed a keyframe
   int phase1_candidates = 0;
   int phase2_candidates = 0;
   int verified = 0;            ///< candidate/seed pairs verified
   int fine_registrations = 0;  ///< of which reached the fine stage
-  int rejected_coarse = 0;     ///< early rejects after the coarse stage (fitness or odometry)
+  int rejected_coarse = 0;     ///< early rejects: coarse stage (fitness, odometry), landmark guess
   int rejected_fitness = 0;
   int rejected_overlap = 0;
   int rejected_odometry = 0;
@@ -161,8 +182,11 @@ struct LoopDatabaseEntry {
 };
 
 struct RankedCandidate {
-  size_t index = 0;  ///< database index
-  ScanContextMatch match;
+  size_t index = 0;        ///< database index
+  ScanContextMatch match;  ///< distance 1 when the query has no descriptor (geometric_hierarchy)
+  /// geometric_hierarchy: the landmark transform (query in the candidate's frame), the seed.
+  std::optional<Eigen::Isometry3d> landmark_guess;
+  int landmark_inliers = 0;
 };
 
 class LoopDetector {
@@ -199,6 +223,15 @@ class LoopDetector {
 
  private:
   struct Query;
+  bool useScanContext() const { return params_.method != "geometric_hierarchy"; }
+  /// Appends the landmark proposal among entries with index < index_limit unless it names a
+  /// keyframe already in ranked.
+  void addLandmarkCandidate(const Query& query, const PointCloudConstPtr& cloud, size_t index_limit,
+                            const std::optional<Eigen::Isometry3d>& odom_pose,
+                            std::vector<RankedCandidate>& ranked);
+  /// Seeds of the coarse GICP stage for one candidate.
+  std::vector<Eigen::Isometry3d> seedsFor(const RankedCandidate& candidate,
+                                          const std::optional<Eigen::Isometry3d>& odom_pose) const;
   /// Downsamples the query cloud, verifies the ranked candidates and records the stats.
   std::optional<DetectedLoop> prepareAndVerify(Query& query,
                                                const std::vector<RankedCandidate>& ranked,
@@ -239,6 +272,7 @@ class LoopDetector {
   std::vector<LoopDatabaseEntry> entries_;
   std::unique_ptr<class DynamicKdIndex> ring_key_index_;
   std::unique_ptr<class DynamicKdIndex> position_index_;
+  std::unique_ptr<class LandmarkLoopSource> landmark_source_;  ///< geometric_hierarchy/combined
   std::unique_ptr<Registration> coarse_registration_;
   std::unique_ptr<Registration> fine_registration_;
   LoopQueryStats stats_;
