@@ -40,26 +40,6 @@ using KdTree =
     nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointAdaptor>,
                                         PointAdaptor, 3, uint32_t>;
 
-/// nanoflann result set for "the nearest point, if within max_sq": the search starts with the
-/// correspondence gate as its bound, so subtrees beyond it are never visited (knnSearch(1)
-/// starts unbounded and the gate was applied afterwards; same answers, fewer node visits).
-struct NearestWithin {
-  float worst;
-  uint32_t index = 0;
-  bool found = false;
-  explicit NearestWithin(float max_sq) : worst(max_sq) {}
-  float worstDist() const { return worst; }
-  bool full() const { return found; }
-  bool addPoint(float dist_sq, uint32_t i) {
-    if (dist_sq < worst) {
-      worst = dist_sq;
-      index = i;
-      found = true;
-    }
-    return true;
-  }
-};
-
 struct VoxelHash {
   size_t operator()(const Eigen::Vector3i& k) const {
     return (size_t(k.x()) * 73856093u) ^ (size_t(k.y()) * 19349669u) ^ (size_t(k.z()) * 83492791u);
@@ -344,8 +324,6 @@ class FastGicp : public Registration {
       return;
     }
     const double max_sq = params_.max_correspondence_distance * params_.max_correspondence_distance;
-    // Strictly inside: a point at exactly the gate distance was accepted before (dist > max_sq).
-    const float max_sq_f = std::nextafter(static_cast<float>(max_sq), INFINITY);
     const Mat3 r = t.linear();
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, src.points.size(), 512),
@@ -353,13 +331,13 @@ class FastGicp : public Registration {
           for (size_t j = range.begin(); j != range.end(); ++j) {
             const size_t i = src.spatial_order[j];
             const Eigen::Vector3f p = (t * src.points[i].cast<double>()).cast<float>();
-            NearestWithin nearest(max_sq_f);
-            target_->tree->findNeighbors(nearest, p.data(), nanoflann::SearchParams());
-            if (!nearest.found) {
+            uint32_t index = 0;
+            float dist_sq = 0.0f;
+            const size_t found = target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
+            if (found == 0 || dist_sq > max_sq) {
               corr[i].target = -1;
               continue;
             }
-            const uint32_t index = nearest.index;
             corr[i].target = static_cast<int>(index);
             const Mat3 combined =
                 target_->covariances[index] + r * src.covariances[i] * r.transpose();
