@@ -73,8 +73,8 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   const auto t0 = Clock::now();
   const CloudPrefilterResult filtered = prefilter_.filter(*sensor_cloud);
   const double prefilter_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  return processFilteredScan(stamp, filtered, prefilter_ms, true, gravity_roll_pitch, gnss_position,
-                             imu_orientation, gnss_std);
+  return trackFiltered(stamp, filtered, prefilter_ms, gravity_roll_pitch, gnss_position,
+                       imu_orientation, gnss_std);
 }
 
 bool SlamPipeline::processFiltered(double stamp, const CloudPrefilterResult& filtered,
@@ -83,20 +83,20 @@ bool SlamPipeline::processFiltered(double stamp, const CloudPrefilterResult& fil
                                    const std::optional<Eigen::Vector2d>& gnss_position,
                                    const std::optional<Eigen::Quaterniond>& imu_orientation,
                                    std::optional<double> gnss_std) {
-  return processFilteredScan(stamp, filtered, prefilter_ms, false, gravity_roll_pitch,
-                             gnss_position, imu_orientation, gnss_std);
+  timings_.prefilter_ahead = true;
+  return trackFiltered(stamp, filtered, prefilter_ms, gravity_roll_pitch, gnss_position,
+                       imu_orientation, gnss_std);
 }
 
-bool SlamPipeline::processFilteredScan(double stamp, const CloudPrefilterResult& filtered,
-                                       double prefilter_ms, bool prefiltered_here,
-                                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                                       const std::optional<Eigen::Vector2d>& gnss_position,
-                                       const std::optional<Eigen::Quaterniond>& imu_orientation,
-                                       std::optional<double> gnss_std) {
+bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filtered,
+                                 double prefilter_ms,
+                                 const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                                 const std::optional<Eigen::Vector2d>& gnss_position,
+                                 const std::optional<Eigen::Quaterniond>& imu_orientation,
+                                 std::optional<double> gnss_std) {
   startClock();
   ++timings_.scans;
   timings_.prefilter_ms += prefilter_ms;
-  timings_.prefilter_ahead = timings_.prefilter_ahead || !prefiltered_here;
   if (!filtered.ok) {
     logger_->warnOnce("bad_scan", "scan at " + std::to_string(stamp) +
                                       " skipped: " + filtered.reason + " (logged once)");

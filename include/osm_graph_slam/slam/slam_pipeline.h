@@ -97,12 +97,11 @@ class SlamPipeline {
   std::string timingJson() const;
 
  private:
-  bool processFilteredScan(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
-                           bool prefiltered_here,
-                           const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                           const std::optional<Eigen::Vector2d>& gnss_position,
-                           const std::optional<Eigen::Quaterniond>& imu_orientation,
-                           std::optional<double> gnss_std);
+  bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
+                     const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
+                     const std::optional<Eigen::Vector2d>& gnss_position,
+                     const std::optional<Eigen::Quaterniond>& imu_orientation,
+                     std::optional<double> gnss_std);
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
