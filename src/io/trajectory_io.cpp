@@ -1,5 +1,7 @@
 #include "osm_graph_slam/io/trajectory_io.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
@@ -161,6 +163,27 @@ bool writeTumTrajectory(const std::string& path, const Trajectory& trajectory, s
         << '\n';
   }
   return writeFileAtomically(path, out.str(), error);
+}
+
+bool interpolatePose(const Trajectory& poses, double t, double max_gap, Eigen::Isometry3d& out) {
+  if (poses.empty()) return false;
+  auto it = std::lower_bound(poses.begin(), poses.end(), t,
+                             [](const StampedPose& p, double x) { return p.stamp < x; });
+  if (it == poses.begin() || it == poses.end()) {
+    const StampedPose& end = it == poses.begin() ? poses.front() : poses.back();
+    if (std::abs(end.stamp - t) > max_gap) return false;
+    out = end.pose;
+    return true;
+  }
+  const StampedPose &b = *it, &a = *(it - 1);
+  if (b.stamp - a.stamp > max_gap) return false;
+  const double s = (t - a.stamp) / (b.stamp - a.stamp);
+  out = Eigen::Isometry3d::Identity();
+  out.translation() = (1 - s) * a.pose.translation() + s * b.pose.translation();
+  out.linear() = Eigen::Quaterniond(a.pose.linear())
+                     .slerp(s, Eigen::Quaterniond(b.pose.linear()))
+                     .toRotationMatrix();
+  return true;
 }
 
 }  // namespace osm_graph_slam

@@ -14,27 +14,6 @@ Eigen::Isometry3d planarTo3d(const Eigen::Isometry2d& T) {
   return P;
 }
 
-bool interpolatePose(const Trajectory& poses, double t, double max_gap, Eigen::Isometry3d& out) {
-  if (poses.empty()) return false;
-  auto it = std::lower_bound(poses.begin(), poses.end(), t,
-                             [](const StampedPose& p, double x) { return p.stamp < x; });
-  if (it == poses.begin() || it == poses.end()) {
-    const StampedPose& end = it == poses.begin() ? poses.front() : poses.back();
-    if (std::abs(end.stamp - t) > max_gap) return false;
-    out = end.pose;
-    return true;
-  }
-  const StampedPose &b = *it, &a = *(it - 1);
-  if (b.stamp - a.stamp > max_gap) return false;
-  const double s = (t - a.stamp) / (b.stamp - a.stamp);
-  out = Eigen::Isometry3d::Identity();
-  out.translation() = (1 - s) * a.pose.translation() + s * b.pose.translation();
-  out.linear() = Eigen::Quaterniond(a.pose.linear())
-                     .slerp(s, Eigen::Quaterniond(b.pose.linear()))
-                     .toRotationMatrix();
-  return true;
-}
-
 RadarDriveResult runMulranRadarOdometry(
     const std::string& root, const RadarOdometryParams& params, const RadarDriveOptions& options,
     const std::function<void(const RadarOdometryStep&, const RadarPolarScan&)>& on_step) {

@@ -272,8 +272,11 @@ TEST_F(SlamRegressionNodelets, OsmPriorsMeetTheTargets) {
   EXPECT_GE(m.slam.associated, 20u);
   EXPECT_GE(m.baseline.associated, 20u);
   EXPECT_LE(m.slam.ate.mean, param("ate_ratio_max", 0.7) * m.baseline.ate.mean);
-  EXPECT_LE(m.slam.rpe_trans.mean, param("rpe_ratio_max", 1.05) * m.baseline.rpe_trans.mean);
-  EXPECT_LE(m.slam.rpe_rot.mean, param("rpe_rot_ratio_max", 1.05) * m.baseline.rpe_rot.mean);
+  // RPE step for step: keyframes the nodelets drop under load lengthen their steps (see above).
+  EXPECT_LE(m.slam.rpe_trans.mean,
+            param("rpe_ratio_max", 1.05) * m.baseline_same_steps.rpe_trans.mean);
+  EXPECT_LE(m.slam.rpe_rot.mean,
+            param("rpe_rot_ratio_max", 1.05) * m.baseline_same_steps.rpe_rot.mean);
   EXPECT_GE(m.after.matched, 5u) << "fewer than 5 buildings observed (robot<->building edges)";
   EXPECT_LE(m.after.mean_corner_error,
             param("building_ratio_max", 0.5) * m.before.mean_corner_error);

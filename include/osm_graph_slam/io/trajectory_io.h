@@ -26,6 +26,10 @@ TrajectoryReadResult readTumTrajectory(const std::string& path);
 /// Picks the reader by content: 8 columns = TUM, 12/13 = KITTI.
 TrajectoryReadResult readTrajectory(const std::string& path);
 
+/// Linear/slerp interpolation of a pose list at t [s] (clamped to the ends); false if t lies
+/// outside it, or between two poses, farther than max_gap [s].
+bool interpolatePose(const Trajectory& poses, double t, double max_gap, Eigen::Isometry3d& out);
+
 bool writeKittiPoses(const std::string& path, const Trajectory& trajectory, bool with_time,
                      std::string* error = nullptr);
 bool writeTumTrajectory(const std::string& path, const Trajectory& trajectory,

@@ -30,10 +30,6 @@ struct RadarDriveResult {
   double span_s = 0;                                                    ///< first to last sweep [s]
 };
 
-/// Linear/slerp interpolation of a pose list at t [s] (clamped to the ends); false if outside
-/// by more than max_gap.
-bool interpolatePose(const Trajectory& poses, double t, double max_gap, Eigen::Isometry3d& out);
-
 /// The 3D pose of a planar one (z = 0, yaw only).
 Eigen::Isometry3d planarTo3d(const Eigen::Isometry2d& T);
 
