@@ -128,6 +128,25 @@ TEST(TrajectoryIo, KittiAndTumRoundTrip) {
   std::remove(tum.c_str());
 }
 
+TEST(TrajectoryIo, InterpolatePoseIsLinearAndSlerpedAndRefusesGaps) {
+  Trajectory t(3);
+  t[0].stamp = 1.0;
+  t[1].stamp = 2.0;
+  t[1].pose.translation() << 2.0, 4.0, 0.0;
+  t[1].pose.linear() = Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  t[2].stamp = 12.0;  // 10 s after the previous pose
+  Eigen::Isometry3d p;
+  ASSERT_TRUE(interpolatePose(t, 1.25, 5.0, p));
+  EXPECT_NEAR((p.translation() - Eigen::Vector3d(0.5, 1.0, 0.0)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(p.linear()).angle(), 0.2, 1e-12);
+  EXPECT_FALSE(interpolatePose(t, 5.0, 5.0, p)) << "between poses 10 s apart";
+  EXPECT_TRUE(interpolatePose(t, 5.0, 10.5, p));
+  EXPECT_FALSE(interpolatePose(t, 0.0, 0.5, p)) << "1 s before the first pose";
+  ASSERT_TRUE(interpolatePose(t, 12.2, 0.5, p));
+  EXPECT_NEAR(p.translation().norm(), 0.0, 1e-12) << "clamped to the last pose";
+  EXPECT_FALSE(interpolatePose({}, 1.0, 5.0, p));
+}
+
 TEST(TrajectoryIo, MalformedLineNamesFileAndLine) {
   const std::string path = ::testing::TempDir() + "/bad_traj.txt";
   std::ofstream(path) << "1 0 0 0 0 0 0 1\n2 0 0 0 0 0 zero 1\n";
