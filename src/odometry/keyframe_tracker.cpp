@@ -129,11 +129,9 @@ std::optional<Eigen::Isometry3d> KeyframeTracker::preTracked(
     TrackResult& result) {
   if (pre_tracked_ || !pre_tracker_) return pre_tracked_pose_;
   pre_tracked_ = true;
-  // The scan-to-scan motion, starting from the constant-velocity one.
-  // The tracker's adaptive limit bounds it too: the pre-tracker may have no history of its own
-  // when it runs only to recover.
-  if (const auto e = pre_tracker_->estimate(cloud, pose_.inverse() * constant_velocity,
-                                            fitness_gate_.limit())) {
+  // The scan-to-scan motion, starting from the motion model. Not bounded by the tracker's
+  // fitness limit (other units, see PreTracker::estimate): the match from this guess is.
+  if (const auto e = pre_tracker_->estimate(cloud, pose_.inverse() * constant_velocity)) {
     result.pre_tracker_ms = e->time_ms;
     pre_tracked_pose_ = pose_ * e->motion;
   }

@@ -85,36 +85,36 @@ std::vector<Variant> variants() {
   KeyframeTrackerParams recovery;  // the defaults (imu: without IMU data, constant velocity)
   KeyframeTrackerParams pre = recovery;
   pre.guess = "pre_tracker";
-  KeyframeTrackerParams light = pre;  // the cheap pre-tracker: half the points at each scale
+  KeyframeTrackerParams fine = pre;  // the defaults until session 15: 16x the points per scale
+  fine.pre_tracker.coarse_voxel = 1.5;
+  fine.pre_tracker.fine_voxel = 0.75;
+  fine.pre_tracker.coarse_max_correspondence = 3.0;
+  fine.pre_tracker.fine_max_correspondence = 1.0;
+  KeyframeTrackerParams light = fine;  // half the points of those at each scale
   light.pre_tracker.coarse_voxel = 3.0;
   light.pre_tracker.fine_voxel = 1.5;
   light.pre_tracker.fine_max_correspondence = 2.0;
   // Cheaper pre-trackers: voxel correspondences (VGICP) and/or fewer iterations per scale (the
   // pre-tracker only has to bring the tracker into its basin).
-  KeyframeTrackerParams vgicp = pre;
+  KeyframeTrackerParams vgicp = fine;
   vgicp.pre_tracker.method = "fast_vgicp";
-  KeyframeTrackerParams short_gicp = pre;
+  KeyframeTrackerParams short_gicp = fine;
   short_gicp.pre_tracker.max_iterations = 8;
   KeyframeTrackerParams short_vgicp = vgicp;
   short_vgicp.pre_tracker.max_iterations = 8;
-  KeyframeTrackerParams sparse = light;  // a quarter of the points of light at each scale
-  sparse.pre_tracker.coarse_voxel = 4.0;
-  sparse.pre_tracker.fine_voxel = 2.0;
-  sparse.pre_tracker.coarse_max_correspondence = 4.0;
-  sparse.pre_tracker.fine_max_correspondence = 2.5;
   KeyframeTrackerParams coarse_vgicp = short_vgicp;
   coarse_vgicp.pre_tracker.coarse_voxel = 2.0;
   coarse_vgicp.pre_tracker.fine_voxel = 1.0;
   return {{"constant_velocity (no recovery: reference)", legacy},
           {"default (no IMU here: constant velocity) + recovery", recovery},
           {"default on the PCL-prefiltered scans", recovery, true},
-          {"pre_tracker + recovery", pre},
+          {"pre_tracker (4.0/2.0 m voxels) + recovery", pre},
+          {"pre_tracker 1.5/0.75 m voxels + recovery", fine},
           {"pre_tracker 3.0/1.5 m voxels + recovery", light},
-          {"pre_tracker fast_vgicp + recovery", vgicp},
-          {"pre_tracker 8 iterations + recovery", short_gicp},
-          {"pre_tracker fast_vgicp, 8 iterations + recovery", short_vgicp},
-          {"pre_tracker fast_vgicp, 8 it., 2.0/1.0 m + recovery", coarse_vgicp},
-          {"pre_tracker 4.0/2.0 m voxels + recovery", sparse}};
+          {"pre_tracker 1.5/0.75 m fast_vgicp + recovery", vgicp},
+          {"pre_tracker 1.5/0.75 m 8 iterations + recovery", short_gicp},
+          {"pre_tracker 1.5/0.75 m fast_vgicp, 8 it. + recovery", short_vgicp},
+          {"pre_tracker fast_vgicp, 8 it., 2.0/1.0 m + recovery", coarse_vgicp}};
 }
 
 Outcome run(const Variant& v, const Scans& scans) {

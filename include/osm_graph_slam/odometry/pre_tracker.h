@@ -5,7 +5,6 @@
 // that a constant-velocity guess extrapolated from the previous motion does not. The tracker uses
 // it as its initial guess (guess: pre_tracker) or to recover after a failed match.
 #include <Eigen/Geometry>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,10 +16,12 @@
 namespace osm_graph_slam {
 
 struct PreTrackerParams {
-  double coarse_voxel = 1.5;               ///< [m] leaf of the coarse scale
-  double fine_voxel = 0.75;                ///< [m] leaf of the finer scale
-  double coarse_max_correspondence = 3.0;  ///< [m]
-  double fine_max_correspondence = 1.0;    ///< [m]
+  // Coarse scales (doc/frontend.md "Session 15"): the pre-tracker only has to bring the
+  // tracker into its basin, and its cost is the per-scan preparation of both scales.
+  double coarse_voxel = 4.0;               ///< [m] leaf of the coarse scale
+  double fine_voxel = 2.0;                 ///< [m] leaf of the finer scale
+  double coarse_max_correspondence = 4.0;  ///< [m]
+  double fine_max_correspondence = 2.5;    ///< [m]
   double max_fitness = 1.0;                ///< [m^2] a worse fine match gives no estimate
   double fitness_ratio = 4.0;  ///< ... or one worse than this times the recent median (0: off)
   double fitness_ratio_floor = 0.2;  ///< [m^2] (see KeyframeTrackerParams)
@@ -45,12 +46,12 @@ class PreTracker {
   /// only when an estimate is asked for (the tracker asks only to recover, by default).
   void remember(const PointCloudConstPtr& cloud);
   /// Motion of `cloud` relative to the remembered scan, starting from `guess`; nothing when no
-  /// scan is remembered or the match fails (fitness above max_fitness, the adaptive gate, or
-  /// `fitness_limit`: the caller's own plausibility bound while this gate has no history yet).
+  /// scan is remembered or the match fails (fitness above max_fitness or the adaptive gate).
+  /// Its fitness is in its own units (NN distances between 2 m voxels are ~10x the tracker's),
+  /// so the tracker's gate does not apply here; the tracker verifies the guess by its own match.
   /// Does not remember `cloud`.
-  std::optional<PreTrackerEstimate> estimate(
-      const PointCloudConstPtr& cloud, const Eigen::Isometry3d& guess,
-      double fitness_limit = std::numeric_limits<double>::infinity());
+  std::optional<PreTrackerEstimate> estimate(const PointCloudConstPtr& cloud,
+                                             const Eigen::Isometry3d& guess);
   bool ready() const { return previous_ != nullptr; }
   void reset();
 
