@@ -677,6 +677,84 @@ def own_coverage(estimate_stamps, truth_stamps):
     return {"fraction": covered / (t1 - t0), "longest_gap_s": gap}
 
 
+def read_tum_poses(path):
+    """{stamp rounded to 1 ms: ((x, y, z), (qx, qy, qz, qw))} of a TUM trajectory file."""
+    poses = {}
+    with open(path) as f:
+        for line in f:
+            fields = line.split()
+            if len(fields) >= 8 and not fields[0].startswith("#"):
+                v = [float(x) for x in fields[:8]]
+                poses[round(v[0], 3)] = (tuple(v[1:4]), tuple(v[4:8]))
+    return poses
+
+
+def quat_mul(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def quat_conj(q):
+    return (-q[0], -q[1], -q[2], q[3])
+
+
+def quat_rotate(q, v):
+    x, y, z, _ = quat_mul(quat_mul(q, (v[0], v[1], v[2], 0.0)), quat_conj(q))
+    return (x, y, z)
+
+
+def _angle_between(a, b):
+    dot = sum(x * y for x, y in zip(a, b))
+    na, nb = math.sqrt(sum(x * x for x in a)), math.sqrt(sum(x * x for x in b))
+    return math.degrees(math.acos(max(-1.0, min(1.0, dot / (na * nb)))))
+
+
+def orientation_errors(estimate, truth, align_first=True):
+    """Heading and tilt errors [deg] of an estimate against the truth at the same stamps:
+    heading = angle between the horizontal projections of the body x axes, tilt = angle between
+    the body z axes. align_first rotates the estimate so that its first common pose has the
+    truth's orientation (raw odometry starts at the identity). None without common stamps."""
+    common = sorted(set(estimate) & set(truth))
+    if not common:
+        return None
+    align = (0.0, 0.0, 0.0, 1.0)
+    if align_first:
+        align = quat_mul(truth[common[0]][1], quat_conj(estimate[common[0]][1]))
+    headings, tilts = [], []
+    for t in common:
+        q_est, q_true = quat_mul(align, estimate[t][1]), truth[t][1]
+        xe, xt = quat_rotate(q_est, (1.0, 0.0, 0.0)), quat_rotate(q_true, (1.0, 0.0, 0.0))
+        d = math.atan2(xe[1], xe[0]) - math.atan2(xt[1], xt[0])
+        headings.append(abs(math.degrees(math.atan2(math.sin(d), math.cos(d)))))
+        tilts.append(_angle_between(quat_rotate(q_est, (0.0, 0.0, 1.0)),
+                                    quat_rotate(q_true, (0.0, 0.0, 1.0))))
+    return {"heading_mean": sum(headings) / len(headings), "heading_max": max(headings),
+            "tilt_mean": sum(tilts) / len(tilts), "tilt_max": max(tilts)}
+
+
+def orientation_metrics(osm_out, no_osm_out):
+    """The trajectory's heading error (the run with OSM, as evaluated: no alignment) and the raw
+    odometry's tilt drift (first pose aligned). The back-end's IMU attitude priors hide the
+    odometry's tilt from every trajectory metric; the matrix shows it (doc/matrix.md, session
+    15: 63 deg on a drive whose trajectory tilt was 0.04 deg)."""
+    m = {"heading_deg": None, "heading_max_deg": None, "odo_tilt_deg": None}
+    try:
+        e = orientation_errors(read_tum_poses(os.path.join(osm_out, "trajectory_tum.txt")),
+                               read_tum_poses(os.path.join(osm_out, "ground_truth_tum.txt")))
+        if e:
+            m["heading_deg"], m["heading_max_deg"] = e["heading_mean"], e["heading_max"]
+        o = orientation_errors(read_tum_poses(os.path.join(no_osm_out, "odometry_tum.txt")),
+                               read_tum_poses(os.path.join(no_osm_out, "ground_truth_tum.txt")),
+                               align_first=True)
+        if o:
+            m["odo_tilt_deg"] = o["tilt_max"]
+    except (OSError, ValueError):
+        pass
+    return m
+
+
 # --- summary, table, check ---------------------------------------------------------------------
 
 def f3(x):
@@ -713,6 +791,8 @@ COLUMNS = [
     ("rpe_ratio", "tRPE_r", 6, f2, "max"),
     ("height_drift", "z_dr", 5, f3, "max"),
     ("tilt_deg", "tilt", 5, f3, "max"),
+    ("heading_deg", "hdg", 5, f2, "max"),
+    ("odo_tilt_deg", "oTilt", 5, f1, "max"),
     ("bld_prior", "B_prior", 7, f3, "max"),
     ("bld_corrected", "B_corr", 7, f3, "max"),
     ("seen_prior", "S_prior", 7, f3, "max"),
@@ -1153,6 +1233,7 @@ def _run_drive_steps(drive, ctx, d, logs, steps, force):
     metrics = parse_metrics(evaluation, read_json(report), read_json(os.path.join(no_osm_out, "timing.json")),
                             read_json(os.path.join(sim, "sim_info.json")), coverage)
     metrics["own_coverage"] = coverage
+    metrics.update(orientation_metrics(osm_out, no_osm_out))
     metrics["ground_truth"] = metrics_gt
     if notes:
         metrics["notes"] = notes

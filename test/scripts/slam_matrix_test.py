@@ -330,6 +330,42 @@ class ParseTest(unittest.TestCase):
         self.assertEqual(sm.own_coverage([], [0.0, 10.0])["fraction"], 0.0)
         self.assertIsNone(sm.own_coverage([1.0], [5.0]))
 
+    def test_orientation_metrics(self):
+        def q(axis, deg):  # (qx, qy, qz, qw) of a rotation about x, y or z
+            h = math.radians(deg) / 2
+            v = [0.0, 0.0, 0.0]
+            v["xyz".index(axis)] = math.sin(h)
+            return tuple(v) + (math.cos(h),)
+
+        def write(path, quats):
+            with open(path, "w") as f:
+                f.write("# time tx ty tz qx qy qz qw\n")
+                for i, r in enumerate(quats):
+                    f.write("%.1f %d 0 0 %.12f %.12f %.12f %.12f\n" % ((100 + i * 0.1, i) + r))
+
+        with tempfile.TemporaryDirectory() as tmp:
+            osm, no_osm = os.path.join(tmp, "osm"), os.path.join(tmp, "no")
+            os.makedirs(osm)
+            os.makedirs(no_osm)
+            truth = [sm.quat_mul(q("z", 90.0), q("y", 2.0 * ((i + 1) % 2))) for i in range(5)]
+            # Heading 1, 2, 3, 4, 5 deg off; the truth's own 2 deg pitch steps are no tilt error.
+            write(os.path.join(osm, "trajectory_tum.txt"),
+                  [sm.quat_mul(q("z", i + 1.0), t) for i, t in enumerate(truth)])
+            write(os.path.join(osm, "ground_truth_tum.txt"), truth)
+            # Raw odometry from the identity, tilting 0, 3, 6, 9, 12 deg about its own x axis.
+            write(os.path.join(no_osm, "odometry_tum.txt"),
+                  [sm.quat_mul(sm.quat_conj(truth[0]), sm.quat_mul(t, q("x", 3.0 * i)))
+                   for i, t in enumerate(truth)])
+            write(os.path.join(no_osm, "ground_truth_tum.txt"), truth)
+            m = sm.orientation_metrics(osm, no_osm)
+            self.assertAlmostEqual(m["heading_deg"], 3.0, places=6)
+            self.assertAlmostEqual(m["heading_max_deg"], 5.0, places=6)
+            self.assertAlmostEqual(m["odo_tilt_deg"], 12.0, places=6)
+            # Missing files: no numbers, no exception.
+            m = sm.orientation_metrics(os.path.join(tmp, "x"), os.path.join(tmp, "y"))
+            self.assertIsNone(m["heading_deg"])
+            self.assertIsNone(m["odo_tilt_deg"])
+
     def test_kitti_stamps(self):
         self.assertEqual(sm.kitti_stamp_ns("2020-01-01 12:00:00.1"), 1577880000 * 10**9 + 100000000)
         self.assertEqual(sm.stamp_text(1577880000 * 10**9 + 5), "1577880000.000000005")
