@@ -711,7 +711,7 @@ def _angle_between(a, b):
     return math.degrees(math.acos(max(-1.0, min(1.0, dot / (na * nb)))))
 
 
-def orientation_errors(estimate, truth, align_first=True):
+def orientation_errors(estimate, truth, align_first=False):
     """Heading and tilt errors [deg] of an estimate against the truth at the same stamps:
     heading = angle between the horizontal projections of the body x axes, tilt = angle between
     the body z axes. align_first rotates the estimate so that its first common pose has the
