@@ -149,12 +149,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return last_stamp_;
   }
 
-  /// The keyframe's IMU attitude and GNSS position (SensorInputs matches them by time); the
-  /// first keyframe also decides the initial heading and the map -> odom published until the
+  /// The keyframe's IMU attitude and heading and GNSS position (SensorInputs matches them by time);
+  /// the first keyframe also decides the initial heading and the map -> odom published until the
   /// first optimisation.
   void addSensorInputs(KeyframeInput& kf) {
-    if (const auto imu = inputs_->attitudeAt(kf.stamp))
+    if (const auto imu = inputs_->attitudeAt(kf.stamp)) {
       kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
+      kf.ins_yaw = imu->yaw;  // a heading prior only with ins_heading_std > 0
+    }
     // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
     // the first keyframe's, which anchors the map.
     if (!first_keyframe_seen_ || gnssPriors()) {

@@ -297,6 +297,12 @@ void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf)
     s.graph.addPriorSE3XY(vid, *in.gnss_position, info * Eigen::Matrix2d::Identity(),
                           EdgeOptions{0, RobustKernel::huber(params_.gnss_prior_kernel_width)});
   }
+  // The INS heading bounds the odometry's heading drift (its error does not grow with distance);
+  // without a known initial heading the INS's yaw frame is not the map's.
+  if (params_.ins_heading_std > 0.0 && in.ins_yaw && s.heading_known_at_start) {
+    s.graph.addPriorSE3Yaw(vid, *in.ins_yaw, 1.0 / std::pow(params_.ins_heading_std, 2),
+                           EdgeOptions{0, RobustKernel::huber(params_.ins_heading_kernel_width)});
+  }
   if (in.gravity_roll_pitch) {
     kf.has_attitude = true;
     s.graph.addPriorSE3(

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/registration/registration.h"
 
@@ -59,10 +60,7 @@ void SlamPipeline::setOrigin(double lat, double lon, double alt) {
 }
 
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
-                               const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                               const std::optional<Eigen::Vector2d>& gnss_position,
-                               const std::optional<Eigen::Quaterniond>& imu_orientation,
-                               std::optional<double> gnss_std) {
+                               const ScanAiding& aiding) {
   startClock();
   if (!sensor_cloud) {
     ++timings_.scans;
@@ -73,27 +71,17 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   const auto t0 = Clock::now();
   const CloudPrefilterResult filtered = prefilter_.filter(*sensor_cloud);
   const double prefilter_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  return trackFiltered(stamp, filtered, prefilter_ms, gravity_roll_pitch, gnss_position,
-                       imu_orientation, gnss_std);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
 }
 
 bool SlamPipeline::processFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                   double prefilter_ms,
-                                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                                   const std::optional<Eigen::Vector2d>& gnss_position,
-                                   const std::optional<Eigen::Quaterniond>& imu_orientation,
-                                   std::optional<double> gnss_std) {
+                                   double prefilter_ms, const ScanAiding& aiding) {
   timings_.prefilter_ahead = true;
-  return trackFiltered(stamp, filtered, prefilter_ms, gravity_roll_pitch, gnss_position,
-                       imu_orientation, gnss_std);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
 }
 
 bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                 double prefilter_ms,
-                                 const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                                 const std::optional<Eigen::Vector2d>& gnss_position,
-                                 const std::optional<Eigen::Quaterniond>& imu_orientation,
-                                 std::optional<double> gnss_std) {
+                                 double prefilter_ms, const ScanAiding& aiding) {
   startClock();
   ++timings_.scans;
   timings_.prefilter_ms += prefilter_ms;
@@ -106,7 +94,7 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
   TrackResult result;
   {
     StageTimer t(timings_.tracking_ms);
-    result = tracker_.track(stamp, filtered.cloud, imu_orientation);
+    result = tracker_.track(stamp, filtered.cloud, aiding.imu_orientation);
   }
   timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));
@@ -114,7 +102,7 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
   if (result.new_keyframe)
     processKeyframe(tracker_.keyframe(),
                     result.registration.converged ? result.registration.fitness : -1.0,
-                    result.reanchored, gravity_roll_pitch, gnss_position, gnss_std);
+                    result.reanchored, aiding);
   return true;
 }
 
@@ -125,9 +113,7 @@ void SlamPipeline::startClock() {
 }
 
 void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
-                                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                                   const std::optional<Eigen::Vector2d>& gnss_position,
-                                   std::optional<double> gnss_std) {
+                                   const ScanAiding& aiding) {
   ++timings_.keyframes;
   KeyframeInput input;
   input.id = kf.id;
@@ -137,9 +123,10 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
   input.odom_fitness = fitness;
   input.reanchored = reanchored;
   input.cloud = kf.cloud;
-  input.gravity_roll_pitch = gravity_roll_pitch;
-  input.gnss_position = gnss_position;
-  if (gnss_position) input.gnss_std = gnss_std;
+  input.gravity_roll_pitch = aiding.gravity_roll_pitch;
+  input.gnss_position = aiding.gnss_position;
+  if (aiding.gnss_position) input.gnss_std = aiding.gnss_std;
+  if (aiding.imu_orientation) input.ins_yaw = yawOf(*aiding.imu_orientation);
   if (params_.floor.enabled) {
     StageTimer t(timings_.floor_ms);
     const FloorDetection floor = floor_.detect(*kf.cloud);

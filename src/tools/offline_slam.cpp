@@ -201,11 +201,12 @@ int main(int argc, char** argv) {
       continue;
     }
     if (scan.truth) truth_by_stamp[scan.stamp] = *scan.truth;
-    const bool attitude_priors = use_imu && params.backend.inputs.use_imu;
-    pipeline.processFiltered(
-        scan.stamp, *scan.filtered, scan.prepare_ms,
-        attitude_priors ? scan.roll_pitch : std::optional<Eigen::Vector2d>(), scan.gnss,
-        use_imu ? scan.orientation : std::optional<Eigen::Quaterniond>(), scan.gnss_std);
+    ScanAiding aiding;
+    if (use_imu && params.backend.inputs.use_imu) aiding.gravity_roll_pitch = scan.roll_pitch;
+    if (use_imu) aiding.imu_orientation = scan.orientation;
+    aiding.gnss_position = scan.gnss;
+    aiding.gnss_std = scan.gnss_std;
+    pipeline.processFiltered(scan.stamp, *scan.filtered, scan.prepare_ms, aiding);
     printProgress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

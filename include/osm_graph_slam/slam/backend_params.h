@@ -53,6 +53,12 @@ struct GraphBackendParams {
   double gnss_prior_std = 0.0;
   double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
   double gnss_first_yaw_std = 0.01;      ///< [rad] the first keyframe's heading prior (INS)
+  /// INS heading as evidence: [rad] deviation of a yaw prior (level 0, Huber kernel) on every
+  /// keyframe with an INS orientation (KeyframeInput::ins_yaw), so that the heading is bounded by
+  /// the INS's error instead of drifting with the odometry's. Only with a known initial heading
+  /// (the INS's yaw is then ENU). 0 (default) = off; keep it off for magnetometer headings.
+  double ins_heading_std = 0.0;
+  double ins_heading_kernel_width = 2.0;  ///< Huber width in deviations
   /// The first keyframe (the map's anchor) held at its GNSS fix and known heading with these
   /// deviations instead of fixed there (height 5 cm, roll/pitch 0.01 rad), so that a trajectory
   /// the map prior disagrees with can shift and turn as a whole instead of bending; what the

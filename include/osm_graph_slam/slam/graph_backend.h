@@ -47,6 +47,9 @@ struct KeyframeInput {
   /// [m] that fix's horizontal standard deviation, when the receiver reports it: the first
   /// keyframe is held there with it (else with anchor_std_xy).
   std::optional<double> gnss_std;
+  /// [rad] base_link's ENU yaw from an INS at this keyframe's stamp, if known: a heading prior
+  /// with GraphBackendParams::ins_heading_std > 0.
+  std::optional<double> ins_yaw;
   /// The floor plane (a, b, c, d) under base_link, if the floor detector found one (it may also
   /// come later through addFloor()).
   std::optional<Eigen::Vector4d> floor;

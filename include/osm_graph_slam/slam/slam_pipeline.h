@@ -32,6 +32,20 @@ struct SlamPipelineParams {
   int optimize_every_keyframes = 15;
 };
 
+/// What the vehicle's other sensors say at a scan's time; every field is optional.
+struct ScanAiding {
+  /// base_link roll and pitch against gravity from an IMU [rad] (attitude priors).
+  std::optional<Eigen::Vector2d> gravity_roll_pitch;
+  /// base_link's GNSS position in the map frame [m] (the first keyframe is fixed there; with
+  /// gnss_prior_std > 0 every keyframe gets a prior).
+  std::optional<Eigen::Vector2d> gnss_position;
+  /// That fix's horizontal standard deviation [m], when the receiver reports it.
+  std::optional<double> gnss_std;
+  /// base_link's orientation in ENU from an IMU/INS: the tracker's imu guesses use its change
+  /// between scans, and with ins_heading_std > 0 its yaw is a heading prior on keyframes.
+  std::optional<Eigen::Quaterniond> imu_orientation;
+};
+
 /// Milliseconds spent per stage over the whole run.
 struct PipelineTimings {
   size_t scans = 0, keyframes = 0, loops = 0;
@@ -60,26 +74,15 @@ class SlamPipeline {
 
   /// The first valid GPS fix: the map origin. Needed before OSM buildings can be used.
   void setOrigin(double lat, double lon, double alt);
-  /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter). Bad scans are
-  /// reported and skipped; returns true if the scan produced a pose.
-  /// gravity_roll_pitch: base_link roll and pitch from an IMU at the scan's time, if any.
-  /// gnss_position: base_link's GNSS position in the map frame at the scan's time, if any (the
-  /// first keyframe is fixed there).
-  /// imu_orientation: base_link's orientation from an IMU/INS at the scan's time, if any (the
-  /// tracker's imu guesses use its change between scans).
-  /// gnss_std: the fix's horizontal standard deviation [m], if the receiver reports it.
+  /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter) with what the
+  /// other sensors say at its time. Bad scans are reported and skipped; returns true if the scan
+  /// produced a pose.
   bool processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
-                   const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
-                   const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
-                   const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
-                   std::optional<double> gnss_std = std::nullopt);
+                   const ScanAiding& aiding = {});
   /// processScan for a scan prefiltered elsewhere with prefilter() (offline_slam runs it on its
   /// reading thread, one scan ahead of the tracking); prefilter_ms is reported in its stage.
   bool processFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
-                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch = std::nullopt,
-                       const std::optional<Eigen::Vector2d>& gnss_position = std::nullopt,
-                       const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
-                       std::optional<double> gnss_std = std::nullopt);
+                       const ScanAiding& aiding = {});
   /// Starts the wall clock of the throughput report (else the first scan starts it): a caller
   /// that reads or prefilters ahead starts it before, so that work is counted too.
   void startClock();
@@ -98,16 +101,11 @@ class SlamPipeline {
 
  private:
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
-                     const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                     const std::optional<Eigen::Vector2d>& gnss_position,
-                     const std::optional<Eigen::Quaterniond>& imu_orientation,
-                     std::optional<double> gnss_std);
+                     const ScanAiding& aiding);
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
-                       const std::optional<Eigen::Vector2d>& gravity_roll_pitch,
-                       const std::optional<Eigen::Vector2d>& gnss_position,
-                       std::optional<double> gnss_std);
+                       const ScanAiding& aiding);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
