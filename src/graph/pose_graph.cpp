@@ -41,6 +41,12 @@ EdgeSignature signatureOf(EdgeType type) {
       return {2, V::kSE2, V::kSE2};
     case EdgeType::kSE3PlanePair:
       return {2, V::kSE3, V::kSE3};
+    case EdgeType::kPriorPointXY:
+      return {1, V::kPointXY, V::kPointXY};
+    case EdgeType::kPointXYGaussMarkov:
+      return {2, V::kPointXY, V::kPointXY};
+    case EdgeType::kSE3XYWithOffset:
+      return {2, V::kSE3, V::kPointXY};
   }
   return {0, V::kSE3, V::kSE3};
 }
@@ -124,6 +130,12 @@ const char* toString(EdgeType type) {
       return "SE2 point-on-line";
     case EdgeType::kSE3PlanePair:
       return "SE3 plane pair";
+    case EdgeType::kPriorPointXY:
+      return "prior XY";
+    case EdgeType::kPointXYGaussMarkov:
+      return "XY Gauss-Markov";
+    case EdgeType::kSE3XYWithOffset:
+      return "SE3 xy + XY offset";
   }
   return "?";
 }
@@ -156,6 +168,9 @@ int errorDimension(EdgeType type) {
     case EdgeType::kPriorSE3XY:
     case EdgeType::kSE2PointXY:
     case EdgeType::kSE3PointXY:
+    case EdgeType::kPriorPointXY:
+    case EdgeType::kPointXYGaussMarkov:
+    case EdgeType::kSE3XYWithOffset:
       return 2;
     case EdgeType::kPriorSE3Yaw:
     case EdgeType::kSE2PointOnLine:
@@ -168,6 +183,7 @@ int measurementDimension(EdgeType type) {
   if (type == EdgeType::kSE3 || type == EdgeType::kPriorSE3) return 7;
   if (type == EdgeType::kSE2PointOnLine) return 5;
   if (type == EdgeType::kSE3PlanePair) return 8;
+  if (type == EdgeType::kPointXYGaussMarkov) return 1;
   return errorDimension(type);
 }
 
@@ -417,6 +433,24 @@ int PoseGraph::addEdgeSE2PointXY(int pose, int point, const Eigen::Vector2d& mea
 int PoseGraph::addEdgeSE3PointXY(int pose, int point, const Eigen::Vector2d& measurement,
                                  const Eigen::Matrix2d& information, const EdgeOptions& options) {
   return addEdge(EdgeType::kSE3PointXY, {pose, point}, measurement, information, options);
+}
+
+int PoseGraph::addPriorPointXY(int point, const Eigen::Vector2d& measurement,
+                               const Eigen::Matrix2d& information, const EdgeOptions& options) {
+  return addEdge(EdgeType::kPriorPointXY, {point}, measurement, information, options);
+}
+
+int PoseGraph::addEdgePointXYGaussMarkov(int from, int to, double phi,
+                                         const Eigen::Matrix2d& information,
+                                         const EdgeOptions& options) {
+  return addEdge(EdgeType::kPointXYGaussMarkov, {from, to}, Eigen::VectorXd::Constant(1, phi),
+                 information, options);
+}
+
+int PoseGraph::addEdgeSE3XYWithOffset(int pose, int offset, const Eigen::Vector2d& measurement,
+                                      const Eigen::Matrix2d& information,
+                                      const EdgeOptions& options) {
+  return addEdge(EdgeType::kSE3XYWithOffset, {pose, offset}, measurement, information, options);
 }
 
 bool PoseGraph::removeEdge(int edge_id) {

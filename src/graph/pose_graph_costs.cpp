@@ -181,6 +181,28 @@ struct PriorPositionFunctor {
   }
 };
 
+struct GaussMarkovFunctor {
+  double phi = 1.0;
+  Eigen::Matrix2d sqrt_info;
+  template <typename T>
+  bool operator()(const T* b1, const T* b2, T* r) const {
+    const T e[2] = {b2[0] - phi * b1[0], b2[1] - phi * b1[1]};
+    weigh<2>(sqrt_info, e, r);
+    return true;
+  }
+};
+
+struct PositionWithOffsetFunctor {
+  Eigen::Vector2d z;
+  Eigen::Matrix2d sqrt_info;
+  template <typename T>
+  bool operator()(const T* x, const T* b, T* r) const {
+    const T e[2] = {x[0] + b[0] - z[0], x[1] + b[1] - z[1]};
+    weigh<2>(sqrt_info, e, r);
+    return true;
+  }
+};
+
 struct PriorYawFunctor {
   double z = 0.0;
   double sqrt_info = 1.0;
@@ -553,6 +575,13 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       return lifted(
           autoDiff<SE3PlanePairFunctor, 3, 7, 7>(SE3PlanePairFunctor{m.head<4>(), m.tail<4>(), s}),
           true, true);
+    case EdgeType::kPriorPointXY:
+      return autoDiff<PriorPositionFunctor<2>, 2, 2>(PriorPositionFunctor<2>{m, s});
+    case EdgeType::kPointXYGaussMarkov:
+      return autoDiff<GaussMarkovFunctor, 2, 2, 2>(GaussMarkovFunctor{m[0], s});
+    case EdgeType::kSE3XYWithOffset:
+      return lifted(autoDiff<PositionWithOffsetFunctor, 2, 7, 2>(PositionWithOffsetFunctor{m, s}),
+                    true, false);
   }
   return nullptr;
 }

@@ -45,6 +45,31 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   return id;
 }
 
+int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
+  if (!gnss_bias_start) gnss_bias_start = stamp;
+  const double window = std::max(p.gnss_bias_window, 1e-3);
+  const int k = std::max(0, static_cast<int>(std::floor((stamp - *gnss_bias_start) / window)));
+  const auto found = gnss_bias_vertices.find(k);
+  if (found != gnss_bias_vertices.end()) return found->second;
+  const int id = GraphBackend::kGnssBiasVertexTop - k;
+  const double var = p.gnss_bias_std * p.gnss_bias_std;
+  const auto before = gnss_bias_vertices.lower_bound(k);  // windows are met in time order
+  if (before == gnss_bias_vertices.begin()) {
+    graph.addVertexPointXY(id, Eigen::Vector2d::Zero());
+    graph.addPriorPointXY(id, Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity() / var);
+  } else {
+    // b_k = φ·b_j + w, var(w) = σ²(1 − φ²): the stationary process over the windows between
+    // (an outage may skip some).
+    const auto& [j, prev] = *std::prev(before);
+    const double phi = p.gnss_bias_tau > 0.0 ? std::exp(-(k - j) * window / p.gnss_bias_tau) : 0.0;
+    const double step_var = std::max(var * (1.0 - phi * phi), 1e-6 * var);
+    graph.addVertexPointXY(id, phi * graph.vertexPointXY(prev).value_or(Eigen::Vector2d::Zero()));
+    graph.addEdgePointXYGaussMarkov(prev, id, phi, Eigen::Matrix2d::Identity() / step_var);
+  }
+  gnss_bias_vertices.emplace(k, id);
+  return id;
+}
+
 bool BackendState::covered(const Eigen::Vector2d& position) const {
   for (const auto& [center, radius] : coverage)
     if ((position - center).norm() <= radius) return true;

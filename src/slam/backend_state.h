@@ -54,6 +54,8 @@ struct BackendState {
   std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
+  std::optional<double> gnss_bias_start;           ///< stamp where GNSS bias window 0 starts
+  std::map<int, int> gnss_bias_vertices;           ///< window -> its bias vertex
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
   bool dirty = false;
@@ -69,6 +71,9 @@ struct BackendState {
   int buildingVertex(BuildingState& b, const GraphBackendParams& p);
   /// Where a building is expected before anything observed it: its prior moved by the datum.
   Pose2 predictedPose(const BuildingState& b, const GraphBackendParams& p) const;
+  /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
+  /// and tied to the previous window's by the Gauss-Markov process.
+  int gnssBiasVertex(double stamp, const GraphBackendParams& p);
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
   int datumVertex(const GraphBackendParams& p);
   /// Whether an answered OSM query covers the position.

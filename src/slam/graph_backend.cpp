@@ -293,9 +293,13 @@ void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf)
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
   if (gnssPriors() && in.gnss_position) {
-    const double info = 1.0 / std::pow(params_.gnss_prior_std, 2);
-    s.graph.addPriorSE3XY(vid, *in.gnss_position, info * Eigen::Matrix2d::Identity(),
-                          EdgeOptions{0, RobustKernel::huber(params_.gnss_prior_kernel_width)});
+    const Eigen::Matrix2d info = Eigen::Matrix2d::Identity() / std::pow(params_.gnss_prior_std, 2);
+    const EdgeOptions options{0, RobustKernel::huber(params_.gnss_prior_kernel_width)};
+    if (params_.gnss_bias_std > 0.0)
+      s.graph.addEdgeSE3XYWithOffset(vid, s.gnssBiasVertex(in.stamp, params_), *in.gnss_position,
+                                     info, options);
+    else
+      s.graph.addPriorSE3XY(vid, *in.gnss_position, info, options);
   }
   // The INS heading bounds the odometry's heading drift (its error does not grow with distance);
   // without a known initial heading the INS's yaw frame is not the map's.

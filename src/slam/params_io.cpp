@@ -46,6 +46,9 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("gnss_prior_std", p.gnss_prior_std);
   r.param("gnss_prior_kernel_width", p.gnss_prior_kernel_width);
   r.param("gnss_first_yaw_std", p.gnss_first_yaw_std);
+  r.param("gnss_bias_std", p.gnss_bias_std);
+  r.param("gnss_bias_tau", p.gnss_bias_tau);
+  r.param("gnss_bias_window", p.gnss_bias_window);
   r.param("ins_heading_std", p.ins_heading_std);
   r.param("ins_heading_kernel_width", p.ins_heading_kernel_width);
   r.param("anchor_std_xy", p.anchor_std_xy);

@@ -135,6 +135,11 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
         {EdgeType::kSE2PointXY, z2, {se2a, xy}},
         {EdgeType::kSE3PointXY, z2, {se3a, xy}},
         {EdgeType::kSE3PlanePair, planes, {se3a, se3b}},
+        {EdgeType::kPriorPointXY, z2, {xy}},
+        {EdgeType::kPointXYGaussMarkov,
+         Eigen::VectorXd::Constant(1, 0.7),
+         {xy, Block{VertexType::kPointXY, {-1.0, 3.0}}}},
+        {EdgeType::kSE3XYWithOffset, z2, {se3a, xy}},
     };
     for (const Case& c : cases) {
       const PoseGraph::Edge edge = makeEdge(c.type, c.z, rng);

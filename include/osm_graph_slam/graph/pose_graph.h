@@ -44,6 +44,12 @@ enum class EdgeType {
   /// the first frame, carried into the second by the estimates, must be the plane measured there
   /// (3×3: the normal's x and y, the offset).
   kSE3PlanePair,
+  kPriorPointXY,  ///< unary XY point (2×2)
+  /// First-order Gauss-Markov process between two XY points (2×2): e = b₂ − φ·b₁, measurement
+  /// φ = exp(−Δt/τ); e.g. the drift of a GNSS bias.
+  kPointXYGaussMarkov,
+  /// SE3 position x, y plus an XY offset (2×2): e = p + b − z, e.g. a GNSS fix with its bias.
+  kSE3XYWithOffset,
 };
 
 const char* toString(VertexType type);
@@ -171,6 +177,14 @@ class PoseGraph {
   int addPriorSE3Yaw(int vertex, double yaw, double information, const EdgeOptions& options = {});
   int addPriorSE2(int vertex, const Pose2& measurement, const Eigen::Matrix3d& information,
                   const EdgeOptions& options = {});
+  int addPriorPointXY(int point, const Eigen::Vector2d& measurement,
+                      const Eigen::Matrix2d& information, const EdgeOptions& options = {});
+  /// e = Xto − φ·Xfrom (XY points), phi = exp(−Δt/τ).
+  int addEdgePointXYGaussMarkov(int from, int to, double phi, const Eigen::Matrix2d& information,
+                                const EdgeOptions& options = {});
+  /// e = position(Xpose).xy + Xoffset − measurement.
+  int addEdgeSE3XYWithOffset(int pose, int offset, const Eigen::Vector2d& measurement,
+                             const Eigen::Matrix2d& information, const EdgeOptions& options = {});
   /// measurement = Xpose⁻¹ · p (the point in the pose's frame).
   int addEdgeSE2PointXY(int pose, int point, const Eigen::Vector2d& measurement,
                         const Eigen::Matrix2d& information, const EdgeOptions& options = {});

@@ -53,6 +53,15 @@ struct GraphBackendParams {
   double gnss_prior_std = 0.0;
   double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
   double gnss_first_yaw_std = 0.01;      ///< [rad] the first keyframe's heading prior (INS)
+  /// The fixes' slowly varying error (multipath, atmosphere, a consumer receiver's bias) as a
+  /// first-order Gauss-Markov offset estimated with the trajectory: one XY bias vertex per
+  /// gnss_bias_window seconds, [m] stationary deviation gnss_bias_std, correlation time
+  /// gnss_bias_tau [s]; gnss_prior_std is then the fixes' white noise. Without it (0) every fix
+  /// is independent and hundreds of them claim an absolute accuracy of a few centimetres that a
+  /// 1 m bias does not have, so the trajectory follows the bias' wander and outvotes the map.
+  double gnss_bias_std = 0.0;
+  double gnss_bias_tau = 90.0;     ///< [s]
+  double gnss_bias_window = 10.0;  ///< [s]
   /// INS heading as evidence: [rad] deviation of a yaw prior (level 0, Huber kernel) on every
   /// keyframe with an INS orientation (KeyframeInput::ins_yaw), so that the heading is bounded by
   /// the INS's error instead of drifting with the odometry's. Only with a known initial heading

@@ -183,6 +183,8 @@ class GraphBackend {
   static constexpr int kBuildingVertexBase = 1 << 30;
   /// Vertex id of the OSM datum (osm_datum_std_xy > 0); keyframe ids stay below it.
   static constexpr int kOsmDatumVertex = kBuildingVertexBase - 1;
+  /// Vertex id of the GNSS bias of time window k (gnss_bias_std > 0): kGnssBiasVertexTop − k.
+  static constexpr int kGnssBiasVertexTop = kOsmDatumVertex - 1;
   /// The estimated offset of the OSM map as a whole (ENU), when the datum is on and in the graph.
   std::optional<Pose2> osmDatum() const;
 
