@@ -33,6 +33,7 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   const PrefixedParamReader landmarks(r, "landmarks");
   readParams(PrefixedParamReader(landmarks, "extraction"), p.landmark_extraction);
   readParams(landmarks, p.landmarks);
+  r.param("search_frame", p.search_frame);
   r.param("min_accum_distance_gap", p.min_accum_distance_gap);
   r.param("search_radius_base", p.search_radius_base);
   r.param("search_radius_per_meter", p.search_radius_per_meter);

@@ -4,6 +4,8 @@
 #include <osm_graph_slam/KeyFrame.h>
 #include <osm_graph_slam/LoopClosure.h>
 #include <ros/ros.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
@@ -44,6 +46,14 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     LoopDetectionNodeletParams np;  // defaults: nodelet_params.h
     readParams(RosParamReader(pnh), np);
     mode_ = np.mode;
+    node_params_ = np;
+    if (params.search_frame == "map") {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
+    } else if (params.search_frame != "odometry") {
+      NODELET_ERROR("loop_detection: unknown search_frame '%s' (odometry | map); using odometry",
+                    params.search_frame.c_str());
+    }
     if (mode_ != "odometry" && mode_ != "place_recognition") {
       NODELET_ERROR(
           "loop_detection: unknown mode '%s' (odometry | place_recognition); using "
@@ -67,7 +77,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   void onKeyframe(const osm_graph_slam::KeyFrameConstPtr& msg) {
     LoopKeyframe kf;
     kf.id = msg->id;
-    kf.odom_pose = fromPoseMsg(msg->odom_pose);
+    kf.odom_pose = searchPose(fromPoseMsg(msg->odom_pose));
     kf.accum_distance = msg->accum_distance;
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
@@ -107,7 +117,25 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     publisher_.publish(osm_graph_slam::LoopClosureConstPtr(out));
   }
 
+  /// The keyframe in the map (search_frame: map) by the newest map -> odom, else as it came.
+  Eigen::Isometry3d searchPose(const Eigen::Isometry3d& odom_pose) {
+    if (!tf_buffer_) return odom_pose;
+    try {
+      const auto t = tf_buffer_->lookupTransform(node_params_.map_frame, node_params_.odom_frame,
+                                                 ros::Time(0));
+      return fromTransformMsg(t.transform) * odom_pose;
+    } catch (const std::exception& e) {
+      // Normal until the back-end's first keyframe; the odometry pose is the best there is.
+      NODELET_WARN_ONCE("loop_detection: no %s -> %s yet (%s): searching around odometry poses",
+                        node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(), e.what());
+      return odom_pose;
+    }
+  }
+
   std::string mode_;
+  LoopDetectionNodeletParams node_params_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<LoopDetector> detector_;
   ros::Publisher publisher_;
   ros::Subscriber subscriber_;

@@ -24,6 +24,8 @@ void readParams(const ParamReader& r, LineExtractionNodeletParams& p) {
 
 void readParams(const ParamReader& r, LoopDetectionNodeletParams& p) {
   r.param("mode", p.mode);
+  r.param("map_frame", p.map_frame);
+  r.param("odom_frame", p.odom_frame);
 }
 
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p) {

@@ -152,7 +152,8 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
     StageTimer t(timings_.loops_ms);
     LoopKeyframe lk;
     lk.id = kf.id;
-    lk.odom_pose = kf.pose;
+    // In the map frame the search follows the back-end's corrections of the odometry's drift.
+    lk.odom_pose = params_.loop.search_frame == "map" ? backend_->mapToOdom() * kf.pose : kf.pose;
     lk.accum_distance = kf.accum_distance;
     lk.cloud = kf.cloud;
     if (auto loop = loops_->process(lk)) {

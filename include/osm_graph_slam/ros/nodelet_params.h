@@ -33,6 +33,9 @@ struct LineExtractionNodeletParams {
 
 struct LoopDetectionNodeletParams {
   std::string mode = "odometry";  ///< odometry | place_recognition
+  /// With search_frame: map, keyframes are moved into the map by TF map_frame -> odom_frame.
+  std::string map_frame = "map";
+  std::string odom_frame = "odom";
 };
 
 struct OsmBufferNodeletParams {
