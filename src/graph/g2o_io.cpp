@@ -104,6 +104,8 @@ bool tagLayout(const std::string& tag, TagLayout* layout) {
     *layout = {true, VertexType::kSE3, EdgeType::kSE3, 1, 7, 0};
   } else if (tag == "VERTEX_XY") {
     *layout = {true, VertexType::kPointXY, EdgeType::kSE2, 1, 2, 0};
+  } else if (tag == "VERTEX_TRACKXYZ") {
+    *layout = {true, VertexType::kPointXYZ, EdgeType::kSE2, 1, 3, 0};
   } else if (tag == "EDGE_SE2") {
     *layout = {false, VertexType::kSE2, EdgeType::kSE2, 2, 3, 3};
   } else if (tag == "EDGE_SE3:QUAT") {
@@ -218,7 +220,7 @@ Eigen::VectorXd identityOf(VertexType type) {
     v[6] = 1.0;
     return v;
   }
-  return Eigen::VectorXd::Zero(type == VertexType::kSE2 ? 3 : 2);
+  return Eigen::VectorXd::Zero(type == VertexType::kSE2 || type == VertexType::kPointXYZ ? 3 : 2);
 }
 
 // Estimates for vertices that only appear in edges: the odometry chain first, then any edge.
@@ -361,6 +363,7 @@ G2oReadResult buildGraph(const ParsedFile& file, const G2oReadOptions& options, 
     if (type == VertexType::kSE3) ok = graph.addVertexSE3(id, isometryFromVector(x));
     if (type == VertexType::kSE2) ok = graph.addVertexSE2(id, pose2FromVector(x));
     if (type == VertexType::kPointXY) ok = graph.addVertexPointXY(id, x.head<2>());
+    if (type == VertexType::kPointXYZ) ok = graph.addVertexPointXYZ(id, x.head<3>());
     if (!ok) {
       int line = 0;
       for (const VertexRecord& v : file.vertices) line = v.id == id ? v.line : line;
@@ -481,6 +484,10 @@ G2oWriteResult writeG2o(const PoseGraph& graph, std::ostream& out) {
       case VertexType::kPointXY:
         out << "VERTEX_XY " << id;
         writeValues(out, Eigen::Map<const Eigen::VectorXd>(v.x.data(), 2));
+        break;
+      case VertexType::kPointXYZ:
+        out << "VERTEX_TRACKXYZ " << id;
+        writeValues(out, Eigen::Map<const Eigen::VectorXd>(v.x.data(), 3));
         break;
     }
     out << '\n';

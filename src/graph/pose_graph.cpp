@@ -41,12 +41,12 @@ EdgeSignature signatureOf(EdgeType type) {
       return {2, V::kSE2, V::kSE2};
     case EdgeType::kSE3PlanePair:
       return {2, V::kSE3, V::kSE3};
-    case EdgeType::kPriorPointXY:
-      return {1, V::kPointXY, V::kPointXY};
-    case EdgeType::kPointXYGaussMarkov:
-      return {2, V::kPointXY, V::kPointXY};
-    case EdgeType::kSE3XYWithOffset:
-      return {2, V::kSE3, V::kPointXY};
+    case EdgeType::kPriorPointXYZ:
+      return {1, V::kPointXYZ, V::kPointXYZ};
+    case EdgeType::kPointXYZGaussMarkov:
+      return {2, V::kPointXYZ, V::kPointXYZ};
+    case EdgeType::kSE3PositionWithOffset:
+      return {2, V::kSE3, V::kPointXYZ};
   }
   return {0, V::kSE3, V::kSE3};
 }
@@ -100,6 +100,8 @@ const char* toString(VertexType type) {
       return "SE2";
     case VertexType::kPointXY:
       return "XY";
+    case VertexType::kPointXYZ:
+      return "XYZ";
   }
   return "?";
 }
@@ -130,12 +132,12 @@ const char* toString(EdgeType type) {
       return "SE2 point-on-line";
     case EdgeType::kSE3PlanePair:
       return "SE3 plane pair";
-    case EdgeType::kPriorPointXY:
-      return "prior XY";
-    case EdgeType::kPointXYGaussMarkov:
-      return "XY Gauss-Markov";
-    case EdgeType::kSE3XYWithOffset:
-      return "SE3 xy + XY offset";
+    case EdgeType::kPriorPointXYZ:
+      return "prior XYZ";
+    case EdgeType::kPointXYZGaussMarkov:
+      return "XYZ Gauss-Markov";
+    case EdgeType::kSE3PositionWithOffset:
+      return "SE3 position + XYZ offset";
   }
   return "?";
 }
@@ -164,13 +166,13 @@ int errorDimension(EdgeType type) {
     case EdgeType::kPriorSE2:
     case EdgeType::kPriorSE3XYZ:
     case EdgeType::kSE3PlanePair:
+    case EdgeType::kPriorPointXYZ:
+    case EdgeType::kPointXYZGaussMarkov:
+    case EdgeType::kSE3PositionWithOffset:
       return 3;
     case EdgeType::kPriorSE3XY:
     case EdgeType::kSE2PointXY:
     case EdgeType::kSE3PointXY:
-    case EdgeType::kPriorPointXY:
-    case EdgeType::kPointXYGaussMarkov:
-    case EdgeType::kSE3XYWithOffset:
       return 2;
     case EdgeType::kPriorSE3Yaw:
     case EdgeType::kSE2PointOnLine:
@@ -183,7 +185,7 @@ int measurementDimension(EdgeType type) {
   if (type == EdgeType::kSE3 || type == EdgeType::kPriorSE3) return 7;
   if (type == EdgeType::kSE2PointOnLine) return 5;
   if (type == EdgeType::kSE3PlanePair) return 8;
-  if (type == EdgeType::kPointXYGaussMarkov) return 1;
+  if (type == EdgeType::kPointXYZGaussMarkov) return 1;
   return errorDimension(type);
 }
 
@@ -228,6 +230,10 @@ bool PoseGraph::addVertexPointXY(int id, const Eigen::Vector2d& point, bool fixe
   return addVertex(id, VertexType::kPointXY, point.data(), 2, fixed);
 }
 
+bool PoseGraph::addVertexPointXYZ(int id, const Eigen::Vector3d& point, bool fixed) {
+  return addVertex(id, VertexType::kPointXYZ, point.data(), 3, fixed);
+}
+
 bool PoseGraph::removeVertex(int id) {
   if (!vertices_.count(id)) return false;
   for (int e : edgesOfVertex(id)) edges_.erase(e);
@@ -262,6 +268,12 @@ std::optional<Eigen::Vector2d> PoseGraph::vertexPointXY(int id) const {
   const auto it = vertices_.find(id);
   if (it == vertices_.end() || it->second.type != VertexType::kPointXY) return std::nullopt;
   return Eigen::Vector2d(it->second.x[0], it->second.x[1]);
+}
+
+std::optional<Eigen::Vector3d> PoseGraph::vertexPointXYZ(int id) const {
+  const auto it = vertices_.find(id);
+  if (it == vertices_.end() || it->second.type != VertexType::kPointXYZ) return std::nullopt;
+  return Eigen::Vector3d(it->second.x[0], it->second.x[1], it->second.x[2]);
 }
 
 bool PoseGraph::setVertexSE3(int id, const Eigen::Isometry3d& pose) {
@@ -435,22 +447,24 @@ int PoseGraph::addEdgeSE3PointXY(int pose, int point, const Eigen::Vector2d& mea
   return addEdge(EdgeType::kSE3PointXY, {pose, point}, measurement, information, options);
 }
 
-int PoseGraph::addPriorPointXY(int point, const Eigen::Vector2d& measurement,
-                               const Eigen::Matrix2d& information, const EdgeOptions& options) {
-  return addEdge(EdgeType::kPriorPointXY, {point}, measurement, information, options);
+int PoseGraph::addPriorPointXYZ(int point, const Eigen::Vector3d& measurement,
+                                const Eigen::Matrix3d& information, const EdgeOptions& options) {
+  return addEdge(EdgeType::kPriorPointXYZ, {point}, measurement, information, options);
 }
 
-int PoseGraph::addEdgePointXYGaussMarkov(int from, int to, double phi,
-                                         const Eigen::Matrix2d& information,
-                                         const EdgeOptions& options) {
-  return addEdge(EdgeType::kPointXYGaussMarkov, {from, to}, Eigen::VectorXd::Constant(1, phi),
+int PoseGraph::addEdgePointXYZGaussMarkov(int from, int to, double phi,
+                                          const Eigen::Matrix3d& information,
+                                          const EdgeOptions& options) {
+  return addEdge(EdgeType::kPointXYZGaussMarkov, {from, to}, Eigen::VectorXd::Constant(1, phi),
                  information, options);
 }
 
-int PoseGraph::addEdgeSE3XYWithOffset(int pose, int offset, const Eigen::Vector2d& measurement,
-                                      const Eigen::Matrix2d& information,
-                                      const EdgeOptions& options) {
-  return addEdge(EdgeType::kSE3XYWithOffset, {pose, offset}, measurement, information, options);
+int PoseGraph::addEdgeSE3PositionWithOffset(int pose, int offset,
+                                            const Eigen::Vector3d& measurement,
+                                            const Eigen::Matrix3d& information,
+                                            const EdgeOptions& options) {
+  return addEdge(EdgeType::kSE3PositionWithOffset, {pose, offset}, measurement, information,
+                 options);
 }
 
 bool PoseGraph::removeEdge(int edge_id) {

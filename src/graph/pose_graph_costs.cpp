@@ -183,22 +183,24 @@ struct PriorPositionFunctor {
 
 struct GaussMarkovFunctor {
   double phi = 1.0;
-  Eigen::Matrix2d sqrt_info;
+  Eigen::Matrix3d sqrt_info;
   template <typename T>
   bool operator()(const T* b1, const T* b2, T* r) const {
-    const T e[2] = {b2[0] - phi * b1[0], b2[1] - phi * b1[1]};
-    weigh<2>(sqrt_info, e, r);
+    T e[3];
+    for (int k = 0; k < 3; ++k) e[k] = b2[k] - phi * b1[k];
+    weigh<3>(sqrt_info, e, r);
     return true;
   }
 };
 
 struct PositionWithOffsetFunctor {
-  Eigen::Vector2d z;
-  Eigen::Matrix2d sqrt_info;
+  Eigen::Vector3d z;
+  Eigen::Matrix3d sqrt_info;
   template <typename T>
   bool operator()(const T* x, const T* b, T* r) const {
-    const T e[2] = {x[0] + b[0] - z[0], x[1] + b[1] - z[1]};
-    weigh<2>(sqrt_info, e, r);
+    T e[3];
+    for (int k = 0; k < 3; ++k) e[k] = x[k] + b[k] - z[k];
+    weigh<3>(sqrt_info, e, r);
     return true;
   }
 };
@@ -575,12 +577,12 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       return lifted(
           autoDiff<SE3PlanePairFunctor, 3, 7, 7>(SE3PlanePairFunctor{m.head<4>(), m.tail<4>(), s}),
           true, true);
-    case EdgeType::kPriorPointXY:
-      return autoDiff<PriorPositionFunctor<2>, 2, 2>(PriorPositionFunctor<2>{m, s});
-    case EdgeType::kPointXYGaussMarkov:
-      return autoDiff<GaussMarkovFunctor, 2, 2, 2>(GaussMarkovFunctor{m[0], s});
-    case EdgeType::kSE3XYWithOffset:
-      return lifted(autoDiff<PositionWithOffsetFunctor, 2, 7, 2>(PositionWithOffsetFunctor{m, s}),
+    case EdgeType::kPriorPointXYZ:
+      return autoDiff<PriorPositionFunctor<3>, 3, 3>(PriorPositionFunctor<3>{m, s});
+    case EdgeType::kPointXYZGaussMarkov:
+      return autoDiff<GaussMarkovFunctor, 3, 3, 3>(GaussMarkovFunctor{m[0], s});
+    case EdgeType::kSE3PositionWithOffset:
+      return lifted(autoDiff<PositionWithOffsetFunctor, 3, 7, 3>(PositionWithOffsetFunctor{m, s}),
                     true, false);
   }
   return nullptr;

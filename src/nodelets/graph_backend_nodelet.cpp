@@ -163,6 +163,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       if (const auto gnss = inputs_->gnssPositionAt(kf.stamp)) {
         kf.gnss_position = gnss->xy;
         if (gnss->std_xy > 0.0) kf.gnss_std = gnss->std_xy;
+        kf.gnss_altitude = gnss->altitude;
       }
     }
     if (first_keyframe_seen_) return;
@@ -195,8 +196,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
     if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX) return;
-    inputs_->addFix(
-        {msg->header.stamp.toSec(), msg->latitude, msg->longitude, 0.0, navSatFixStd(*msg)});
+    // NaN altitude: unknown (then the fix holds x and y only).
+    inputs_->addFix({msg->header.stamp.toSec(), msg->latitude, msg->longitude, msg->altitude,
+                     navSatFixStd(*msg)});
   }
 
   bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
@@ -250,7 +252,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (backend_->hasOrigin()) return;
     backend_->setOrigin(fix->latitude, fix->longitude,
                         std::isfinite(fix->altitude) ? fix->altitude : 0.0);
-    inputs_->setOrigin(fix->latitude, fix->longitude);
+    inputs_->setOrigin(fix->latitude, fix->longitude, fix->altitude);
     NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
   }
 

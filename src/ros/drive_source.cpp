@@ -67,7 +67,9 @@ class KittiRawSource : public DriveSource {
     if (i < drive_.oxts_files.size() && readOxtsFile(drive_.oxts_files[i], r)) {
       scan.truth = oxtsPose(r, *enu_);  // KITTI's OXTS is RTK GNSS + INS
       if (r.hasGnssFix()) {
-        scan.gnss = enu_->toEnu(r.lat, r.lon, r.alt).head<2>();
+        const Eigen::Vector3d enu = enu_->toEnu(r.lat, r.lon, r.alt);
+        scan.gnss = enu.head<2>();
+        scan.gnss_altitude = enu.z();
         if (r.pos_accuracy > 0.0) scan.gnss_std = r.pos_accuracy;
       }
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
@@ -145,7 +147,9 @@ class BagSource : public DriveSource {
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
     // The pipeline anchors its first keyframe here, whichever cloud that is.
     if (const auto f = inputs_.fixAt(scan.stamp)) {
-      scan.gnss = enu_->toEnu(f->lat, f->lon, f->alt).head<2>();
+      const Eigen::Vector3d enu = enu_->toEnu(f->lat, f->lon, f->alt);
+      scan.gnss = enu.head<2>();
+      scan.gnss_altitude = enu.z();
       if (f->std_xy > 0.0) scan.gnss_std = f->std_xy;
     }
     return true;

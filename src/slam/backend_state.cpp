@@ -52,19 +52,22 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
   const auto found = gnss_bias_vertices.find(k);
   if (found != gnss_bias_vertices.end()) return found->second;
   const int id = GraphBackend::kGnssBiasVertexTop - k;
-  const double var = p.gnss_bias_std * p.gnss_bias_std;
+  // Without altitude evidence the vertical bias is unused; any positive deviation keeps it tame.
+  const double vertical = p.gnss_bias_std_vertical > 0.0 ? p.gnss_bias_std_vertical : 1.0;
+  const Eigen::Vector3d var(p.gnss_bias_std * p.gnss_bias_std, p.gnss_bias_std * p.gnss_bias_std,
+                            vertical * vertical);
   const auto before = gnss_bias_vertices.lower_bound(k);  // windows are met in time order
   if (before == gnss_bias_vertices.begin()) {
-    graph.addVertexPointXY(id, Eigen::Vector2d::Zero());
-    graph.addPriorPointXY(id, Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity() / var);
+    graph.addVertexPointXYZ(id, Eigen::Vector3d::Zero());
+    graph.addPriorPointXYZ(id, Eigen::Vector3d::Zero(), var.cwiseInverse().asDiagonal());
   } else {
     // b_k = φ·b_j + w, var(w) = σ²(1 − φ²): the stationary process over the windows between
     // (an outage may skip some).
     const auto& [j, prev] = *std::prev(before);
     const double phi = p.gnss_bias_tau > 0.0 ? std::exp(-(k - j) * window / p.gnss_bias_tau) : 0.0;
-    const double step_var = std::max(var * (1.0 - phi * phi), 1e-6 * var);
-    graph.addVertexPointXY(id, phi * graph.vertexPointXY(prev).value_or(Eigen::Vector2d::Zero()));
-    graph.addEdgePointXYGaussMarkov(prev, id, phi, Eigen::Matrix2d::Identity() / step_var);
+    const Eigen::Vector3d step_var = var * std::max(1.0 - phi * phi, 1e-6);
+    graph.addVertexPointXYZ(id, phi * graph.vertexPointXYZ(prev).value_or(Eigen::Vector3d::Zero()));
+    graph.addEdgePointXYZGaussMarkov(prev, id, phi, step_var.cwiseInverse().asDiagonal());
   }
   gnss_bias_vertices.emplace(k, id);
   return id;

@@ -261,8 +261,10 @@ void GraphBackend::anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& k
   const double xy_info = gnss_held ? 1e-6 : 1.0 / std::pow(anchor_std, 2);
   const double yaw_std = gnss_held ? params_.gnss_first_yaw_std : params_.anchor_std_yaw;
   Matrix6d info = Matrix6d::Zero();
-  info.diagonal() << xy_info, xy_info, 1.0 / (0.05 * 0.05), 1.0 / (0.01 * 0.01),
-      1.0 / (0.01 * 0.01), 1.0 / std::pow(yaw_std, 2);
+  // The height is the first fix's altitude (the origin) unless the fixes' altitude is evidence.
+  const double z_info = gnss_held && gnssAltitude() ? 1e-6 : 1.0 / (0.05 * 0.05);
+  info.diagonal() << xy_info, xy_info, z_info, 1.0 / (0.01 * 0.01), 1.0 / (0.01 * 0.01),
+      1.0 / std::pow(yaw_std, 2);
   s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
 }
 
@@ -292,15 +294,7 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
 void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf) {
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
-  if (gnssPriors() && in.gnss_position) {
-    const Eigen::Matrix2d info = Eigen::Matrix2d::Identity() / std::pow(params_.gnss_prior_std, 2);
-    const EdgeOptions options{0, RobustKernel::huber(params_.gnss_prior_kernel_width)};
-    if (params_.gnss_bias_std > 0.0)
-      s.graph.addEdgeSE3XYWithOffset(vid, s.gnssBiasVertex(in.stamp, params_), *in.gnss_position,
-                                     info, options);
-    else
-      s.graph.addPriorSE3XY(vid, *in.gnss_position, info, options);
-  }
+  if (gnssPriors() && in.gnss_position) addGnssPrior(in);
   // The INS heading bounds the odometry's heading drift (its error does not grow with distance);
   // without a known initial heading the INS's yaw frame is not the map's.
   if (params_.ins_heading_std > 0.0 && in.ins_yaw && s.heading_known_at_start) {
@@ -314,6 +308,29 @@ void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf)
         attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(), in.gravity_roll_pitch->y()),
         attitudeInformation(params_.imu_attitude_std), EdgeOptions{0, {}});
   }
+}
+
+void GraphBackend::addGnssPrior(const KeyframeInput& in) {
+  BackendState& s = *state_;
+  const int vid = static_cast<int>(in.id);
+  const bool altitude = gnssAltitude() && in.gnss_altitude.has_value();
+  const Eigen::Vector3d fix(in.gnss_position->x(), in.gnss_position->y(),
+                            altitude ? *in.gnss_altitude : 0.0);
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();  // no altitude: z uninformed
+  info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss_prior_std, 2);
+  if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss_altitude_std, 2);
+  const EdgeOptions options{0, RobustKernel::huber(params_.gnss_prior_kernel_width)};
+  if (params_.gnss_bias_std > 0.0)
+    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_), fix, info,
+                                         options);
+  else if (altitude)
+    s.graph.addPriorSE3XYZ(vid, fix, info, options);
+  else
+    s.graph.addPriorSE3XY(vid, fix.head<2>(), info.topLeftCorner<2, 2>(), options);
+}
+
+bool GraphBackend::gnssAltitude() const {
+  return gnssPriors() && params_.gnss_altitude_std > 0.0;
 }
 
 void GraphBackend::dropOrphanSegments() {

@@ -47,6 +47,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("gnss_prior_kernel_width", p.gnss_prior_kernel_width);
   r.param("gnss_first_yaw_std", p.gnss_first_yaw_std);
   r.param("gnss_bias_std", p.gnss_bias_std);
+  r.param("gnss_bias_std_vertical", p.gnss_bias_std_vertical);
+  r.param("gnss_altitude_std", p.gnss_altitude_std);
   r.param("gnss_bias_tau", p.gnss_bias_tau);
   r.param("gnss_bias_window", p.gnss_bias_window);
   r.param("ins_heading_std", p.ins_heading_std);

@@ -48,9 +48,10 @@ void SensorInputs::stopKeepingFixes() {
   fixes_.clear();
 }
 
-void SensorInputs::setOrigin(double lat, double lon) {
+void SensorInputs::setOrigin(double lat, double lon, double alt) {
   std::lock_guard<std::mutex> lock(mutex_);
-  enu_.emplace(lat, lon, 0.0);
+  altitude_known_ = std::isfinite(alt);
+  enu_.emplace(lat, lon, altitude_known_ ? alt : 0.0);
 }
 
 std::optional<AttitudeSample> SensorInputs::attitudeAt(double stamp) const {
@@ -100,7 +101,10 @@ std::optional<GnssPosition> SensorInputs::gnssPositionAt(double stamp) const {
   if (!enu_) return std::nullopt;
   const auto fix = gnssFixAt(fixes_, stamp, params_.gnss_max_gap, params_.gnss_max_time_difference);
   if (!fix) return std::nullopt;
-  return GnssPosition{enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>(), fix->std_xy};
+  GnssPosition out{enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>(), fix->std_xy, std::nullopt};
+  if (altitude_known_ && std::isfinite(fix->alt))
+    out.altitude = enu_->toEnu(fix->lat, fix->lon, fix->alt).z();
+  return out;
 }
 
 size_t SensorInputs::numAttitudes() const {

@@ -125,7 +125,10 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = aiding.gravity_roll_pitch;
   input.gnss_position = aiding.gnss_position;
-  if (aiding.gnss_position) input.gnss_std = aiding.gnss_std;
+  if (aiding.gnss_position) {
+    input.gnss_std = aiding.gnss_std;
+    input.gnss_altitude = aiding.gnss_altitude;
+  }
   if (aiding.imu_orientation) input.ins_yaw = yawOf(*aiding.imu_orientation);
   if (params_.floor.enabled) {
     StageTimer t(timings_.floor_ms);

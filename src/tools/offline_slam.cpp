@@ -206,6 +206,7 @@ int main(int argc, char** argv) {
     if (use_imu) aiding.imu_orientation = scan.orientation;
     aiding.gnss_position = scan.gnss;
     aiding.gnss_std = scan.gnss_std;
+    aiding.gnss_altitude = scan.gnss_altitude;
     pipeline.processFiltered(scan.stamp, *scan.filtered, scan.prepare_ms, aiding);
     printProgress(i + 1, n);
   }

@@ -91,3 +91,51 @@ TEST(GnssPrior, AnEstimatedBiasKeepsTheTrajectoryFromFollowingTheFixesWander) {
   EXPECT_GT(independent, 0.2);  // the odometry bends towards the wandering fixes
   EXPECT_LT(with_bias, independent / 2.0);
 }
+
+namespace {
+
+/// 300 keyframes 2 m and 1 s apart on level ground (exact odometry). The map origin is the first
+/// fix, whose altitude was 2 m too high: the truth is z = −2 m. The fixes' altitudes scatter by
+/// 2.5 m about it. Returns the trajectory's mean |z| error.
+double meanHeightError(double gnss_altitude_std, double gnss_bias_std) {
+  GraphBackendParams params;
+  params.use_osm = false;
+  params.initial_yaw_known = true;
+  params.initial_yaw = 0.0;
+  params.gnss_prior_std = 1.5;
+  params.gnss_altitude_std = gnss_altitude_std;
+  params.gnss_bias_std = gnss_bias_std;
+  GraphBackend backend(params);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> white(0.0, 2.5);
+  for (uint64_t i = 0; i < 300; ++i) {
+    KeyframeInput kf;
+    kf.id = i;
+    kf.stamp = 1.0 + i;
+    kf.odom_pose.translation().x() = 2.0 * i;
+    kf.accum_distance = 2.0 * i;
+    kf.odom_fitness = 0.05;
+    kf.gnss_position = Eigen::Vector2d(2.0 * i, 0.0);
+    kf.gnss_altitude = i == 0 ? 0.0 : -2.0 + white(rng);
+    backend.addKeyframe(kf);
+  }
+  backend.update(true);
+  double sum = 0.0;
+  const Trajectory t = backend.trajectory();
+  for (const auto& p : t) sum += std::abs(p.pose.translation().z() + 2.0);
+  return sum / t.size();
+}
+
+}  // namespace
+
+TEST(GnssPrior, TheFixesAltitudeCorrectsTheOriginsHeight) {
+  const double off = meanHeightError(0.0, 0.0), independent = meanHeightError(2.5, 0.0),
+               with_bias = meanHeightError(2.5, 1.0);
+  std::printf(
+      "[gnss_prior] mean height error: altitude unused %.3f m, independent %.3f m, with"
+      " the bias estimated %.3f m\n",
+      off, independent, with_bias);
+  EXPECT_NEAR(off, 2.0, 0.01);  // the first fix's altitude error everywhere
+  EXPECT_LT(independent, 0.3);
+  EXPECT_LT(with_bias, 0.6);  // the bias (1.5 m up) can explain part of the offset
+}

@@ -19,7 +19,8 @@ struct Block {
 };
 
 int tangentSize(VertexType t) {
-  return t == VertexType::kSE3 ? 6 : (t == VertexType::kSE2 ? 3 : 2);
+  if (t == VertexType::kSE3) return 6;
+  return t == VertexType::kSE2 || t == VertexType::kPointXYZ ? 3 : 2;
 }
 
 std::vector<double> plus(const Block& b, const Eigen::VectorXd& delta) {
@@ -113,6 +114,7 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
     const Block se2a{VertexType::kSE2, randomSE2(rng)};
     const Block se2b{VertexType::kSE2, randomSE2(rng)};
     const Block xy{VertexType::kPointXY, {4.0, -2.0}};
+    const Block xyz{VertexType::kPointXYZ, {4.0, -2.0, 1.0}};
     const Eigen::VectorXd z7 = vec(randomSE3(rng)), z3 = vec(randomSE2(rng));
     const Eigen::Vector2d z2(1.0, 0.5);
     Eigen::VectorXd planes(8);
@@ -135,11 +137,11 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
         {EdgeType::kSE2PointXY, z2, {se2a, xy}},
         {EdgeType::kSE3PointXY, z2, {se3a, xy}},
         {EdgeType::kSE3PlanePair, planes, {se3a, se3b}},
-        {EdgeType::kPriorPointXY, z2, {xy}},
-        {EdgeType::kPointXYGaussMarkov,
+        {EdgeType::kPriorPointXYZ, Eigen::Vector3d(1, 2, 3), {xyz}},
+        {EdgeType::kPointXYZGaussMarkov,
          Eigen::VectorXd::Constant(1, 0.7),
-         {xy, Block{VertexType::kPointXY, {-1.0, 3.0}}}},
-        {EdgeType::kSE3XYWithOffset, z2, {se3a, xy}},
+         {xyz, Block{VertexType::kPointXYZ, {-1.0, 3.0, 0.5}}}},
+        {EdgeType::kSE3PositionWithOffset, Eigen::Vector3d(1, 2, 3), {se3a, xyz}},
     };
     for (const Case& c : cases) {
       const PoseGraph::Edge edge = makeEdge(c.type, c.z, rng);

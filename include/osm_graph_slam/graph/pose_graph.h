@@ -24,7 +24,7 @@ namespace osm_graph_slam {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-enum class VertexType { kSE3, kSE2, kPointXY };
+enum class VertexType { kSE3, kSE2, kPointXY, kPointXYZ };
 
 enum class EdgeType {
   kSE3,          ///< SE3–SE3 relative pose (6×6 information)
@@ -44,12 +44,13 @@ enum class EdgeType {
   /// the first frame, carried into the second by the estimates, must be the plane measured there
   /// (3×3: the normal's x and y, the offset).
   kSE3PlanePair,
-  kPriorPointXY,  ///< unary XY point (2×2)
-  /// First-order Gauss-Markov process between two XY points (2×2): e = b₂ − φ·b₁, measurement
+  kPriorPointXYZ,  ///< unary XYZ point (3×3)
+  /// First-order Gauss-Markov process between two XYZ points (3×3): e = b₂ − φ·b₁, measurement
   /// φ = exp(−Δt/τ); e.g. the drift of a GNSS bias.
-  kPointXYGaussMarkov,
-  /// SE3 position x, y plus an XY offset (2×2): e = p + b − z, e.g. a GNSS fix with its bias.
-  kSE3XYWithOffset,
+  kPointXYZGaussMarkov,
+  /// SE3 position plus an XYZ offset (3×3): e = p + b − z, e.g. a GNSS fix with its bias (a fix
+  /// without altitude: the information's z row and column 0).
+  kSE3PositionWithOffset,
 };
 
 const char* toString(VertexType type);
@@ -141,6 +142,7 @@ class PoseGraph {
   bool addVertexSE3(int id, const Eigen::Isometry3d& pose, bool fixed = false);
   bool addVertexSE2(int id, const Pose2& pose, bool fixed = false);
   bool addVertexPointXY(int id, const Eigen::Vector2d& point, bool fixed = false);
+  bool addVertexPointXYZ(int id, const Eigen::Vector3d& point, bool fixed = false);
   /// Removes the vertex and every edge attached to it; returns false if it did not exist.
   bool removeVertex(int id);
 
@@ -150,6 +152,7 @@ class PoseGraph {
   std::optional<Eigen::Isometry3d> vertexSE3(int id) const;
   std::optional<Pose2> vertexSE2(int id) const;
   std::optional<Eigen::Vector2d> vertexPointXY(int id) const;
+  std::optional<Eigen::Vector3d> vertexPointXYZ(int id) const;
   bool setVertexSE3(int id, const Eigen::Isometry3d& pose);
   bool setVertexSE2(int id, const Pose2& pose);
   bool setVertexPointXY(int id, const Eigen::Vector2d& point);
@@ -177,14 +180,15 @@ class PoseGraph {
   int addPriorSE3Yaw(int vertex, double yaw, double information, const EdgeOptions& options = {});
   int addPriorSE2(int vertex, const Pose2& measurement, const Eigen::Matrix3d& information,
                   const EdgeOptions& options = {});
-  int addPriorPointXY(int point, const Eigen::Vector2d& measurement,
-                      const Eigen::Matrix2d& information, const EdgeOptions& options = {});
-  /// e = Xto − φ·Xfrom (XY points), phi = exp(−Δt/τ).
-  int addEdgePointXYGaussMarkov(int from, int to, double phi, const Eigen::Matrix2d& information,
-                                const EdgeOptions& options = {});
-  /// e = position(Xpose).xy + Xoffset − measurement.
-  int addEdgeSE3XYWithOffset(int pose, int offset, const Eigen::Vector2d& measurement,
-                             const Eigen::Matrix2d& information, const EdgeOptions& options = {});
+  int addPriorPointXYZ(int point, const Eigen::Vector3d& measurement,
+                       const Eigen::Matrix3d& information, const EdgeOptions& options = {});
+  /// e = Xto − φ·Xfrom (XYZ points), phi = exp(−Δt/τ).
+  int addEdgePointXYZGaussMarkov(int from, int to, double phi, const Eigen::Matrix3d& information,
+                                 const EdgeOptions& options = {});
+  /// e = position(Xpose) + Xoffset − measurement.
+  int addEdgeSE3PositionWithOffset(int pose, int offset, const Eigen::Vector3d& measurement,
+                                   const Eigen::Matrix3d& information,
+                                   const EdgeOptions& options = {});
   /// measurement = Xpose⁻¹ · p (the point in the pose's frame).
   int addEdgeSE2PointXY(int pose, int point, const Eigen::Vector2d& measurement,
                         const Eigen::Matrix2d& information, const EdgeOptions& options = {});

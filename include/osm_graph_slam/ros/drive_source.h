@@ -31,6 +31,7 @@ struct DriveScan {
   std::optional<Eigen::Isometry3d> truth;           ///< base_link in ENU at the first fix
   std::optional<Eigen::Vector2d> gnss;              ///< the GNSS fix in the same frame
   std::optional<double> gnss_std;  ///< [m] its horizontal deviation, when the receiver reports it
+  std::optional<double> gnss_altitude;  ///< [m] the fix's up in the same frame
   /// Set by a ScanPrefetcher's prepare step (offline_slam: the prefilter, run on the reading
   /// thread so that it overlaps the tracking of the scans before); prepare_ms is its time.
   std::optional<CloudPrefilterResult> filtered;

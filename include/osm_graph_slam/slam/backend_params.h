@@ -60,8 +60,13 @@ struct GraphBackendParams {
   /// is independent and hundreds of them claim an absolute accuracy of a few centimetres that a
   /// 1 m bias does not have, so the trajectory follows the bias' wander and outvotes the map.
   double gnss_bias_std = 0.0;
-  double gnss_bias_tau = 90.0;     ///< [s]
-  double gnss_bias_window = 10.0;  ///< [s]
+  double gnss_bias_std_vertical = 1.5;  ///< [m] the bias' up component (with gnss_altitude_std)
+  double gnss_bias_tau = 90.0;          ///< [s]
+  double gnss_bias_window = 10.0;       ///< [s]
+  /// [m] with GNSS priors: the fixes' altitude as evidence too, with this white-noise deviation
+  /// (0: off, x and y only). The map origin is the first fix, whose altitude error (several
+  /// metres for consumer GNSS) otherwise stays in every height; nothing else observes it.
+  double gnss_altitude_std = 0.0;
   /// INS heading as evidence: [rad] deviation of a yaw prior (level 0, Huber kernel) on every
   /// keyframe with an INS orientation (KeyframeInput::ins_yaw), so that the heading is bounded by
   /// the INS's error instead of drifting with the odometry's. Only with a known initial heading

@@ -47,6 +47,9 @@ struct KeyframeInput {
   /// [m] that fix's horizontal standard deviation, when the receiver reports it: the first
   /// keyframe is held there with it (else with anchor_std_xy).
   std::optional<double> gnss_std;
+  /// [m] the fix's altitude in the map frame (ENU up from the map origin, the first fix), if
+  /// known: evidence with gnss_altitude_std > 0.
+  std::optional<double> gnss_altitude;
   /// [rad] base_link's ENU yaw from an INS at this keyframe's stamp, if known: a heading prior
   /// with GraphBackendParams::ins_heading_std > 0.
   std::optional<double> ins_yaw;
@@ -191,6 +194,10 @@ class GraphBackend {
  private:
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
   bool gnssPriors() const;
+  /// ... with the fixes' altitude as evidence too (gnss_altitude_std > 0).
+  bool gnssAltitude() const;
+  /// The keyframe's GNSS prior edge (with its bias vertex when gnss_bias_std > 0).
+  void addGnssPrior(const KeyframeInput& in);
   void flushKeyframes(BackendUpdateReport& report);
   void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once

@@ -4,6 +4,7 @@
 // readers, so that ROS and offline runs place the first keyframe the same way. Thread-safe.
 #include <Eigen/Geometry>
 #include <deque>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -25,7 +26,8 @@ struct AttitudeSample {
 /// A GNSS position in the map frame (ENU at the origin).
 struct GnssPosition {
   Eigen::Vector2d xy = Eigen::Vector2d::Zero();
-  double std_xy = 0.0;  ///< [m] the fix's reported horizontal deviation (0: unknown)
+  double std_xy = 0.0;             ///< [m] the fix's reported horizontal deviation (0: unknown)
+  std::optional<double> altitude;  ///< [m] up from the origin, if the fix has an altitude
 };
 
 /// The first keyframe's heading and, when it is not the sample at the keyframe's stamp, why.
@@ -48,7 +50,8 @@ class SensorInputs {
   /// Forgets the fixes and keeps no later one (a drive that needs only the first keyframe's).
   void stopKeepingFixes();
   /// The map origin: GNSS positions are in ENU at it. Until then gnssPositionAt() gives none.
-  void setOrigin(double lat, double lon);
+  /// alt NaN: unknown (the fixes' altitudes are then not used).
+  void setOrigin(double lat, double lon, double alt = std::numeric_limits<double>::quiet_NaN());
 
   /// The sample nearest to stamp, if one is within imu_max_time_difference.
   std::optional<AttitudeSample> attitudeAt(double stamp) const;
@@ -75,6 +78,7 @@ class SensorInputs {
   std::vector<GnssFixSample> fixes_;      ///< in stamp order
   bool keep_fixes_ = true;
   std::optional<EnuConverter> enu_;
+  bool altitude_known_ = false;  ///< the origin has an altitude (else fixes hold x and y only)
 };
 
 }  // namespace osm_graph_slam

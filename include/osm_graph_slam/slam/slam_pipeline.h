@@ -41,6 +41,8 @@ struct ScanAiding {
   std::optional<Eigen::Vector2d> gnss_position;
   /// That fix's horizontal standard deviation [m], when the receiver reports it.
   std::optional<double> gnss_std;
+  /// Its altitude in the map frame (up from the map origin) [m], if known.
+  std::optional<double> gnss_altitude;
   /// base_link's orientation in ENU from an IMU/INS: the tracker's imu guesses use its change
   /// between scans, and with ins_heading_std > 0 its yaw is a heading prior on keyframes.
   std::optional<Eigen::Quaterniond> imu_orientation;
