@@ -47,6 +47,8 @@ EdgeSignature signatureOf(EdgeType type) {
       return {2, V::kPointXYZ, V::kPointXYZ};
     case EdgeType::kSE3PositionWithOffset:
       return {2, V::kSE3, V::kPointXYZ};
+    case EdgeType::kSE3YawDifference:
+      return {2, V::kSE3, V::kSE3};
   }
   return {0, V::kSE3, V::kSE3};
 }
@@ -138,6 +140,8 @@ const char* toString(EdgeType type) {
       return "XYZ Gauss-Markov";
     case EdgeType::kSE3PositionWithOffset:
       return "SE3 position + XYZ offset";
+    case EdgeType::kSE3YawDifference:
+      return "SE3 yaw difference";
   }
   return "?";
 }
@@ -174,6 +178,7 @@ int errorDimension(EdgeType type) {
     case EdgeType::kSE2PointXY:
     case EdgeType::kSE3PointXY:
       return 2;
+    case EdgeType::kSE3YawDifference:
     case EdgeType::kPriorSE3Yaw:
     case EdgeType::kSE2PointOnLine:
       return 1;
@@ -407,6 +412,12 @@ int PoseGraph::addPriorSE3XYZ(int vertex, const Eigen::Vector3d& measurement,
 int PoseGraph::addPriorSE3Yaw(int vertex, double yaw, double information,
                               const EdgeOptions& options) {
   return addEdge(EdgeType::kPriorSE3Yaw, {vertex}, Eigen::VectorXd::Constant(1, yaw),
+                 Eigen::MatrixXd::Constant(1, 1, information), options);
+}
+
+int PoseGraph::addEdgeSE3YawDifference(int from, int to, double yaw_change, double information,
+                                       const EdgeOptions& options) {
+  return addEdge(EdgeType::kSE3YawDifference, {from, to}, Eigen::VectorXd::Constant(1, yaw_change),
                  Eigen::MatrixXd::Constant(1, 1, information), options);
 }
 

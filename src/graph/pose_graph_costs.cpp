@@ -217,6 +217,19 @@ struct PriorYawFunctor {
   }
 };
 
+struct YawDifferenceFunctor {
+  double z = 0.0;
+  double sqrt_info = 1.0;
+  template <typename T>
+  bool operator()(const T* xi, const T* xj, T* r) const {
+    T pi[3], pj[3];
+    planarFromSE3(xi, pi);
+    planarFromSE3(xj, pj);
+    r[0] = sqrt_info * normalizeAngle(pj[2] - pi[2] - T(z));
+    return true;
+  }
+};
+
 struct PriorSE2Functor {
   Eigen::Vector3d z;
   Eigen::Matrix3d sqrt_info;
@@ -577,6 +590,9 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       return lifted(
           autoDiff<SE3PlanePairFunctor, 3, 7, 7>(SE3PlanePairFunctor{m.head<4>(), m.tail<4>(), s}),
           true, true);
+    case EdgeType::kSE3YawDifference:
+      return lifted(autoDiff<YawDifferenceFunctor, 1, 7, 7>(YawDifferenceFunctor{m[0], s(0, 0)}),
+                    true, true);
     case EdgeType::kPriorPointXYZ:
       return autoDiff<PriorPositionFunctor<3>, 3, 3>(PriorPositionFunctor<3>{m, s});
     case EdgeType::kPointXYZGaussMarkov:

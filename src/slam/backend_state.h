@@ -54,8 +54,10 @@ struct BackendState {
   std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
-  std::optional<double> gnss_bias_start;           ///< stamp where GNSS bias window 0 starts
-  std::map<int, int> gnss_bias_vertices;           ///< window -> its bias vertex
+  std::optional<double> gnss_bias_start;  ///< stamp where GNSS bias window 0 starts
+  std::map<int, int> gnss_bias_vertices;  ///< window -> its bias vertex
+  /// accum_distance -> (keyframe, INS yaw) of the keyframes with an INS heading
+  std::map<double, std::pair<uint64_t, double>> ins_headings;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
   bool dirty = false;

@@ -295,12 +295,7 @@ void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf)
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
   if (gnssPriors() && in.gnss_position) addGnssPrior(in);
-  // The INS heading bounds the odometry's heading drift (its error does not grow with distance);
-  // without a known initial heading the INS's yaw frame is not the map's.
-  if (params_.ins_heading_std > 0.0 && in.ins_yaw && s.heading_known_at_start) {
-    s.graph.addPriorSE3Yaw(vid, *in.ins_yaw, 1.0 / std::pow(params_.ins_heading_std, 2),
-                           EdgeOptions{0, RobustKernel::huber(params_.ins_heading_kernel_width)});
-  }
+  if (params_.ins_heading_std > 0.0 && in.ins_yaw) addInsHeadingChange(in);
   if (in.gravity_roll_pitch) {
     kf.has_attitude = true;
     s.graph.addPriorSE3(
@@ -327,6 +322,22 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
     s.graph.addPriorSE3XYZ(vid, fix, info, options);
   else
     s.graph.addPriorSE3XY(vid, fix.head<2>(), info.topLeftCorner<2, 2>(), options);
+}
+
+void GraphBackend::addInsHeadingChange(const KeyframeInput& in) {
+  // The INS's heading change since the keyframe ins_heading_span back bounds the odometry's
+  // heading drift; its constant bias (and its yaw frame's offset from the map's) cancels, so the
+  // absolute heading stays with the anchor and the map instead of being held at the INS's bias.
+  BackendState& s = *state_;
+  const auto back = s.ins_headings.upper_bound(in.accum_distance - params_.ins_heading_span);
+  if (back != s.ins_headings.begin()) {
+    const auto& [from_id, from_yaw] = std::prev(back)->second;
+    const double info = 1.0 / (2.0 * params_.ins_heading_std * params_.ins_heading_std);
+    s.graph.addEdgeSE3YawDifference(
+        static_cast<int>(from_id), static_cast<int>(in.id), wrapAngle(*in.ins_yaw - from_yaw), info,
+        EdgeOptions{0, RobustKernel::huber(params_.ins_heading_kernel_width)});
+  }
+  s.ins_headings[in.accum_distance] = {in.id, *in.ins_yaw};
 }
 
 bool GraphBackend::gnssAltitude() const {

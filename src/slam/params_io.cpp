@@ -52,6 +52,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("gnss_bias_tau", p.gnss_bias_tau);
   r.param("gnss_bias_window", p.gnss_bias_window);
   r.param("ins_heading_std", p.ins_heading_std);
+  r.param("ins_heading_span", p.ins_heading_span);
   r.param("ins_heading_kernel_width", p.ins_heading_kernel_width);
   r.param("anchor_std_xy", p.anchor_std_xy);
   r.param("anchor_std_yaw", p.anchor_std_yaw);

@@ -133,6 +133,7 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
         {EdgeType::kPriorSE3XY, z2, {se3a}},
         {EdgeType::kPriorSE3XYZ, Eigen::Vector3d(1, 2, 3), {se3a}},
         {EdgeType::kPriorSE3Yaw, Eigen::VectorXd::Constant(1, 0.3), {se3a}},
+        {EdgeType::kSE3YawDifference, Eigen::VectorXd::Constant(1, 0.3), {se3a, se3b}},
         {EdgeType::kPriorSE2, z3, {se2a}},
         {EdgeType::kSE2PointXY, z2, {se2a, xy}},
         {EdgeType::kSE3PointXY, z2, {se3a, xy}},

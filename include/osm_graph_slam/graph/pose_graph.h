@@ -51,6 +51,9 @@ enum class EdgeType {
   /// SE3 position plus an XYZ offset (3×3): e = p + b − z, e.g. a GNSS fix with its bias (a fix
   /// without altitude: the information's z row and column 0).
   kSE3PositionWithOffset,
+  /// Yaw change between two SE3 poses (1×1): e = wrap(yaw(Xto) − yaw(Xfrom) − z), e.g. an INS's
+  /// heading change, whose constant bias cancels.
+  kSE3YawDifference,
 };
 
 const char* toString(VertexType type);
@@ -178,6 +181,8 @@ class PoseGraph {
   int addPriorSE3XYZ(int vertex, const Eigen::Vector3d& measurement,
                      const Eigen::Matrix3d& information, const EdgeOptions& options = {});
   int addPriorSE3Yaw(int vertex, double yaw, double information, const EdgeOptions& options = {});
+  int addEdgeSE3YawDifference(int from, int to, double yaw_change, double information,
+                              const EdgeOptions& options = {});
   int addPriorSE2(int vertex, const Pose2& measurement, const Eigen::Matrix3d& information,
                   const EdgeOptions& options = {});
   int addPriorPointXYZ(int point, const Eigen::Vector3d& measurement,

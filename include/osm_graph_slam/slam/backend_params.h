@@ -67,11 +67,13 @@ struct GraphBackendParams {
   /// (0: off, x and y only). The map origin is the first fix, whose altitude error (several
   /// metres for consumer GNSS) otherwise stays in every height; nothing else observes it.
   double gnss_altitude_std = 0.0;
-  /// INS heading as evidence: [rad] deviation of a yaw prior (level 0, Huber kernel) on every
-  /// keyframe with an INS orientation (KeyframeInput::ins_yaw), so that the heading is bounded by
-  /// the INS's error instead of drifting with the odometry's. Only with a known initial heading
-  /// (the INS's yaw is then ENU). 0 (default) = off; keep it off for magnetometer headings.
+  /// INS heading changes as evidence: [rad] the INS heading's noise per sample. Each keyframe
+  /// with an INS orientation (KeyframeInput::ins_yaw) gets a yaw-difference edge (level 0, Huber)
+  /// to the keyframe ins_heading_span metres back, so that the heading drifts with the INS's
+  /// noise instead of the odometry's; the INS's constant bias cancels in the difference.
+  /// 0 (default) = off; keep it off for magnetometer headings (local magnetic disturbances).
   double ins_heading_std = 0.0;
+  double ins_heading_span = 100.0;        ///< [m] along the path
   double ins_heading_kernel_width = 2.0;  ///< Huber width in deviations
   /// The first keyframe (the map's anchor) held at its GNSS fix and known heading with these
   /// deviations instead of fixed there (height 5 cm, roll/pitch 0.01 rad), so that a trajectory

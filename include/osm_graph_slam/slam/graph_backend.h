@@ -50,8 +50,8 @@ struct KeyframeInput {
   /// [m] the fix's altitude in the map frame (ENU up from the map origin, the first fix), if
   /// known: evidence with gnss_altitude_std > 0.
   std::optional<double> gnss_altitude;
-  /// [rad] base_link's ENU yaw from an INS at this keyframe's stamp, if known: a heading prior
-  /// with GraphBackendParams::ins_heading_std > 0.
+  /// [rad] base_link's yaw from an INS at this keyframe's stamp, if known: its changes between
+  /// keyframes are evidence with GraphBackendParams::ins_heading_std > 0.
   std::optional<double> ins_yaw;
   /// The floor plane (a, b, c, d) under base_link, if the floor detector found one (it may also
   /// come later through addFloor()).
@@ -198,6 +198,8 @@ class GraphBackend {
   bool gnssAltitude() const;
   /// The keyframe's GNSS prior edge (with its bias vertex when gnss_bias_std > 0).
   void addGnssPrior(const KeyframeInput& in);
+  /// The keyframe's INS heading-change edge (ins_heading_std > 0).
+  void addInsHeadingChange(const KeyframeInput& in);
   void flushKeyframes(BackendUpdateReport& report);
   void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
