@@ -6,7 +6,7 @@
 #include <cmath>
 #include <random>
 
-#include "osm_graph_slam/slam/graph_backend.h"
+#include "backend_test_utils.h"
 
 using namespace osm_graph_slam;
 
@@ -15,18 +15,11 @@ namespace {
 /// 20 keyframes 2 m apart along x (exact odometry); the first fix is 3 m off in y, the others
 /// exact, one of them an outlier 30 m off. Returns the trajectory's mean |y| error.
 double meanLateralError(double gnss_prior_std) {
-  GraphBackendParams params;
-  params.use_osm = false;
-  params.initial_yaw_known = true;
-  params.initial_yaw = 0.0;
+  GraphBackendParams params = noOsmKnownHeading();
   params.gnss_prior_std = gnss_prior_std;
   GraphBackend backend(params);
   for (uint64_t i = 0; i < 20; ++i) {
-    KeyframeInput kf;
-    kf.id = i;
-    kf.stamp = 1.0 + i;
-    kf.odom_pose.translation().x() = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = straightKeyframe(i);
     kf.gnss_position = Eigen::Vector2d(2.0 * i, i == 0 ? 3.0 : (i == 10 ? 30.0 : 0.0));
     backend.addKeyframe(kf);
   }
@@ -53,10 +46,7 @@ namespace {
 /// varying bias (1.2 m, period 120 s, across the track) plus white noise. Returns the RMS of
 /// the trajectory's lateral error after its mean is removed: how much the shape follows the bias.
 double lateralShapeError(double gnss_bias_std) {
-  GraphBackendParams params;
-  params.use_osm = false;
-  params.initial_yaw_known = true;
-  params.initial_yaw = 0.0;
+  GraphBackendParams params = noOsmKnownHeading();
   params.gnss_prior_std = 1.5;
   params.gnss_bias_std = gnss_bias_std;
   params.gnss_bias_tau = 60.0;
@@ -64,12 +54,7 @@ double lateralShapeError(double gnss_bias_std) {
   std::mt19937 rng(7);
   std::normal_distribution<double> white(0.0, 1.5);
   for (uint64_t i = 0; i < 300; ++i) {
-    KeyframeInput kf;
-    kf.id = i;
-    kf.stamp = 1.0 + i;
-    kf.odom_pose.translation().x() = 2.0 * i;
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = straightKeyframe(i);
     const double bias = 1.2 * std::sin(2.0 * M_PI * i / 120.0);
     kf.gnss_position = Eigen::Vector2d(2.0 * i + white(rng), bias + white(rng));
     backend.addKeyframe(kf);
@@ -98,10 +83,7 @@ namespace {
 /// fix, whose altitude was 2 m too high: the truth is z = −2 m. The fixes' altitudes scatter by
 /// 2.5 m about it. Returns the trajectory's mean |z| error.
 double meanHeightError(double gnss_altitude_std, double gnss_bias_std) {
-  GraphBackendParams params;
-  params.use_osm = false;
-  params.initial_yaw_known = true;
-  params.initial_yaw = 0.0;
+  GraphBackendParams params = noOsmKnownHeading();
   params.gnss_prior_std = 1.5;
   params.gnss_altitude_std = gnss_altitude_std;
   params.gnss_bias_std = gnss_bias_std;
@@ -109,12 +91,7 @@ double meanHeightError(double gnss_altitude_std, double gnss_bias_std) {
   std::mt19937 rng(11);
   std::normal_distribution<double> white(0.0, 2.5);
   for (uint64_t i = 0; i < 300; ++i) {
-    KeyframeInput kf;
-    kf.id = i;
-    kf.stamp = 1.0 + i;
-    kf.odom_pose.translation().x() = 2.0 * i;
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = straightKeyframe(i);
     kf.gnss_position = Eigen::Vector2d(2.0 * i, 0.0);
     kf.gnss_altitude = i == 0 ? 0.0 : -2.0 + white(rng);
     backend.addKeyframe(kf);

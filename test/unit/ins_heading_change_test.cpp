@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "backend_test_utils.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
@@ -25,10 +26,8 @@ struct HeadingErrors {
 /// (a 4 deg drift at the end). The INS says 0.3 deg (its bias) plus 0.1 deg noise, one keyframe
 /// 20 deg (an outlier).
 HeadingErrors drive(double ins_heading_std, bool heading_known) {
-  GraphBackendParams params;
-  params.use_osm = false;
+  GraphBackendParams params = noOsmKnownHeading();
   params.initial_yaw_known = heading_known;
-  params.initial_yaw = 0.0;
   params.ins_heading_std = ins_heading_std;
   GraphBackend backend(params);
   std::mt19937 rng(3);
@@ -38,12 +37,8 @@ HeadingErrors drive(double ins_heading_std, bool heading_known) {
   step.translation().x() = 2.0;
   step.linear() = Eigen::AngleAxisd(0.02 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   for (uint64_t i = 0; i < 200; ++i) {
-    KeyframeInput kf;
-    kf.id = i;
-    kf.stamp = 1.0 + i;
-    kf.odom_pose = odom;
-    kf.accum_distance = 2.0 * i;
-    kf.odom_fitness = 0.05;
+    KeyframeInput kf = straightKeyframe(i);
+    kf.odom_pose = odom;  // turning a little too much
     kf.ins_yaw = (i == 120 ? 20.0 : 0.3 + noise(rng)) * kDeg;
     backend.addKeyframe(kf);
     odom = odom * step;
