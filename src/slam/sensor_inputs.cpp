@@ -51,7 +51,8 @@ void SensorInputs::stopKeepingFixes() {
 void SensorInputs::setOrigin(double lat, double lon, double alt) {
   std::lock_guard<std::mutex> lock(mutex_);
   altitude_known_ = std::isfinite(alt);
-  enu_.emplace(lat, lon, altitude_known_ ? alt : 0.0);
+  origin_altitude_ = altitude_known_ ? alt : 0.0;
+  enu_.emplace(lat, lon, origin_altitude_);
 }
 
 std::optional<AttitudeSample> SensorInputs::attitudeAt(double stamp) const {
@@ -101,9 +102,13 @@ std::optional<GnssPosition> SensorInputs::gnssPositionAt(double stamp) const {
   if (!enu_) return std::nullopt;
   const auto fix = gnssFixAt(fixes_, stamp, params_.gnss_max_gap, params_.gnss_max_time_difference);
   if (!fix) return std::nullopt;
-  GnssPosition out{enu_->toEnu(fix->lat, fix->lon, 0.0).head<2>(), fix->std_xy, std::nullopt};
-  if (altitude_known_ && std::isfinite(fix->alt))
-    out.altitude = enu_->toEnu(fix->lat, fix->lon, fix->alt).z();
+  // One conversion at the fix's own altitude when known (as offline_slam's drive sources do),
+  // else at the origin's, so that x and y do not depend on an unknown height.
+  const bool has_altitude = altitude_known_ && std::isfinite(fix->alt);
+  const Eigen::Vector3d enu =
+      enu_->toEnu(fix->lat, fix->lon, has_altitude ? fix->alt : origin_altitude_);
+  GnssPosition out{enu.head<2>(), fix->std_xy, std::nullopt};
+  if (has_altitude) out.altitude = enu.z();
   return out;
 }
 

@@ -38,10 +38,14 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
       floor_(params.floor),
       floor_health_(params.floor.warn_after_missing),
       walls_(params.wall, logger_),
-      segments_(params.segments) {
+      segments_(params.segments),
+      loop_search_in_map_(params.loop.search_frame == "map") {
   GraphBackendParams backend = params.backend;
   backend.use_osm = backend.use_osm && osm_source_ != nullptr;
   backend_ = std::make_unique<GraphBackend>(backend, logger_);
+  if (params.loop.search_frame != "odometry" && params.loop.search_frame != "map")
+    logger_->warn("loop search_frame '" + params.loop.search_frame +
+                  "' unknown (odometry | map): searching around odometry poses");
   if (params.use_loops) {
     const std::shared_ptr<const Logger> log = logger_;
     loops_ = std::make_unique<LoopDetector>(
@@ -156,7 +160,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
     LoopKeyframe lk;
     lk.id = kf.id;
     // In the map frame the search follows the back-end's corrections of the odometry's drift.
-    lk.odom_pose = params_.loop.search_frame == "map" ? backend_->mapToOdom() * kf.pose : kf.pose;
+    lk.odom_pose = loop_search_in_map_ ? backend_->mapToOdom() * kf.pose : kf.pose;
     lk.accum_distance = kf.accum_distance;
     lk.cloud = kf.cloud;
     if (auto loop = loops_->process(lk)) {

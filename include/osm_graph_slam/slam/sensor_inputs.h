@@ -79,6 +79,7 @@ class SensorInputs {
   bool keep_fixes_ = true;
   std::optional<EnuConverter> enu_;
   bool altitude_known_ = false;  ///< the origin has an altitude (else fixes hold x and y only)
+  double origin_altitude_ = 0.0;
 };
 
 }  // namespace osm_graph_slam

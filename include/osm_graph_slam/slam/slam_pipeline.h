@@ -119,6 +119,7 @@ class SlamPipeline {
   FloorHealth floor_health_;
   WallPointExtractor walls_;
   LineSegmentExtractor segments_;
+  bool loop_search_in_map_;  ///< params.loop.search_frame == "map"
   std::unique_ptr<LoopDetector> loops_;
   std::unique_ptr<OsmBuffer> osm_buffer_;
   std::unique_ptr<GraphBackend> backend_;
