@@ -131,11 +131,52 @@ MulranPolarResult readMulranPolarPng(const std::string& path, int64_t stamp_ns,
     r.error = prefix + "the PNG decoder rejected the image data";
     return r;
   }
+  PolarImageView view;
+  view.data = image.data;
+  view.rows = image.rows;
+  view.cols = image.cols;
+  view.step = image.step[0];
+  view.size = view.step * size_t(image.rows);
+  r = fromMulranImage(view, double(stamp_ns - time_origin_ns) * 1e-9, layout);
+  if (!r.ok) r.error = prefix + r.error;
+  return r;
+}
+
+MulranPolarResult fromMulranImage(const PolarImageView& image, double stamp,
+                                  const MulranPolarLayout& layout) {
+  MulranPolarResult r;
+  if (image.rows <= 0 || image.cols <= 0 || image.data == nullptr) {
+    r.error =
+        "empty image (" + std::to_string(image.cols) + " x " + std::to_string(image.rows) + ")";
+    return r;
+  }
+  if (image.encoding != "mono8" && image.encoding != "8UC1") {
+    r.error = "encoding '" + image.encoding + "', expected mono8 (8-bit grey)";
+    return r;
+  }
+  if ((layout.expected_azimuths > 0 && image.rows != layout.expected_azimuths) ||
+      (layout.expected_bins > 0 && image.cols != layout.expected_bins)) {
+    r.error = "wrong size " + std::to_string(image.cols) + " x " + std::to_string(image.rows) +
+              ", the layout expects " + std::to_string(layout.expected_bins) + " bins x " +
+              std::to_string(layout.expected_azimuths) + " azimuths";
+    return r;
+  }
+  if (image.step < size_t(image.cols)) {
+    r.error =
+        "row step " + std::to_string(image.step) + " below the width " + std::to_string(image.cols);
+    return r;
+  }
+  const size_t need = image.step * size_t(image.rows - 1) + size_t(image.cols);
+  if (image.size < need) {
+    r.error = "image data of " + std::to_string(image.size) + " bytes, " + std::to_string(need) +
+              " needed";
+    return r;
+  }
   RadarPolarScan& s = r.scan;
   s.num_azimuths = image.rows;
   s.num_bins = image.cols;
   s.range_resolution = layout.range_resolution;
-  s.stamp = double(stamp_ns - time_origin_ns) * 1e-9;
+  s.stamp = stamp;
   s.azimuths.resize(s.num_azimuths);
   s.times.resize(s.num_azimuths);
   for (int a = 0; a < s.num_azimuths; ++a) {
@@ -143,9 +184,10 @@ MulranPolarResult readMulranPolarPng(const std::string& path, int64_t stamp_ns,
     s.times[a] = s.stamp + layout.rotation_period * a / s.num_azimuths;
   }
   s.power.resize(size_t(s.num_azimuths) * s.num_bins);
-  for (int a = 0; a < s.num_azimuths; ++a)
-    std::copy(image.ptr<uint8_t>(a), image.ptr<uint8_t>(a) + s.num_bins,
-              s.power.begin() + size_t(a) * s.num_bins);
+  for (int a = 0; a < s.num_azimuths; ++a) {
+    const uint8_t* row = image.data + image.step * size_t(a);
+    std::copy(row, row + s.num_bins, s.power.begin() + size_t(a) * s.num_bins);
+  }
   r.ok = true;
   return r;
 }

@@ -43,6 +43,12 @@ class RadarOdometry {
   explicit RadarOdometry(const RadarOdometryParams& params) : params_(params) {}
   RadarOdometryStep process(const RadarPolarScan& scan);
   const RadarOdometryParams& params() const { return params_; }
+  /// Forgets the previous sweep and the velocity (a gap in the input): the next sweep is matched
+  /// against nothing (first = true) and the pose continues from where it is.
+  void restart() {
+    has_previous_ = false;
+    velocity_.setZero();
+  }
 
  private:
   RadarOdometryParams params_;

@@ -57,6 +57,23 @@ struct MulranPolarResult {
 MulranPolarResult readMulranPolarPng(const std::string& path, int64_t stamp_ns,
                                      int64_t time_origin_ns, const MulranPolarLayout& layout = {});
 
+/// An 8-bit polar image in memory, one row per azimuth (e.g. the buffer of a radar/polar
+/// sensor_msgs/Image that mulran2bag writes).
+struct PolarImageView {
+  const uint8_t* data = nullptr;
+  size_t size = 0;                 ///< bytes available at data
+  int rows = 0;                    ///< azimuths
+  int cols = 0;                    ///< range bins
+  size_t step = 0;                 ///< bytes per row (>= cols)
+  std::string encoding = "mono8";  ///< "mono8" or "8UC1"; anything else is refused
+};
+
+/// The MulRan layout from memory: the conversion readMulranPolarPng applies after decoding
+/// (azimuths evenly spread, row times over rotation_period from stamp [s]). Errors (the reason,
+/// no prefix): empty image, encoding, wrong size, a row step below the width, too few bytes.
+MulranPolarResult fromMulranImage(const PolarImageView& image, double stamp,
+                                  const MulranPolarLayout& layout = {});
+
 /// Writes a scan in the MulRan layout (8-bit grey PNG, rows = azimuths). Temp file + rename.
 bool writeMulranPolarPng(const std::string& path, const RadarPolarScan& scan, std::string* error);
 
