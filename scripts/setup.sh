@@ -19,7 +19,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev libtf2-sensor-msgs-dev
   libpcl-ros-dev libpcl-conversions-dev ros-message-generation ros-message-runtime
   ros-std-msgs ros-std-srvs ros-sensor-msgs ros-nav-msgs ros-geometry-msgs
-  ros-visualization-msgs ros-tf2-msgs rviz
+  ros-visualization-msgs ros-tf2-msgs ros-diagnostic-msgs libdiagnostic-msgs-dev rviz
   # algorithms
   libpcl-dev libeigen3-dev libceres-dev libsuitesparse-dev libgeographiclib-dev libopencv-dev
   libosmium2-dev libprotozero-dev libbz2-dev libexpat1-dev zlib1g-dev liblz4-dev

@@ -23,6 +23,7 @@
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/osm/params_io.h"
+#include "osm_graph_slam/radar/radar_stream.h"
 #include "osm_graph_slam/registration/params_io.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/slam/params_io.h"
@@ -167,6 +168,17 @@ std::vector<StageConfig> stages() {
        [](const ParamReader& r) {
          OsmLocalizerParams p;
          readParams(r, p);
+       },
+       {}},
+      {"radar",
+       [](const ParamReader& r) {
+         std::string error;
+         radar::RadarOdometryParams p;
+         EXPECT_TRUE(radar::readParams(r, p, &error)) << "radar.yaml: " << error;
+         radar::RadarStreamParams stream;
+         EXPECT_TRUE(radar::readParams(r, stream, &error)) << "radar.yaml: " << error;
+         RadarOdometryNodeletParams n;
+         EXPECT_TRUE(readParams(r, n, &error)) << "radar.yaml: " << error;
        },
        {}},
   };

@@ -70,6 +70,14 @@ struct LocalizationNodeletParams {
   std::string osm_file;
 };
 
+struct RadarOdometryNodeletParams {
+  std::string radar_odom_frame = "radar_odom";  ///< parent of radar/odom and of the TF
+  /// Child frame when an image comes without a frame_id (mulran2bag's frame).
+  std::string radar_frame = "radar_polar";
+  bool publish_tf = true;             ///< TF radar_odom_frame -> the image's frame
+  double warn_throttle_period = 5.0;  ///< [s]
+};
+
 void readParams(const ParamReader& r, PrefilteringNodeletParams& p);
 void readParams(const ParamReader& r, ScanMatchingNodeletParams& p);
 void readParams(const ParamReader& r, LineExtractionNodeletParams& p);
@@ -77,5 +85,7 @@ void readParams(const ParamReader& r, LoopDetectionNodeletParams& p);
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p);
 void readParams(const ParamReader& r, GraphBackendNodeletParams& p);
 void readParams(const ParamReader& r, LocalizationNodeletParams& p);
+/// False with the reason for an empty frame name or a non-positive throttle period.
+bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string* error);
 
 }  // namespace osm_graph_slam

@@ -1,0 +1,206 @@
+// RadarOdometryNodelet: radar/polar (sensor_msgs/Image, mono8, one row per azimuth, as mulran2bag
+// writes it) -> RadarOdometryStream (radar_stream.h: checks, conversion, odometry) -> radar/odom,
+// TF radar_odom -> the image's frame, radar/path, radar/features (x y z power) and radar/status
+// (diagnostic_msgs/DiagnosticArray, one entry per image). doc/radar.md "ROS: radar_odometry
+// nodelet and radar.launch".
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Odometry.h>
+#include <nav_msgs/Path.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "osm_graph_slam/radar/radar_drive.h"
+#include "osm_graph_slam/radar/radar_stream.h"
+#include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/nodelet_params.h"
+#include "osm_graph_slam/ros/ros_param_reader.h"
+
+namespace osm_graph_slam {
+
+class RadarOdometryNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    const RosParamReader reader(pnh);
+    radar::RadarOdometryParams odometry_params;
+    radar::RadarStreamParams stream_params;
+    std::string error;
+    if (!readParams(reader, node_params_, &error) ||
+        !radar::readParams(reader, odometry_params, &error) ||
+        !radar::readParams(reader, stream_params, &error)) {
+      NODELET_ERROR("radar odometry NOT started (no subscription): %s", error.c_str());
+      return;
+    }
+    stream_ = std::make_unique<radar::RadarOdometryStream>(odometry_params, stream_params);
+    odom_pub_ = nh.advertise<nav_msgs::Odometry>("radar/odom", 10);
+    path_pub_ = nh.advertise<nav_msgs::Path>("radar/path", 1, true);
+    features_pub_ = nh.advertise<sensor_msgs::PointCloud2>("radar/features", 2);
+    status_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("radar/status", 10);
+    sub_ = nh.subscribe("radar/polar", 10, &RadarOdometryNodelet::onImage, this);
+    NODELET_INFO("radar odometry: %s features, %d x %d images, max gap %.2f s, %s -> image frame",
+                 odometry_params.features.detector.c_str(), stream_params.layout.expected_bins,
+                 stream_params.layout.expected_azimuths, stream_params.max_gap,
+                 node_params_.radar_odom_frame.c_str());
+  }
+
+  void onImage(const sensor_msgs::ImageConstPtr& msg) {
+    radar::PolarImageView view;
+    view.data = msg->data.data();
+    view.size = msg->data.size();
+    view.rows = int(msg->height);
+    view.cols = int(msg->width);
+    view.step = msg->step;
+    view.encoding = msg->encoding;
+    const radar::RadarStreamResult r = stream_->process(view, int64_t(msg->header.stamp.toNSec()));
+    const radar::RadarStreamCounters& c = stream_->counters();
+    const double throttle = node_params_.warn_throttle_period;
+    switch (r.event) {
+      case radar::RadarStreamEvent::kBadImage:
+        NODELET_WARN_THROTTLE(throttle, "radar/polar image dropped: %s (%lu so far)",
+                              r.message.c_str(), (unsigned long)c.bad_images);
+        break;
+      case radar::RadarStreamEvent::kOutOfOrder:
+        NODELET_WARN_THROTTLE(throttle, "radar/polar out of order: %s (%lu so far)",
+                              r.message.c_str(), (unsigned long)c.out_of_order);
+        break;
+      case radar::RadarStreamEvent::kRestarted:  // rare: one line per gap
+        NODELET_WARN("radar odometry: %s (gap %lu)", r.message.c_str(), (unsigned long)c.gaps);
+        break;
+      case radar::RadarStreamEvent::kProcessed:
+        if (!r.step.ok)
+          NODELET_WARN_THROTTLE(throttle,
+                                "radar sweep at %.3f: no velocity estimate (%d matches, %d "
+                                "inliers), constant velocity kept (%lu so far)",
+                                msg->header.stamp.toSec(), r.step.matches, r.step.inliers,
+                                (unsigned long)c.ransac_failures);
+        break;
+    }
+    const std::string frame =
+        msg->header.frame_id.empty() ? node_params_.radar_frame : msg->header.frame_id;
+    if (r.has_step) {
+      ros::Time stamp;
+      stamp.fromNSec(uint64_t(r.time_ns));
+      publishOdometry(stamp, frame, r.step);
+      publishFeatures(stamp, frame, r.step.feature_set);
+    }
+    publishStatus(msg->header.stamp, frame, r);
+  }
+
+  /// The radar pose at the sweep's mid time (the time the odometry keys it by).
+  void publishOdometry(const ros::Time& stamp, const std::string& frame,
+                       const radar::RadarOdometryStep& step) {
+    const Eigen::Isometry3d pose = radar::planarTo3d(step.pose);
+    boost::shared_ptr<nav_msgs::Odometry> odom(new nav_msgs::Odometry);
+    odom->header.stamp = stamp;
+    odom->header.frame_id = node_params_.radar_odom_frame;
+    odom->child_frame_id = frame;
+    odom->pose.pose = toPoseMsg(pose);
+    odom->twist.twist.linear.x = step.velocity.x();  // in the child frame
+    odom->twist.twist.linear.y = step.velocity.y();
+    odom->twist.twist.angular.z = step.velocity.z();
+    odom_pub_.publish(boost::shared_ptr<const nav_msgs::Odometry>(odom));
+
+    geometry_msgs::PoseStamped ps;
+    ps.header = odom->header;
+    ps.pose = odom->pose.pose;
+    path_.header = odom->header;
+    path_.poses.push_back(ps);
+    path_pub_.publish(path_);
+
+    if (node_params_.publish_tf) {
+      geometry_msgs::TransformStamped tf;
+      tf.header = odom->header;
+      tf.child_frame_id = frame;
+      tf.transform = toTransformMsg(pose);
+      tf_broadcaster_.sendTransform(tf);
+    }
+  }
+
+  /// The sweep's features in the image frame (each as seen at its own row time), z = 0.
+  void publishFeatures(const ros::Time& stamp, const std::string& frame,
+                       const radar::RadarFeatureSet& set) {
+    if (features_pub_.getNumSubscribers() == 0) return;
+    boost::shared_ptr<sensor_msgs::PointCloud2> cloud(new sensor_msgs::PointCloud2);
+    cloud->header.stamp = stamp;
+    cloud->header.frame_id = frame;
+    sensor_msgs::PointCloud2Modifier modifier(*cloud);
+    modifier.setPointCloud2Fields(
+        4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+        1, sensor_msgs::PointField::FLOAT32, "power", 1, sensor_msgs::PointField::FLOAT32);
+    modifier.resize(set.features.size());
+    sensor_msgs::PointCloud2Iterator<float> x(*cloud, "x"), y(*cloud, "y"), z(*cloud, "z"),
+        power(*cloud, "power");
+    for (const radar::RadarFeature& f : set.features) {
+      *x = float(f.point.x());
+      *y = float(f.point.y());
+      *z = 0.0f;
+      *power = f.power;
+      ++x, ++y, ++z, ++power;
+    }
+    features_pub_.publish(boost::shared_ptr<const sensor_msgs::PointCloud2>(cloud));
+  }
+
+  void publishStatus(const ros::Time& stamp, const std::string& frame,
+                     const radar::RadarStreamResult& r) {
+    const radar::RadarStreamCounters& c = stream_->counters();
+    boost::shared_ptr<diagnostic_msgs::DiagnosticArray> array(new diagnostic_msgs::DiagnosticArray);
+    array->header.stamp = stamp;
+    array->header.frame_id = frame;
+    diagnostic_msgs::DiagnosticStatus s;
+    s.name = "radar_odometry";
+    s.hardware_id = frame;
+    const bool fine = r.event == radar::RadarStreamEvent::kProcessed && r.step.ok;
+    s.level =
+        fine ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN;
+    s.message = r.message.empty() ? (r.step.ok ? "ok" : "no velocity estimate (constant velocity)")
+                                  : r.message;
+    auto add = [&s](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue kv;
+      kv.key = key;
+      kv.value = value;
+      s.values.push_back(kv);
+    };
+    auto num = [](double v) {
+      char text[32];
+      std::snprintf(text, sizeof(text), "%.3f", v);
+      return std::string(text);
+    };
+    add("event", radar::toString(r.event));
+    add("received", std::to_string(c.received));
+    add("processed", std::to_string(c.processed));
+    add("bad_images", std::to_string(c.bad_images));
+    add("out_of_order", std::to_string(c.out_of_order));
+    add("gaps", std::to_string(c.gaps));
+    add("ransac_failures", std::to_string(c.ransac_failures));
+    add("features", std::to_string(r.has_step ? r.step.features : 0));
+    add("matches", std::to_string(r.has_step ? r.step.matches : 0));
+    add("inliers", std::to_string(r.has_step ? r.step.inliers : 0));
+    add("rms_error_m", num(r.has_step ? r.step.rms_error : 0.0));
+    add("ms_per_scan", num(c.ms_last));
+    add("ms_per_scan_mean", num(c.ms_mean));
+    array->status.push_back(s);
+    status_pub_.publish(boost::shared_ptr<const diagnostic_msgs::DiagnosticArray>(array));
+  }
+
+  RadarOdometryNodeletParams node_params_;  ///< frames, TF, throttling (nodelet_params.h)
+  std::unique_ptr<radar::RadarOdometryStream> stream_;
+  nav_msgs::Path path_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+  ros::Publisher odom_pub_, path_pub_, features_pub_, status_pub_;
+  ros::Subscriber sub_;
+};
+
+}  // namespace osm_graph_slam
+
+PLUGINLIB_EXPORT_CLASS(osm_graph_slam::RadarOdometryNodelet, nodelet::Nodelet)
