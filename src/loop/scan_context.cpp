@@ -33,23 +33,27 @@ ScanContext scanContextFromCells(const Eigen::MatrixXf& cells) {
   return sc;
 }
 
-ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params) {
-  ScanContext sc;
+bool scanContextCell(double x, double y, const ScanContextParams& params, int* ring, int* sector) {
   const int rings = std::max(1, params.num_rings);
   const int sectors = std::max(1, params.num_sectors);
-  sc.cells = Eigen::MatrixXf::Zero(rings, sectors);
-  const double ring_width = params.max_radius / rings;
-  const double sector_width = 2.0 * M_PI / sectors;
+  const double range = std::hypot(x, y);
+  if (!(range < params.max_radius) || range < params.min_radius) return false;
+  *ring = std::min(rings - 1, static_cast<int>(range / (params.max_radius / rings)));
+  const double azimuth = std::atan2(y, x) + M_PI;  // [0, 2 pi]
+  *sector = std::min(sectors - 1, static_cast<int>(azimuth / (2.0 * M_PI / sectors)));
+  return true;
+}
+
+ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params) {
+  ScanContext sc;
+  sc.cells = Eigen::MatrixXf::Zero(std::max(1, params.num_rings), std::max(1, params.num_sectors));
   for (const auto& p : cloud.points) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
-    const double range = std::hypot(p.x, p.y);
-    if (range >= params.max_radius || range < params.min_radius) continue;
+    int ring, sector;
+    if (!scanContextCell(p.x, p.y, params, &ring, &sector)) continue;
     const double height =
         std::min(static_cast<double>(p.z) + params.sensor_height, params.max_height);
     if (height < params.min_height) continue;  // ground returns: noise, no structure
-    const int ring = std::min(rings - 1, static_cast<int>(range / ring_width));
-    const double azimuth = std::atan2(p.y, p.x) + M_PI;  // [0, 2 pi]
-    const int sector = std::min(sectors - 1, static_cast<int>(azimuth / sector_width));
     float& cell = sc.cells(ring, sector);
     cell = std::max(cell, static_cast<float>(height));
   }

@@ -14,8 +14,8 @@ Eigen::Isometry3d planarTo3d(const Eigen::Isometry2d& T) {
   return P;
 }
 
-RadarDriveResult runMulranRadarOdometry(
-    const std::string& root, const RadarOdometryParams& params, const RadarDriveOptions& options,
+RadarDriveResult runMulranRadarSlam(
+    const std::string& root, const RadarSlamParams& params, const RadarDriveOptions& options,
     const std::function<void(const RadarOdometryStep&, const RadarPolarScan&)>& on_step) {
   RadarDriveResult result;
   MulranSequence seq;
@@ -34,7 +34,7 @@ RadarDriveResult runMulranRadarOdometry(
   const double max_gap = 1.0;  // [s] ground truth further away is not interpolated
   Eigen::Isometry3d first_truth_inverse = Eigen::Isometry3d::Identity();
   bool have_first_truth = false;
-  RadarOdometry odometry(params);
+  RadarSlam slam(params);
   using Clock = std::chrono::steady_clock;
   auto ms = [](Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -50,7 +50,7 @@ RadarDriveResult runMulranRadarOdometry(
       continue;
     }
     result.ms_read += ms(t0);
-    RadarOdometryStep step = odometry.process(read.scan);
+    RadarOdometryStep step = slam.process(read.scan);
     if (on_step) on_step(step, read.scan);
     step.feature_set = RadarFeatureSet();
     if (result.scans == 0) first_time = step.time;
@@ -60,6 +60,8 @@ RadarDriveResult runMulranRadarOdometry(
     result.ms_features += step.ms_features;
     result.ms_matching += step.ms_matching;
     result.ms_motion += step.ms_motion;
+    result.ms_registration += step.ms_registration;
+    if (step.registered) ++result.registered;
     const double absolute = double(origin_ns) * 1e-9 + step.time;
     result.odometry.push_back({absolute, planarTo3d(step.pose)});
     Eigen::Isometry3d gt;
@@ -76,11 +78,19 @@ RadarDriveResult runMulranRadarOdometry(
     result.error = "no radar sweep of '" + root + "' could be read";
     return result;
   }
+  slam.finish();
+  const std::vector<Eigen::Isometry2d> corrected = slam.sweepPoses();
+  for (size_t i = 0; i < corrected.size() && i < result.odometry.size(); ++i)
+    result.trajectory.push_back({result.odometry[i].stamp, planarTo3d(corrected[i])});
+  result.loops = slam.loops();
+  result.loop_stats = slam.loopStats();
+  result.keyframes = slam.numKeyframes();
   const double n = result.scans;
   result.ms_read /= n;
   result.ms_features /= n;
   result.ms_matching /= n;
   result.ms_motion /= n;
+  result.ms_registration /= n;
   result.span_s = last_time - first_time;
   result.ok = true;
   return result;

@@ -2,6 +2,7 @@
 // as offline_slam writes its runs: odometry_tum.txt, trajectory_tum.txt, ground_truth_tum.txt
 // and timing.json in --output, a timing report (ms per stage, ratio to real time at the radar's
 // 4 Hz) and, when global_pose.csv exists, the accuracy (KITTI drift, ATE) — see doc/radar.md.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -21,8 +22,30 @@ int usage() {
       stderr,
       "usage: offline_radar_slam --mulran DIR --output DIR [--config radar.yaml] [--json]\n"
       "       [--max-scans N] [--detector kstrongest|cfar] [--beta S]\n"
-      "       [--no-motion-compensation] [--no-doppler]\n");
+      "       [--no-motion-compensation] [--no-doppler] [--no-registration]\n"
+      "       [--no-loops]\n");
   return 2;
+}
+
+/// KITTI drift, ATE and RPE of a planar trajectory against the ground truth (first pose aligned).
+nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
+  TrajectoryEvalOptions eo;
+  eo.planar = true;
+  eo.alignment = TrajectoryAlignment::kFirstPose;
+  eo.max_time_difference = 0.01;
+  const TrajectoryErrors e = evaluateTrajectory(estimate, truth, eo);
+  double length = 0;
+  for (size_t k = 1; k < truth.size(); ++k)
+    length += (truth[k].pose.translation() - truth[k - 1].pose.translation()).norm();
+  return {{"length_m", length},
+          {"kitti_segments", e.kitti_segments},
+          {"kitti_trans_percent", e.kitti_trans_percent},
+          {"kitti_rot_deg_per_100m", e.kitti_rot_deg_per_100m},
+          {"ate_rmse_m", e.ate.rmse},
+          {"ate_max_m", e.ate.max},
+          {"rpe_trans_mean_m", e.rpe_trans.mean},
+          {"rpe_rot_mean_deg", e.rpe_rot.mean * 180 / M_PI},
+          {"end_drift_percent", length > 0 ? 100.0 * e.ate_per_pose.back() / length : 0.0}};
 }
 
 }  // namespace
@@ -30,10 +53,11 @@ int usage() {
 int main(int argc, char** argv) {
   std::string mulran, output, config;
   bool json = false;
-  radar::RadarOdometryParams params;
+  radar::RadarSlamParams slam_params;
+  radar::RadarOdometryParams& params = slam_params.odometry;
   radar::RadarDriveOptions options;
   std::string detector, beta;
-  bool no_mc = false, no_doppler = false;
+  bool no_mc = false, no_doppler = false, no_registration = false, no_loops = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -61,6 +85,10 @@ int main(int argc, char** argv) {
       no_mc = true;
     else if (a == "--no-doppler")
       no_doppler = true;
+    else if (a == "--no-registration")
+      no_registration = true;
+    else if (a == "--no-loops")
+      no_loops = true;
     else
       return usage();
   }
@@ -68,7 +96,7 @@ int main(int argc, char** argv) {
   if (!config.empty()) {
     const YamlParamReader yaml = YamlParamReader::fromFile(config);
     std::string error;
-    if (!yaml.ok() || !radar::readParams(yaml, params, &error)) {
+    if (!yaml.ok() || !radar::readSlamParams(yaml, slam_params, &error)) {
       std::fprintf(stderr, "offline_radar_slam: %s\n",
                    yaml.ok() ? error.c_str() : yaml.error().c_str());
       return 2;
@@ -78,9 +106,11 @@ int main(int argc, char** argv) {
   if (!beta.empty()) params.motion.doppler_beta = std::atof(beta.c_str());
   if (no_mc) params.motion.motion_compensation = false;
   if (no_doppler) params.motion.doppler_correction = false;
+  if (no_registration) params.registration.enabled = false;
+  if (no_loops) slam_params.loop.enabled = false;
 
   const auto t0 = std::chrono::steady_clock::now();
-  const radar::RadarDriveResult r = radar::runMulranRadarOdometry(mulran, params, options);
+  const radar::RadarDriveResult r = radar::runMulranRadarSlam(mulran, slam_params, options);
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (const std::string& s : r.skipped)
@@ -94,13 +124,14 @@ int main(int argc, char** argv) {
   std::string error;
   const std::string out = output + "/";
   if (!writeTumTrajectory(out + "odometry_tum.txt", r.odometry, &error) ||
-      !writeTumTrajectory(out + "trajectory_tum.txt", r.odometry, &error) ||
+      !writeTumTrajectory(out + "trajectory_tum.txt", r.trajectory, &error) ||
       (!r.ground_truth.empty() &&
        !writeTumTrajectory(out + "ground_truth_tum.txt", r.ground_truth, &error))) {
     std::fprintf(stderr, "offline_radar_slam: %s\n", error.c_str());
     return 1;
   }
-  const double ms_scan = r.ms_read + r.ms_features + r.ms_matching + r.ms_motion;
+  const double ms_scan =
+      r.ms_read + r.ms_features + r.ms_matching + r.ms_motion + r.ms_registration;
   nlohmann::json j;
   j["drive"] = mulran;
   j["scans"] = r.scans;
@@ -109,34 +140,31 @@ int main(int argc, char** argv) {
   j["detector"] = params.features.detector;
   j["motion_compensation"] = params.motion.motion_compensation;
   j["doppler_beta"] = params.motion.doppler_correction ? params.motion.doppler_beta : 0.0;
-  j["timing_ms_per_scan"] = {{"read", r.ms_read},
-                             {"features", r.ms_features},
-                             {"matching", r.ms_matching},
-                             {"motion", r.ms_motion},
-                             {"total", ms_scan}};
+  j["registration"] = params.registration.enabled;
+  j["registered_sweeps"] = r.registered;
+  j["timing_ms_per_scan"] = {
+      {"read", r.ms_read},     {"features", r.ms_features},         {"matching", r.ms_matching},
+      {"motion", r.ms_motion}, {"registration", r.ms_registration}, {"total", ms_scan}};
   j["wall_s"] = wall_s;
   j["drive_span_s"] = r.span_s;
   j["real_time_ratio_4hz"] = ms_scan > 0 ? 250.0 / ms_scan : 0.0;
+  const radar::RadarLoopStats& ls = r.loop_stats;
+  j["keyframes"] = r.keyframes;
+  j["loops"] = {{"enabled", slam_params.loop.enabled},
+                {"accepted", ls.accepted},
+                {"by_scan_context",
+                 std::count_if(r.loops.begin(), r.loops.end(),
+                               [](const radar::RadarLoop& l) { return l.by_scan_context; })},
+                {"candidates", ls.candidates},
+                {"rejected_registration", ls.rejected_registration},
+                {"rejected_gate", ls.rejected_gate},
+                {"ms_per_keyframe",
+                 r.keyframes ? (ls.ms_descriptor + ls.ms_search + ls.ms_verify + ls.ms_optimise) /
+                                   double(r.keyframes)
+                             : 0.0}};
   if (!r.ground_truth.empty()) {
-    TrajectoryEvalOptions eo;
-    eo.planar = true;
-    eo.alignment = TrajectoryAlignment::kFirstPose;
-    eo.max_time_difference = 0.01;
-    const TrajectoryErrors e = evaluateTrajectory(r.odometry, r.ground_truth, eo);
-    double length = 0;
-    for (size_t k = 1; k < r.ground_truth.size(); ++k)
-      length +=
-          (r.ground_truth[k].pose.translation() - r.ground_truth[k - 1].pose.translation()).norm();
-    j["accuracy"] = {
-        {"length_m", length},
-        {"kitti_segments", e.kitti_segments},
-        {"kitti_trans_percent", e.kitti_trans_percent},
-        {"kitti_rot_deg_per_100m", e.kitti_rot_deg_per_100m},
-        {"ate_rmse_m", e.ate.rmse},
-        {"ate_max_m", e.ate.max},
-        {"rpe_trans_mean_m", e.rpe_trans.mean},
-        {"rpe_rot_mean_deg", e.rpe_rot.mean * 180 / M_PI},
-        {"end_drift_percent", length > 0 ? 100.0 * e.ate_per_pose.back() / length : 0.0}};
+    j["accuracy"] = accuracyOf(r.odometry, r.ground_truth);
+    j["accuracy_slam"] = accuracyOf(r.trajectory, r.ground_truth);
   }
   writeFileAtomically(out + "timing.json", j.dump(2) + "\n", nullptr);
   if (json) {
@@ -146,10 +174,14 @@ int main(int argc, char** argv) {
                 r.scans, r.skipped.size(), r.failed, r.span_s);
     std::printf(
         "time per sweep: read %.1f ms, features %.1f ms, matching %.1f ms, motion %.1f ms,"
-        " total %.1f ms = %.2fx real time at 4 Hz\n",
-        r.ms_read, r.ms_features, r.ms_matching, r.ms_motion, ms_scan,
+        " registration %.1f ms, total %.1f ms = %.2fx real time at 4 Hz\n",
+        r.ms_read, r.ms_features, r.ms_matching, r.ms_motion, r.ms_registration, ms_scan,
         ms_scan > 0 ? 250.0 / ms_scan : 0.0);
-    if (j.contains("accuracy")) std::printf("accuracy: %s\n", j["accuracy"].dump().c_str());
+    std::printf("loops: %s\n", j["loops"].dump().c_str());
+    if (j.contains("accuracy")) {
+      std::printf("odometry: %s\n", j["accuracy"].dump().c_str());
+      std::printf("with loops: %s\n", j["accuracy_slam"].dump().c_str());
+    }
   }
   return 0;
 }

@@ -23,6 +23,7 @@
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/osm/params_io.h"
+#include "osm_graph_slam/radar/radar_slam.h"
 #include "osm_graph_slam/radar/radar_stream.h"
 #include "osm_graph_slam/registration/params_io.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
@@ -173,8 +174,8 @@ std::vector<StageConfig> stages() {
       {"radar",
        [](const ParamReader& r) {
          std::string error;
-         radar::RadarOdometryParams p;
-         EXPECT_TRUE(radar::readParams(r, p, &error)) << "radar.yaml: " << error;
+         radar::RadarSlamParams p;  // the odometry's keys, graph/* and loop/*
+         EXPECT_TRUE(radar::readSlamParams(r, p, &error)) << "radar.yaml: " << error;
          radar::RadarStreamParams stream;
          EXPECT_TRUE(radar::readParams(r, stream, &error)) << "radar.yaml: " << error;
          RadarOdometryNodeletParams n;

@@ -202,9 +202,13 @@ TEST(RadarConfig, YamlEqualsTheDefaults) {
   EXPECT_DOUBLE_EQ(read.keyframe_translation, d.keyframe_translation);
   EXPECT_DOUBLE_EQ(read.keyframe_rotation_deg, d.keyframe_rotation_deg);
   // Every key of the file is read (a misspelt key would silently do nothing).
-  // 25 of the odometry, 9 of the radar_odometry nodelet (input/*, frames; config_consistency_test
-  // audits all of them).
-  EXPECT_EQ(yaml.keys().size(), 34u);
+  EXPECT_EQ(read.registration.enabled, d.registration.enabled);
+  EXPECT_EQ(read.registration.submap_keyframes, d.registration.submap_keyframes);
+  EXPECT_DOUBLE_EQ(read.registration.max_correspondence, d.registration.max_correspondence);
+  EXPECT_DOUBLE_EQ(read.registration.huber, d.registration.huber);
+  // 37 of the odometry (12 registration/*), 21 of the back-end (graph/*, loop/*), 9 of the
+  // radar_odometry nodelet (input/*, frames); config_consistency_test audits all of them.
+  EXPECT_EQ(yaml.keys().size(), 67u);
   const YamlParamReader bad = YamlParamReader::fromString("features:\n  detector: cfra\n");
   RadarOdometryParams p;
   EXPECT_FALSE(readParams(bad, p, &error));

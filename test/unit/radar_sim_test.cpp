@@ -169,7 +169,7 @@ TEST(RadarSim, OdometryFollowsTheTruthAndSurvivesATruncatedPng) {
 
   radar::RadarDriveOptions options;
   const radar::RadarDriveResult r =
-      radar::runMulranRadarOdometry(dir, radar::RadarOdometryParams(), options);
+      radar::runMulranRadarSlam(dir, radar::RadarSlamParams(), options);
   ASSERT_TRUE(r.ok) << r.error;
   ASSERT_EQ(r.skipped.size(), 1u);
   EXPECT_NE(r.skipped[0].find("truncated PNG"), std::string::npos) << r.skipped[0];

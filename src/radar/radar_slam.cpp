@@ -1,0 +1,292 @@
+#include "osm_graph_slam/radar/radar_slam.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <unordered_set>
+
+#include "osm_graph_slam/common/param_reader.h"
+#include "osm_graph_slam/graph/pose_graph.h"
+
+namespace osm_graph_slam::radar {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+Pose2 toPose2(const Eigen::Isometry2d& T) {
+  return {T.translation().x(), T.translation().y(), std::atan2(T.linear()(1, 0), T.linear()(0, 0))};
+}
+
+Eigen::Isometry2d toIsometry(const Pose2& p) {
+  Eigen::Isometry2d T = Eigen::Isometry2d::Identity();
+  T.linear() = p.rotation();
+  T.translation() = p.translation();
+  return T;
+}
+
+Eigen::Matrix3d diagonalInformation(double sigma_xy, double sigma_yaw) {
+  return Eigen::Vector3d(1.0 / (sigma_xy * sigma_xy), 1.0 / (sigma_xy * sigma_xy),
+                         1.0 / (sigma_yaw * sigma_yaw))
+      .asDiagonal();
+}
+
+/// One point per cell (the first seen): submaps of overlapping keyframes repeat every wall.
+std::vector<Eigen::Vector2d> thinToGrid(const std::vector<Eigen::Vector2d>& points, double cell) {
+  std::unordered_set<int64_t> taken;
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(points.size());
+  for (const Eigen::Vector2d& p : points) {
+    const int64_t cx = int64_t(std::floor(p.x() / cell)) + (1 << 20);
+    const int64_t cy = int64_t(std::floor(p.y() / cell)) + (1 << 20);
+    if (taken.insert((cx << 21) | cy).second) out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace
+
+ScanContext radarScanContext(const std::vector<Eigen::Vector2d>& points,
+                             const std::vector<float>& powers, const ScanContextParams& params) {
+  Eigen::MatrixXf cells =
+      Eigen::MatrixXf::Zero(std::max(1, params.num_rings), std::max(1, params.num_sectors));
+  for (size_t i = 0; i < points.size() && i < powers.size(); ++i) {
+    int ring, sector;
+    if (!scanContextCell(points[i].x(), points[i].y(), params, &ring, &sector)) continue;
+    float& c = cells(ring, sector);
+    c = std::max(c, std::clamp(powers[i] / 255.0f, 0.0f, 1.0f));
+  }
+  return scanContextFromCells(cells);
+}
+
+bool readSlamParams(const ParamReader& r, RadarSlamParams& p, std::string* error) {
+  if (!readParams(r, p.odometry, error)) return false;
+  RadarGraphParams& g = p.graph;
+  r.param("graph/sigma_translation_per_m", g.sigma_translation_per_m);
+  r.param("graph/sigma_yaw_deg_per_m", g.sigma_yaw_deg_per_m);
+  r.param("graph/min_sigma_translation", g.min_sigma_translation);
+  r.param("graph/min_sigma_yaw_deg", g.min_sigma_yaw_deg);
+  RadarLoopParams& l = p.loop;
+  r.param("loop/enabled", l.enabled);
+  r.param("loop/min_travel", l.min_travel);
+  r.param("loop/search_radius", l.search_radius);
+  r.param("loop/scan_context_threshold", l.scan_context_threshold);
+  r.param("loop/max_candidates", l.max_candidates);
+  r.param("loop/submap_travel", l.submap_travel);
+  r.param("loop/max_rms", l.max_rms);
+  r.param("loop/min_overlap", l.min_overlap);
+  r.param("loop/gate_base", l.gate_base);
+  r.param("loop/gate_fraction", l.gate_fraction);
+  r.param("loop/sigma_translation", l.sigma_translation);
+  r.param("loop/sigma_yaw_deg", l.sigma_yaw_deg);
+  r.param("loop/kernel_width", l.kernel_width);
+  r.param("loop/scan_context/num_rings", l.scan_context.num_rings);
+  r.param("loop/scan_context/num_sectors", l.scan_context.num_sectors);
+  r.param("loop/scan_context/max_radius", l.scan_context.max_radius);
+  r.param("loop/scan_context/min_radius", l.scan_context.min_radius);
+  if (g.min_sigma_translation <= 0 || g.min_sigma_yaw_deg <= 0 || l.sigma_translation <= 0 ||
+      l.sigma_yaw_deg <= 0 || l.kernel_width <= 0 || l.scan_context.num_rings < 1 ||
+      l.scan_context.num_sectors < 1 || l.scan_context.max_radius <= 0) {
+    if (error)
+      *error =
+          "radar parameters: graph/min_sigma_*, loop/sigma_*, loop/kernel_width and the scan "
+          "context grid must be positive";
+    return false;
+  }
+  return true;
+}
+
+RadarSlam::RadarSlam(const RadarSlamParams& params)
+    : params_(params), odometry_(params.odometry), graph_(std::make_unique<PoseGraph>()) {}
+RadarSlam::~RadarSlam() = default;
+
+RadarOdometryStep RadarSlam::process(const RadarPolarScan& scan) {
+  RadarOdometryStep step = odometry_.process(scan);
+  if (!step.first) travel_ += step.relative.translation().norm();
+  sweep_times_.push_back(step.time);
+  sweep_odom_.push_back(step.pose);
+  if (step.keyframe) addKeyframe(step);
+  sweep_keyframe_.push_back(int(keyframes_.size()) - 1);
+  return step;
+}
+
+void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
+  const int k = int(keyframes_.size());
+  Keyframe kf;
+  kf.odom = step.pose;
+  kf.travel = travel_;
+  kf.points = step.points;
+  const auto t0 = Clock::now();
+  std::vector<float> powers;
+  powers.reserve(step.feature_set.features.size());
+  for (const RadarFeature& f : step.feature_set.features) powers.push_back(f.power);
+  kf.descriptor = radarScanContext(kf.points, powers, params_.loop.scan_context);
+  stats_.ms_descriptor += msSince(t0);
+  if (k == 0) {
+    graph_->addVertexSE2(0, toPose2(kf.odom), true);
+  } else {
+    const Keyframe& prev = keyframes_.back();
+    const Eigen::Isometry2d rel = prev.odom.inverse() * kf.odom;
+    graph_->addVertexSE2(k, toPose2(estimate(k - 1) * rel));
+    const RadarGraphParams& g = params_.graph;
+    const double d = kf.travel - prev.travel;
+    const double st = std::max(g.min_sigma_translation, g.sigma_translation_per_m * d);
+    const double sy = std::max(g.min_sigma_yaw_deg, g.sigma_yaw_deg_per_m * d) * M_PI / 180.0;
+    graph_->addEdgeSE2(k - 1, k, toPose2(rel), diagonalInformation(st, sy));
+  }
+  keyframes_.push_back(std::move(kf));
+  if (params_.loop.enabled) searchLoops(k);
+}
+
+Eigen::Isometry2d RadarSlam::estimate(int k) const {
+  const std::optional<Pose2> p = graph_->vertexSE2(k);
+  return p ? toIsometry(*p) : keyframes_[size_t(k)].odom;
+}
+
+std::vector<Eigen::Vector2d> RadarSlam::submap(int center, bool past_only) const {
+  const Keyframe& c = keyframes_[size_t(center)];
+  const Eigen::Isometry2d to_center = c.odom.inverse();
+  std::vector<Eigen::Vector2d> out;
+  for (int k = center;
+       k >= 0 && c.travel - keyframes_[size_t(k)].travel <= params_.loop.submap_travel; --k) {
+    const Eigen::Isometry2d T = to_center * keyframes_[size_t(k)].odom;
+    for (const Eigen::Vector2d& p : keyframes_[size_t(k)].points) out.push_back(T * p);
+  }
+  if (!past_only)
+    for (int k = center + 1; k < int(keyframes_.size()) &&
+                             keyframes_[size_t(k)].travel - c.travel <= params_.loop.submap_travel;
+         ++k) {
+      const Eigen::Isometry2d T = to_center * keyframes_[size_t(k)].odom;
+      for (const Eigen::Vector2d& p : keyframes_[size_t(k)].points) out.push_back(T * p);
+    }
+  return thinToGrid(out, 0.5);
+}
+
+void RadarSlam::searchLoops(int query) {
+  const RadarLoopParams& lp = params_.loop;
+  const Keyframe& q = keyframes_[size_t(query)];
+  ++stats_.keyframes_searched;
+  auto t0 = Clock::now();
+  const Eigen::Isometry2d eq = estimate(query);
+  struct Candidate {
+    int index;
+    double score;  // metres (odometry) or descriptor distance
+    bool by_descriptor;
+    Eigen::Isometry2d guess;
+  };
+  std::vector<Candidate> near, similar;
+  for (int j = 0; j < query; ++j) {
+    const Keyframe& c = keyframes_[size_t(j)];
+    if (q.travel - c.travel < lp.min_travel) break;  // keyframes are in travel order
+    const Eigen::Isometry2d ej = estimate(j);
+    const double d = (ej.translation() - eq.translation()).norm();
+    if (d < lp.search_radius) near.push_back({j, d, false, ej.inverse() * eq});
+    const ScanContextMatch m = matchScanContexts(q.descriptor, c.descriptor, lp.scan_context);
+    if (m.distance < lp.scan_context_threshold) {
+      // The descriptor only knows the yaw: p_candidate = Rz(yaw) p_query, same place.
+      Eigen::Isometry2d guess = Eigen::Isometry2d::Identity();
+      guess.linear() = Eigen::Rotation2Dd(m.yaw).toRotationMatrix();
+      similar.push_back({j, m.distance, true, guess});
+    }
+  }
+  auto byScore = [](const Candidate& a, const Candidate& b) { return a.score < b.score; };
+  std::sort(near.begin(), near.end(), byScore);
+  std::sort(similar.begin(), similar.end(), byScore);
+  std::vector<Candidate> candidates;
+  for (size_t i = 0;
+       int(candidates.size()) < lp.max_candidates && (i < near.size() || i < similar.size()); ++i) {
+    if (i < near.size()) candidates.push_back(near[i]);
+    if (i < similar.size() && int(candidates.size()) < lp.max_candidates)
+      candidates.push_back(similar[i]);
+  }
+  stats_.ms_search += msSince(t0);
+  stats_.candidates += int(candidates.size());
+  for (const Candidate& c : candidates) {
+    t0 = Clock::now();
+    RadarLoop loop;
+    const bool ok = verify(query, c.index, c.guess, loop);
+    stats_.ms_verify += msSince(t0);
+    ++stats_.verified;
+    if (!ok) {
+      ++stats_.rejected_registration;
+      continue;
+    }
+    // Gate: the loop may not move the query further than the odometry can have drifted.
+    const Eigen::Isometry2d predicted = estimate(c.index).inverse() * eq;
+    const double jump = (predicted.translation() - loop.measurement.translation()).norm();
+    const double travel = q.travel - keyframes_[size_t(c.index)].travel;
+    if (jump > lp.gate_base + lp.gate_fraction * travel) {
+      ++stats_.rejected_gate;
+      continue;
+    }
+    loop.by_scan_context = c.by_descriptor;
+    EdgeOptions options;
+    options.kernel = RobustKernel::cauchy(lp.kernel_width);
+    graph_->addEdgeSE2(loop.from, loop.to, toPose2(loop.measurement),
+                       diagonalInformation(lp.sigma_translation, lp.sigma_yaw_deg * M_PI / 180.0),
+                       options);
+    loops_.push_back(loop);
+    ++stats_.accepted;
+    optimise();
+    break;  // one loop per keyframe; the next keyframes add more where the revisit goes on
+  }
+}
+
+bool RadarSlam::verify(int query, int candidate, const Eigen::Isometry2d& guess, RadarLoop& loop) {
+  const RadarLoopParams& lp = params_.loop;
+  PlanarPointMap target;
+  RadarRegistrationParams rp = params_.odometry.registration;
+  target.build(submap(candidate, false), rp);
+  const std::vector<Eigen::Vector2d> source = submap(query, true);
+  if (source.empty() || target.size() == 0) return false;
+  RadarAlignment a;
+  a.pose = guess;
+  for (double radius : {4.0, 2.0, 1.0}) {  // coarse to fine: the guess may be metres off
+    rp.max_correspondence = radius;
+    a = target.align(source, a.pose, rp);
+    if (!a.ok) return false;
+  }
+  loop.from = candidate;
+  loop.to = query;
+  loop.measurement = a.pose;
+  loop.rms = a.rms;
+  loop.overlap = double(a.correspondences) / double(source.size());
+  return a.rms <= lp.max_rms && loop.overlap >= lp.min_overlap;
+}
+
+void RadarSlam::optimise() {
+  const auto t0 = Clock::now();
+  OptimizerOptions options;
+  options.max_iterations = 50;
+  graph_->optimize(INT_MAX, options);
+  stats_.ms_optimise += msSince(t0);
+}
+
+void RadarSlam::finish() {
+  if (!loops_.empty()) optimise();
+}
+
+Eigen::Isometry2d RadarSlam::mapToOdometry() const {
+  if (keyframes_.empty()) return Eigen::Isometry2d::Identity();
+  const int k = int(keyframes_.size()) - 1;
+  return estimate(k) * keyframes_.back().odom.inverse();
+}
+
+std::vector<Eigen::Isometry2d> RadarSlam::sweepPoses() const {
+  std::vector<Eigen::Isometry2d> out;
+  out.reserve(sweep_odom_.size());
+  for (size_t i = 0; i < sweep_odom_.size(); ++i) {
+    const int k = std::max(0, sweep_keyframe_[i]);
+    if (keyframes_.empty()) {
+      out.push_back(sweep_odom_[i]);
+      continue;
+    }
+    const Keyframe& kf = keyframes_[size_t(k)];
+    out.push_back(estimate(k) * kf.odom.inverse() * sweep_odom_[i]);
+  }
+  return out;
+}
+
+}  // namespace osm_graph_slam::radar
