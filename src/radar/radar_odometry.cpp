@@ -48,10 +48,12 @@ bool readParams(const ParamReader& r, RadarOdometryParams& p, std::string* error
   r.param("registration/iterations", g.iterations);
   r.param("registration/huber", g.huber);
   r.param("registration/min_correspondences", g.min_correspondences);
+  r.param("registration/min_translation_ratio", g.min_translation_ratio);
   r.param("registration/search_below_overlap", g.search_below_overlap);
   r.param("registration/yaw_search_deg", g.yaw_search_deg);
   r.param("registration/yaw_search_step_deg", g.yaw_search_step_deg);
   r.param("registration/velocity_from_registration", g.velocity_from_registration);
+  r.param("registration/recompensate", g.recompensate);
   r.param("ratio_test", p.ratio_test);
   r.param("keyframe_translation", p.keyframe_translation);
   r.param("keyframe_rotation_deg", p.keyframe_rotation_deg);
@@ -150,6 +152,24 @@ void RadarOdometry::refine(RadarOdometryStep& step, const Eigen::Isometry2d& pre
         if (b.ok && (!a.ok || b.correspondences > a.correspondences)) a = b;
       }
     ++step.yaw_searches;
+  }
+  if (a.ok && rp.recompensate) {
+    // The sweep was de-skewed with the previous velocity; in a sharp turn from standstill it is
+    // off by degrees within the sweep. De-skew again with the registered motion and re-align.
+    const Eigen::Vector3d registered =
+        se2Log(previous_pose.inverse() * a.pose) / std::max(1e-3, step.time - previous_time_);
+    if ((registered - velocity_).cwiseAbs().maxCoeff() > 0.02) {
+      const Eigen::Vector3d used = velocity_;
+      velocity_ = registered;
+      std::vector<Eigen::Vector2d> again = sweepPoints(step.feature_set, step.time);
+      const RadarAlignment b = local_map_.align(again, a.pose);
+      if (b.ok && b.correspondences >= a.correspondences) {
+        a = b;
+        step.points = std::move(again);
+      } else {
+        velocity_ = used;
+      }
+    }
   }
   step.registration_correspondences = a.correspondences;
   if (a.ok) {

@@ -66,6 +66,7 @@ bool readSlamParams(const ParamReader& r, RadarSlamParams& p, std::string* error
   RadarGraphParams& g = p.graph;
   r.param("graph/sigma_translation_per_m", g.sigma_translation_per_m);
   r.param("graph/sigma_yaw_deg_per_m", g.sigma_yaw_deg_per_m);
+  r.param("graph/sigma_yaw_per_rad", g.sigma_yaw_per_rad);
   r.param("graph/min_sigma_translation", g.min_sigma_translation);
   r.param("graph/min_sigma_yaw_deg", g.min_sigma_yaw_deg);
   RadarLoopParams& l = p.loop;
@@ -133,7 +134,9 @@ void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
     const RadarGraphParams& g = params_.graph;
     const double d = kf.travel - prev.travel;
     const double st = std::max(g.min_sigma_translation, g.sigma_translation_per_m * d);
-    const double sy = std::max(g.min_sigma_yaw_deg, g.sigma_yaw_deg_per_m * d) * M_PI / 180.0;
+    const double turned = std::abs(std::atan2(rel.linear()(1, 0), rel.linear()(0, 0)));
+    const double sy = std::max(g.min_sigma_yaw_deg, g.sigma_yaw_deg_per_m * d) * M_PI / 180.0 +
+                      g.sigma_yaw_per_rad * turned;
     graph_->addEdgeSE2(k - 1, k, toPose2(rel), diagonalInformation(st, sy));
   }
   keyframes_.push_back(std::move(kf));

@@ -206,9 +206,9 @@ TEST(RadarConfig, YamlEqualsTheDefaults) {
   EXPECT_EQ(read.registration.submap_keyframes, d.registration.submap_keyframes);
   EXPECT_DOUBLE_EQ(read.registration.max_correspondence, d.registration.max_correspondence);
   EXPECT_DOUBLE_EQ(read.registration.huber, d.registration.huber);
-  // 37 of the odometry (12 registration/*), 21 of the back-end (graph/*, loop/*), 9 of the
+  // 39 of the odometry (14 registration/*), 22 of the back-end (graph/*, loop/*), 9 of the
   // radar_odometry nodelet (input/*, frames); config_consistency_test audits all of them.
-  EXPECT_EQ(yaml.keys().size(), 67u);
+  EXPECT_EQ(yaml.keys().size(), 70u);
   const YamlParamReader bad = YamlParamReader::fromString("features:\n  detector: cfra\n");
   RadarOdometryParams p;
   EXPECT_FALSE(readParams(bad, p, &error));

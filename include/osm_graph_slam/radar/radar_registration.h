@@ -23,6 +23,9 @@ struct RadarRegistrationParams {
   int iterations = 12;              ///< Gauss-Newton iterations (re-associating each time)
   double huber = 0.25;              ///< [m] robust kernel width
   int min_correspondences = 40;     ///< fewer: the registration is not trusted
+  /// Smaller / larger eigenvalue of the translation information (yaw marginalised) below this:
+  /// degenerate (one wall direction only), not trusted.
+  double min_translation_ratio = 1e-3;
   /// When the feature velocity failed or the aligned sweep overlaps the map less than
   /// search_below_overlap, yaw hypotheses every yaw_search_step_deg up to +-yaw_search_deg around
   /// the prediction are aligned too and the best kept: a sharp turn from standstill rotates a
@@ -31,6 +34,7 @@ struct RadarRegistrationParams {
   double yaw_search_deg = 20.0;
   double yaw_search_step_deg = 4.0;
   bool velocity_from_registration = true;  ///< next prediction from the registered motion
+  bool recompensate = false;  ///< de-skew again with the registered motion and re-align
 };
 
 /// The detections of one sweep at its reference time t_ref, in the sensor frame at t_ref: each

@@ -44,6 +44,7 @@ struct RadarLoopParams {
 struct RadarGraphParams {
   double sigma_translation_per_m = 0.02;  ///< odometry edge sigma grows with the distance
   double sigma_yaw_deg_per_m = 0.02;
+  double sigma_yaw_per_rad = 0.05;      ///< + this fraction of the angle turned between keyframes
   double min_sigma_translation = 0.05;  ///< [m]
   double min_sigma_yaw_deg = 0.05;
 };
