@@ -118,6 +118,7 @@ void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
   Keyframe kf;
   kf.odom = step.pose;
   kf.travel = travel_;
+  kf.time = step.time;
   kf.points = step.points;
   const auto t0 = Clock::now();
   std::vector<float> powers;
@@ -253,6 +254,8 @@ bool RadarSlam::verify(int query, int candidate, const Eigen::Isometry2d& guess,
   }
   loop.from = candidate;
   loop.to = query;
+  loop.from_time = keyframes_[size_t(candidate)].time;
+  loop.to_time = keyframes_[size_t(query)].time;
   loop.measurement = a.pose;
   loop.rms = a.rms;
   loop.overlap = double(a.correspondences) / double(source.size());

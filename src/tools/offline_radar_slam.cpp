@@ -48,6 +48,38 @@ nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
           {"end_drift_percent", length > 0 ? 100.0 * e.ate_per_pose.back() / length : 0.0}};
 }
 
+/// Each accepted loop's measurement against the ground truth of its two keyframes: the largest
+/// errors and how many exceed max_m or max_deg (false loops).
+nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double max_deg) {
+  const double origin = r.odometry.empty() ? 0.0 : r.odometry.front().stamp - r.steps.front().time;
+  auto truthAt = [&](double t, Eigen::Isometry2d& T) {
+    for (const StampedPose& p : r.ground_truth)
+      if (std::abs(p.stamp - (origin + t)) < 1e-4) {
+        T.setIdentity();
+        T.linear() = p.pose.linear().topLeftCorner<2, 2>();
+        T.translation() = p.pose.translation().head<2>();
+        return true;
+      }
+    return false;
+  };
+  int checked = 0, wrong = 0;
+  double worst_m = 0, worst_deg = 0;
+  for (const radar::RadarLoop& l : r.loops) {
+    Eigen::Isometry2d a, b;
+    if (!truthAt(l.from_time, a) || !truthAt(l.to_time, b)) continue;
+    const Eigen::Isometry2d e = (a.inverse() * b).inverse() * l.measurement;
+    const double m = e.translation().norm();
+    const double deg = std::abs(std::atan2(e.linear()(1, 0), e.linear()(0, 0))) * 180 / M_PI;
+    ++checked;
+    if (m > max_m || deg > max_deg) ++wrong;
+    worst_m = std::max(worst_m, m);
+    worst_deg = std::max(worst_deg, deg);
+  }
+  return {{"checked", checked},        {"false", wrong},
+          {"false_if_above_m", max_m}, {"false_if_above_deg", max_deg},
+          {"worst_m", worst_m},        {"worst_deg", worst_deg}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -163,6 +195,7 @@ int main(int argc, char** argv) {
                                    double(r.keyframes)
                              : 0.0}};
   if (!r.ground_truth.empty()) {
+    j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0);
     j["accuracy"] = accuracyOf(r.odometry, r.ground_truth);
     j["accuracy_slam"] = accuracyOf(r.trajectory, r.ground_truth);
   }

@@ -59,7 +59,8 @@ struct RadarSlamParams {
 bool readSlamParams(const ParamReader& reader, RadarSlamParams& params, std::string* error);
 
 struct RadarLoop {
-  int from = -1, to = -1;  ///< keyframe indices (from is the older one)
+  int from = -1, to = -1;                 ///< keyframe indices (from is the older one)
+  double from_time = 0.0, to_time = 0.0;  ///< the keyframes' sweep reference times [s]
   Eigen::Isometry2d measurement = Eigen::Isometry2d::Identity();  ///< to in from's frame
   double rms = 0.0, overlap = 0.0;
   bool by_scan_context = false;  ///< found by the descriptor (else by the odometry estimate)
@@ -94,6 +95,7 @@ class RadarSlam {
   struct Keyframe {
     Eigen::Isometry2d odom;               ///< odometry pose
     double travel = 0.0;                  ///< [m] path length up to here
+    double time = 0.0;                    ///< the sweep reference time
     std::vector<Eigen::Vector2d> points;  ///< in the keyframe frame
     ScanContext descriptor;
   };
