@@ -1,8 +1,9 @@
 // RadarOdometryNodelet: radar/polar (sensor_msgs/Image, mono8, one row per azimuth, as mulran2bag
-// writes it) -> RadarOdometryStream (radar_stream.h: checks, conversion, odometry) -> radar/odom,
+// writes it) -> RadarOdometryStream (radar_stream.h: checks, conversion, RadarSlam) -> radar/odom,
 // TF radar_odom -> the image's frame, radar/path, radar/features (x y z power) and radar/status
-// (diagnostic_msgs/DiagnosticArray, one entry per image). doc/radar.md "ROS: radar_odometry
-// nodelet and radar.launch".
+// (diagnostic_msgs/DiagnosticArray, one entry per image). With loop/enabled also the back-end's
+// TF radar_map -> radar_odom, radar/slam_path (corrected sweep poses) and radar/loops (the loop
+// edges). doc/radar.md "ROS: radar_odometry nodelet and radar.launch", "Radar SLAM through ROS".
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -13,11 +14,13 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "osm_graph_slam/radar/radar_drive.h"
 #include "osm_graph_slam/radar/radar_stream.h"
@@ -33,25 +36,34 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     const RosParamReader reader(pnh);
-    radar::RadarOdometryParams odometry_params;
+    radar::RadarSlamParams slam_params;
     radar::RadarStreamParams stream_params;
     std::string error;
     if (!readParams(reader, node_params_, &error) ||
-        !radar::readParams(reader, odometry_params, &error) ||
+        !radar::readSlamParams(reader, slam_params, &error) ||
         !radar::readParams(reader, stream_params, &error)) {
       NODELET_ERROR("radar odometry NOT started (no subscription): %s", error.c_str());
       return;
     }
-    stream_ = std::make_unique<radar::RadarOdometryStream>(odometry_params, stream_params);
+    stream_ = std::make_unique<radar::RadarOdometryStream>(slam_params, stream_params);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("radar/odom", 10);
     path_pub_ = nh.advertise<nav_msgs::Path>("radar/path", 1, true);
     features_pub_ = nh.advertise<sensor_msgs::PointCloud2>("radar/features", 2);
     status_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("radar/status", 10);
+    if (stream_->loopsEnabled()) {
+      slam_path_pub_ = nh.advertise<nav_msgs::Path>("radar/slam_path", 1, true);
+      loops_pub_ = nh.advertise<visualization_msgs::MarkerArray>("radar/loops", 1, true);
+    }
     sub_ = nh.subscribe("radar/polar", 10, &RadarOdometryNodelet::onImage, this);
-    NODELET_INFO("radar odometry: %s features, %d x %d images, max gap %.2f s, %s -> image frame",
-                 odometry_params.features.detector.c_str(), stream_params.layout.expected_bins,
-                 stream_params.layout.expected_azimuths, stream_params.max_gap,
-                 node_params_.radar_odom_frame.c_str());
+    const std::string loops = stream_->loopsEnabled() ? "on, TF " + node_params_.radar_map_frame +
+                                                            " -> " + node_params_.radar_odom_frame
+                                                      : "off";
+    NODELET_INFO(
+        "radar odometry: %s features, %d x %d images, max gap %.2f s, %s -> image frame; loop "
+        "closure %s",
+        slam_params.odometry.features.detector.c_str(), stream_params.layout.expected_bins,
+        stream_params.layout.expected_azimuths, stream_params.max_gap,
+        node_params_.radar_odom_frame.c_str(), loops.c_str());
   }
 
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
@@ -93,6 +105,13 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       stamp.fromNSec(uint64_t(r.time_ns));
       publishOdometry(stamp, frame, r.step);
       publishFeatures(stamp, frame, r.step.feature_set);
+      if (stream_->loopsEnabled()) publishSlam(stamp, r);
+      if (r.new_loops > 0) {
+        const radar::RadarLoopStats& ls = stream_->slam().loopStats();
+        NODELET_INFO("radar loop closed: keyframes %d - %d (%d accepted, %d candidates)",
+                     stream_->slam().loops().back().from, stream_->slam().loops().back().to,
+                     ls.accepted, ls.candidates);
+      }
     }
     publishStatus(msg->header.stamp, frame, r);
   }
@@ -125,6 +144,67 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       tf.transform = toTransformMsg(pose);
       tf_broadcaster_.sendTransform(tf);
     }
+  }
+
+  /// The back-end: TF radar_map -> radar_odom (every sweep), radar/slam_path (appended; rebuilt
+  /// from the corrected poses when a loop moved them) and radar/loops (when a loop is accepted).
+  void publishSlam(const ros::Time& stamp, const radar::RadarStreamResult& r) {
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = stamp;
+    tf.header.frame_id = node_params_.radar_map_frame;
+    tf.child_frame_id = node_params_.radar_odom_frame;
+    tf.transform = toTransformMsg(radar::planarTo3d(r.map_to_odometry));
+    tf_broadcaster_.sendTransform(tf);
+
+    slam_path_.header.stamp = stamp;
+    slam_path_.header.frame_id = node_params_.radar_map_frame;
+    auto poseStamped = [this](int64_t time_ns, const Eigen::Isometry2d& pose) {
+      geometry_msgs::PoseStamped ps;
+      ps.header.stamp.fromNSec(uint64_t(time_ns));
+      ps.header.frame_id = node_params_.radar_map_frame;
+      ps.pose = toPoseMsg(radar::planarTo3d(pose));
+      return ps;
+    };
+    if (r.new_loops > 0) {
+      const radar::RadarSlam& slam = stream_->slam();
+      const std::vector<Eigen::Isometry2d> poses = slam.sweepPoses();
+      const std::vector<double>& times = slam.sweepTimes();
+      slam_path_.poses.clear();
+      slam_path_.poses.reserve(poses.size());
+      for (size_t i = 0; i < poses.size() && i < times.size(); ++i)
+        slam_path_.poses.push_back(poseStamped(stream_->toInputTime(times[i]), poses[i]));
+      publishLoops(stamp);
+    } else {
+      slam_path_.poses.push_back(poseStamped(r.time_ns, r.corrected));
+    }
+    slam_path_pub_.publish(slam_path_);
+  }
+
+  /// One LINE_LIST of the accepted loop edges between the corrected keyframe positions.
+  void publishLoops(const ros::Time& stamp) {
+    visualization_msgs::MarkerArray array;
+    visualization_msgs::Marker m;
+    m.header.stamp = stamp;
+    m.header.frame_id = node_params_.radar_map_frame;
+    m.ns = "radar_loops";
+    m.id = 0;
+    m.type = visualization_msgs::Marker::LINE_LIST;
+    m.action = visualization_msgs::Marker::ADD;
+    m.pose.orientation.w = 1.0;
+    m.scale.x = 0.4;
+    m.color.r = 1.0f;
+    m.color.g = 0.2f;
+    m.color.b = 0.2f;
+    m.color.a = 1.0f;
+    for (const auto& segment : stream_->slam().loopSegments())
+      for (const Eigen::Vector2d& p : {segment.first, segment.second}) {
+        geometry_msgs::Point q;
+        q.x = p.x();
+        q.y = p.y();
+        m.points.push_back(q);
+      }
+    array.markers.push_back(m);
+    loops_pub_.publish(array);
   }
 
   /// The sweep's features in the image frame (each as seen at its own row time), z = 0.
@@ -189,15 +269,25 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
     add("rms_error_m", num(r.has_step ? r.step.rms_error : 0.0));
     add("ms_per_scan", num(c.ms_last));
     add("ms_per_scan_mean", num(c.ms_mean));
+    if (stream_->loopsEnabled()) {
+      const radar::RadarSlam& slam = stream_->slam();
+      const radar::RadarLoopStats& ls = slam.loopStats();
+      add("keyframes", std::to_string(slam.numKeyframes()));
+      add("loops_accepted", std::to_string(ls.accepted));
+      add("loop_candidates", std::to_string(ls.candidates));
+      add("loops_rejected_registration", std::to_string(ls.rejected_registration));
+      add("loops_rejected_gate", std::to_string(ls.rejected_gate));
+      add("loop_ms_per_keyframe", num(c.ms_loop_per_keyframe));
+    }
     array->status.push_back(s);
     status_pub_.publish(boost::shared_ptr<const diagnostic_msgs::DiagnosticArray>(array));
   }
 
   RadarOdometryNodeletParams node_params_;  ///< frames, TF, throttling (nodelet_params.h)
   std::unique_ptr<radar::RadarOdometryStream> stream_;
-  nav_msgs::Path path_;
+  nav_msgs::Path path_, slam_path_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
-  ros::Publisher odom_pub_, path_pub_, features_pub_, status_pub_;
+  ros::Publisher odom_pub_, path_pub_, features_pub_, status_pub_, slam_path_pub_, loops_pub_;
   ros::Subscriber sub_;
 };
 

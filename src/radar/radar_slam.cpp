@@ -280,6 +280,21 @@ Eigen::Isometry2d RadarSlam::mapToOdometry() const {
   return estimate(k) * keyframes_.back().odom.inverse();
 }
 
+std::vector<Eigen::Isometry2d> RadarSlam::keyframePoses() const {
+  std::vector<Eigen::Isometry2d> out;
+  out.reserve(keyframes_.size());
+  for (int k = 0; k < int(keyframes_.size()); ++k) out.push_back(estimate(k));
+  return out;
+}
+
+std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> RadarSlam::loopSegments() const {
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> out;
+  out.reserve(loops_.size());
+  for (const RadarLoop& l : loops_)
+    out.emplace_back(estimate(l.from).translation(), estimate(l.to).translation());
+  return out;
+}
+
 std::vector<Eigen::Isometry2d> RadarSlam::sweepPoses() const {
   std::vector<Eigen::Isometry2d> out;
   out.reserve(sweep_odom_.size());

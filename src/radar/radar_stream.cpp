@@ -67,7 +67,7 @@ RadarStreamResult RadarOdometryStream::process(const PolarImageView& image, int6
   if (has_last_) {
     const double gap = double(stamp_ns - last_stamp_ns_) * 1e-9;
     if (gap > params_.max_gap) {
-      odometry_.restart();
+      slam_.restart();
       ++counters_.gaps;
       result.event = RadarStreamEvent::kRestarted;
       char text[200];
@@ -80,15 +80,28 @@ RadarStreamResult RadarOdometryStream::process(const PolarImageView& image, int6
   }
   has_last_ = true;
   last_stamp_ns_ = stamp_ns;
-  result.step = odometry_.process(converted.scan);
+  const size_t loops_before = slam_.loops().size();
+  result.step = slam_.process(converted.scan);
   result.has_step = true;
-  result.time_ns = origin_ns_ + std::llround(result.step.time * 1e9);
+  result.time_ns = toInputTime(result.step.time);
+  result.new_loops = int(slam_.loops().size() - loops_before);
+  result.map_to_odometry = slam_.mapToOdometry();
+  result.corrected = result.map_to_odometry * result.step.pose;
   ++counters_.processed;
   if (!result.step.ok) ++counters_.ransac_failures;
   counters_.ms_last =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   counters_.ms_mean += (counters_.ms_last - counters_.ms_mean) / double(counters_.processed);
+  const RadarLoopStats& ls = slam_.loopStats();
+  if (ls.keyframes_searched > 0)
+    counters_.ms_loop_per_keyframe =
+        (ls.ms_descriptor + ls.ms_search + ls.ms_verify + ls.ms_optimise) /
+        double(ls.keyframes_searched);
   return result;
+}
+
+int64_t RadarOdometryStream::toInputTime(double time) const {
+  return origin_ns_ + std::llround(time * 1e9);
 }
 
 }  // namespace osm_graph_slam::radar

@@ -62,12 +62,16 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
 
 bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string* error) {
   r.param("radar_odom_frame", p.radar_odom_frame);
+  r.param("radar_map_frame", p.radar_map_frame);
   r.param("radar_frame", p.radar_frame);
   r.param("publish_tf", p.publish_tf);
   r.param("warn_throttle_period", p.warn_throttle_period);
-  if (p.radar_odom_frame.empty() || p.radar_frame.empty() || !(p.warn_throttle_period > 0.0)) {
+  if (p.radar_odom_frame.empty() || p.radar_map_frame.empty() || p.radar_frame.empty() ||
+      p.radar_map_frame == p.radar_odom_frame || !(p.warn_throttle_period > 0.0)) {
     if (error)
-      *error = "radar_odom_frame and radar_frame must not be empty, warn_throttle_period > 0";
+      *error =
+          "radar_odom_frame, radar_map_frame and radar_frame must not be empty, radar_map_frame "
+          "!= radar_odom_frame, warn_throttle_period > 0";
     return false;
   }
   return true;

@@ -183,3 +183,53 @@ TEST(RadarStream, DropsBadInputRestartsAfterAGapAndFollowsTheSweeps) {
   EXPECT_EQ(c.ransac_failures, 0u);
   EXPECT_GT(c.ms_mean, 0.0);
 }
+
+// The stream drives RadarSlam: without loops the corrected pose is the odometry's; with loops
+// enabled a gap restarts the odometry inside RadarSlam and the keyframe graph goes on (the pose
+// continues, the next keyframe hangs from the last one).
+TEST(RadarStream, RunsRadarSlamAndKeepsTheGraphThroughAGap) {
+  sim::SimulationParams sp;
+  sp.seed = 5;
+  sp.route.length = 200.0;
+  sp.city.blocks_x = sp.city.blocks_y = 4;
+  sim::UrbanSimulator world;
+  std::string error;
+  ASSERT_TRUE(world.build(sp, &error)) << error;
+  const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  std::vector<RadarPolarScan> sweeps;
+  for (size_t k = 0; k < 16; ++k) sweeps.push_back(radar.simulate(40 + k));
+  const int64_t t0 = 1700000000000000000;
+  const int64_t gap = 30000000000;
+  auto stamp = [&](size_t k) { return t0 + int64_t(k) * 250000000 + (k >= 8 ? gap : 0); };
+
+  RadarOdometryStream odometry_only{RadarOdometryParams(), RadarStreamParams()};
+  EXPECT_FALSE(odometry_only.loopsEnabled());
+  RadarSlamParams slam_params;
+  ASSERT_TRUE(slam_params.loop.enabled);
+  RadarOdometryStream slam{slam_params, RadarStreamParams()};
+  EXPECT_TRUE(slam.loopsEnabled());
+  size_t keyframes_before_gap = 0;
+  for (size_t k = 0; k < sweeps.size(); ++k) {
+    const RadarStreamResult a = odometry_only.process(viewOf(sweeps[k]), stamp(k));
+    const RadarStreamResult b = slam.process(viewOf(sweeps[k]), stamp(k));
+    ASSERT_TRUE(a.has_step && b.has_step) << k;
+    EXPECT_EQ(a.event, b.event) << k;
+    EXPECT_EQ(b.event, k == 8 ? RadarStreamEvent::kRestarted : RadarStreamEvent::kProcessed);
+    // The same odometry in both; no loop on 4 s of driving: the correction is identity.
+    EXPECT_TRUE(a.step.pose.isApprox(b.step.pose, 1e-9)) << k;
+    EXPECT_TRUE(a.corrected.isApprox(a.step.pose, 1e-12)) << k;
+    EXPECT_TRUE(b.corrected.isApprox(b.step.pose, 1e-9)) << k;
+    EXPECT_EQ(b.new_loops, 0);
+    EXPECT_EQ(b.time_ns, slam.toInputTime(slam.slam().sweepTimes().back()));
+    if (k == 7) keyframes_before_gap = slam.slam().numKeyframes();
+  }
+  // The first sweep after the gap is a keyframe of the same graph (restart keeps it), and the
+  // corrected sweep poses run on across the gap where the odometry's pose does.
+  EXPECT_GT(slam.slam().numKeyframes(), keyframes_before_gap + 1);
+  const std::vector<Eigen::Isometry2d> poses = slam.slam().sweepPoses();
+  ASSERT_EQ(poses.size(), sweeps.size());
+  EXPECT_LT((poses[8].translation() - poses[7].translation()).norm(), 1e-9);
+  EXPECT_GT(slam.counters().ms_loop_per_keyframe, 0.0);
+  EXPECT_EQ(slam.counters().gaps, 1u);
+  EXPECT_EQ(slam.slam().loopStats().accepted, 0);
+}

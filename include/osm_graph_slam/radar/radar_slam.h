@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "osm_graph_slam/loop/scan_context.h"
@@ -81,6 +82,10 @@ class RadarSlam {
   RadarOdometryStep process(const RadarPolarScan& scan);
   /// Final optimisation (all loops), call after the last sweep.
   void finish();
+  /// A gap in the input: the odometry forgets its velocity and local map (RadarOdometry::restart)
+  /// and its pose continues, so the next keyframe hangs from the last one by an odometry edge
+  /// that does not know the motion during the gap. The graph and the loops are kept.
+  void restart() { odometry_.restart(); }
 
   /// Corrected pose of every processed sweep (map frame = the first keyframe's odometry frame).
   std::vector<Eigen::Isometry2d> sweepPoses() const;
@@ -90,6 +95,10 @@ class RadarSlam {
   size_t numKeyframes() const { return keyframes_.size(); }
   /// The map -> odometry correction at the last keyframe.
   Eigen::Isometry2d mapToOdometry() const;
+  /// Corrected pose of every keyframe (map frame).
+  std::vector<Eigen::Isometry2d> keyframePoses() const;
+  /// The accepted loops as segments between the corrected keyframe positions (map frame).
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> loopSegments() const;
 
  private:
   struct Keyframe {

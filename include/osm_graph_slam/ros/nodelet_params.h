@@ -72,6 +72,8 @@ struct LocalizationNodeletParams {
 
 struct RadarOdometryNodeletParams {
   std::string radar_odom_frame = "radar_odom";  ///< parent of radar/odom and of the TF
+  /// Loop-corrected map frame (loop/enabled): TF radar_map_frame -> radar_odom_frame.
+  std::string radar_map_frame = "radar_map";
   /// Child frame when an image comes without a frame_id (mulran2bag's frame).
   std::string radar_frame = "radar_polar";
   bool publish_tf = true;             ///< TF radar_odom_frame -> the image's frame
