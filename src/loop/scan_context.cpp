@@ -33,15 +33,32 @@ ScanContext scanContextFromCells(const Eigen::MatrixXf& cells) {
   return sc;
 }
 
-bool scanContextCell(double x, double y, const ScanContextParams& params, int* ring, int* sector) {
+namespace {
+
+/// In the caller's precision: the LiDAR descriptor bins float points in float (the test of exact
+/// sector rotations depends on it), the radar one double points.
+template <typename T>
+bool cellOf(T x, T y, const ScanContextParams& params, int* ring, int* sector) {
   const int rings = std::max(1, params.num_rings);
   const int sectors = std::max(1, params.num_sectors);
-  const double range = std::hypot(x, y);
+  const double ring_width = params.max_radius / rings;
+  const double sector_width = 2.0 * M_PI / sectors;
+  const T range = std::hypot(x, y);
   if (!(range < params.max_radius) || range < params.min_radius) return false;
-  *ring = std::min(rings - 1, static_cast<int>(range / (params.max_radius / rings)));
+  *ring = std::min(rings - 1, static_cast<int>(range / ring_width));
   const double azimuth = std::atan2(y, x) + M_PI;  // [0, 2 pi]
-  *sector = std::min(sectors - 1, static_cast<int>(azimuth / (2.0 * M_PI / sectors)));
+  *sector = std::min(sectors - 1, static_cast<int>(azimuth / sector_width));
   return true;
+}
+
+}  // namespace
+
+bool scanContextCell(double x, double y, const ScanContextParams& params, int* ring, int* sector) {
+  return cellOf(x, y, params, ring, sector);
+}
+
+bool scanContextCell(float x, float y, const ScanContextParams& params, int* ring, int* sector) {
+  return cellOf(x, y, params, ring, sector);
 }
 
 ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params) {

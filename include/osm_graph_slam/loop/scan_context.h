@@ -39,6 +39,7 @@ struct ScanContextMatch {
 /// The (ring, sector) cell of a sensor-frame point (x, y); false outside [min_radius, max_radius).
 /// Shared by every descriptor built on this grid (LiDAR heights, radar powers).
 bool scanContextCell(double x, double y, const ScanContextParams& params, int* ring, int* sector);
+bool scanContextCell(float x, float y, const ScanContextParams& params, int* ring, int* sector);
 
 /// Builds the descriptor of a cloud given in the sensor frame (non-finite points are skipped).
 ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams& params);
