@@ -24,9 +24,14 @@
 
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/sim/radar_sim.h"
+#include "radar_rostest_utils.h"
 
 namespace osm_graph_slam {
 namespace {
+
+using radar_rostest::toImage;
+using radar_rostest::value;
+using radar_rostest::waitFor;
 
 constexpr size_t kSweeps = 48;  // 12 s of driving before the gap
 constexpr size_t kFirst = 20;   // the first simulated sweep (the car is under way)
@@ -41,51 +46,10 @@ struct Received {
   int feature_clouds = 0;
 };
 
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (done()) return true;
-    ros::WallDuration(0.01).sleep();
-  }
-  return done();
-}
-
-std::string value(const diagnostic_msgs::DiagnosticArray& a, const std::string& key) {
-  if (a.status.empty()) return "";
-  for (const auto& kv : a.status[0].values)
-    if (kv.key == key) return kv.value;
-  return "";
-}
-
-sensor_msgs::Image toImage(const radar::RadarPolarScan& s, const ros::Time& stamp) {
-  sensor_msgs::Image img;
-  img.header.stamp = stamp;
-  img.header.frame_id = "radar_polar";
-  img.height = uint32_t(s.num_azimuths);
-  img.width = uint32_t(s.num_bins);
-  img.encoding = "mono8";
-  img.step = img.width;
-  img.data = s.power;
-  return img;
-}
-
-class RadarOdometryRostest : public ::testing::Test {
+class RadarOdometryRostest : public radar_rostest::RadarImageFixture<Received> {
  protected:
   void SetUp() override {
-    // Before anything is published: /tf is not latched.
-    tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(60.0));
-    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
-    image_pub_ = nh_.advertise<sensor_msgs::Image>("radar/polar", 10);
-    odom_sub_ = nh_.subscribe<nav_msgs::Odometry>("radar/odom", 100,
-                                                  [this](const nav_msgs::OdometryConstPtr& m) {
-                                                    std::lock_guard<std::mutex> lock(rx_.mutex);
-                                                    rx_.odom.push_back(*m);
-                                                  });
-    status_sub_ = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
-        "radar/status", 100, [this](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
-          std::lock_guard<std::mutex> lock(rx_.mutex);
-          rx_.status.push_back(*m);
-        });
+    setUpStream(60.0, 10, 100);
     path_sub_ =
         nh_.subscribe<nav_msgs::Path>("radar/path", 5, [this](const nav_msgs::PathConstPtr& m) {
           std::lock_guard<std::mutex> lock(rx_.mutex);
@@ -99,27 +63,7 @@ class RadarOdometryRostest : public ::testing::Test {
         });
   }
 
-  size_t statusCount() {
-    std::lock_guard<std::mutex> lock(rx_.mutex);
-    return rx_.status.size();
-  }
-
-  /// Publishes one image and waits for its status; returns that status.
-  diagnostic_msgs::DiagnosticArray send(const sensor_msgs::Image& img) {
-    const size_t before = statusCount();
-    image_pub_.publish(img);
-    EXPECT_TRUE(waitFor([&] { return statusCount() > before; }, 60.0))
-        << "no radar/status for the image at " << img.header.stamp.toSec();
-    std::lock_guard<std::mutex> lock(rx_.mutex);
-    return rx_.status.empty() ? diagnostic_msgs::DiagnosticArray() : rx_.status.back();
-  }
-
-  ros::NodeHandle nh_;
-  ros::Publisher image_pub_;
-  ros::Subscriber odom_sub_, status_sub_, path_sub_, features_sub_;
-  Received rx_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  ros::Subscriber path_sub_, features_sub_;
 };
 
 TEST_F(RadarOdometryRostest, FollowsTheSimulatedDriveThroughBadInput) {

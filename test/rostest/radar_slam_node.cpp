@@ -26,9 +26,14 @@
 
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/sim/radar_sim.h"
+#include "radar_rostest_utils.h"
 
 namespace osm_graph_slam {
 namespace {
+
+using radar_rostest::toImage;
+using radar_rostest::value;
+using radar_rostest::waitFor;
 
 const ros::Time kStart(1000.0);
 
@@ -42,54 +47,14 @@ struct Received {
   int loop_arrays = 0;
 };
 
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (done()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return done();
-}
-
-std::string value(const diagnostic_msgs::DiagnosticArray& a, const std::string& key) {
-  if (a.status.empty()) return "";
-  for (const auto& kv : a.status[0].values)
-    if (kv.key == key) return kv.value;
-  return "";
-}
-
-sensor_msgs::Image toImage(const radar::RadarPolarScan& s, const ros::Time& stamp) {
-  sensor_msgs::Image img;
-  img.header.stamp = stamp;
-  img.header.frame_id = "radar_polar";
-  img.height = uint32_t(s.num_azimuths);
-  img.width = uint32_t(s.num_bins);
-  img.encoding = "mono8";
-  img.step = img.width;
-  img.data = s.power;
-  return img;
-}
-
 double yawOf(const Eigen::Isometry3d& T) {
   return std::atan2(T.linear()(1, 0), T.linear()(0, 0));
 }
 
-class RadarSlamRostest : public ::testing::Test {
+class RadarSlamRostest : public radar_rostest::RadarImageFixture<Received> {
  protected:
   void SetUp() override {
-    tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(600.0));
-    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
-    image_pub_ = nh_.advertise<sensor_msgs::Image>("radar/polar", 4);
-    odom_sub_ = nh_.subscribe<nav_msgs::Odometry>("radar/odom", 400,
-                                                  [this](const nav_msgs::OdometryConstPtr& m) {
-                                                    std::lock_guard<std::mutex> lock(rx_.mutex);
-                                                    rx_.odom.push_back(*m);
-                                                  });
-    status_sub_ = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
-        "radar/status", 400, [this](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
-          std::lock_guard<std::mutex> lock(rx_.mutex);
-          rx_.status.push_back(*m);
-        });
+    setUpStream(600.0, 4, 400);
     path_sub_ = nh_.subscribe<nav_msgs::Path>("radar/slam_path", 5,
                                               [this](const nav_msgs::PathConstPtr& m) {
                                                 std::lock_guard<std::mutex> lock(rx_.mutex);
@@ -104,26 +69,7 @@ class RadarSlamRostest : public ::testing::Test {
         });
   }
 
-  size_t statusCount() {
-    std::lock_guard<std::mutex> lock(rx_.mutex);
-    return rx_.status.size();
-  }
-
-  diagnostic_msgs::DiagnosticArray send(const sensor_msgs::Image& img) {
-    const size_t before = statusCount();
-    image_pub_.publish(img);
-    EXPECT_TRUE(waitFor([&] { return statusCount() > before; }, 60.0))
-        << "no radar/status for the image at " << img.header.stamp.toSec();
-    std::lock_guard<std::mutex> lock(rx_.mutex);
-    return rx_.status.empty() ? diagnostic_msgs::DiagnosticArray() : rx_.status.back();
-  }
-
-  ros::NodeHandle nh_;
-  ros::Publisher image_pub_;
-  ros::Subscriber odom_sub_, status_sub_, path_sub_, loops_sub_;
-  Received rx_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  ros::Subscriber path_sub_, loops_sub_;
 };
 
 TEST_F(RadarSlamRostest, ClosesTheLoopOfADriveBackToItsStart) {
