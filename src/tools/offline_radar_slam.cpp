@@ -50,7 +50,8 @@ nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
 
 /// Each accepted loop's measurement against the ground truth of its two keyframes: the largest
 /// errors and how many exceed max_m or max_deg (false loops).
-nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double max_deg) {
+nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double max_deg,
+                          std::vector<std::pair<double, double>>* errors) {
   const double origin = r.odometry.empty() ? 0.0 : r.odometry.front().stamp - r.steps.front().time;
   auto truthAt = [&](double t, Eigen::Isometry2d& T) {
     for (const StampedPose& p : r.ground_truth)
@@ -66,10 +67,14 @@ nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double
   double worst_m = 0, worst_deg = 0;
   for (const radar::RadarLoop& l : r.loops) {
     Eigen::Isometry2d a, b;
-    if (!truthAt(l.from_time, a) || !truthAt(l.to_time, b)) continue;
+    if (!truthAt(l.from_time, a) || !truthAt(l.to_time, b)) {
+      if (errors) errors->push_back({NAN, NAN});  // rows stay aligned with the loops
+      continue;
+    }
     const Eigen::Isometry2d e = (a.inverse() * b).inverse() * l.measurement;
     const double m = e.translation().norm();
     const double deg = std::abs(std::atan2(e.linear()(1, 0), e.linear()(0, 0))) * 180 / M_PI;
+    if (errors) errors->push_back({m, deg});
     ++checked;
     if (m > max_m || deg > max_deg) ++wrong;
     worst_m = std::max(worst_m, m);
@@ -78,6 +83,26 @@ nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double
   return {{"checked", checked},        {"false", wrong},
           {"false_if_above_m", max_m}, {"false_if_above_deg", max_deg},
           {"worst_m", worst_m},        {"worst_deg", worst_deg}};
+}
+
+/// One row per accepted loop: keyframes, times, measurement, fit, and (with ground truth) error.
+std::string loopsCsv(const std::vector<radar::RadarLoop>& loops,
+                     const std::vector<std::pair<double, double>>& errors) {
+  std::string csv =
+      "from,to,from_time,to_time,x,y,yaw_deg,rms,overlap,by_scan_context,error_m,error_deg\n";
+  char line[256];
+  for (size_t i = 0; i < loops.size(); ++i) {
+    const radar::RadarLoop& l = loops[i];
+    const Eigen::Isometry2d& T = l.measurement;
+    const bool e = i < errors.size();
+    std::snprintf(line, sizeof(line), "%d,%d,%.6f,%.6f,%.3f,%.3f,%.3f,%.4f,%.3f,%d,%s,%s\n", l.from,
+                  l.to, l.from_time, l.to_time, T.translation().x(), T.translation().y(),
+                  std::atan2(T.linear()(1, 0), T.linear()(0, 0)) * 180 / M_PI, l.rms, l.overlap,
+                  l.by_scan_context ? 1 : 0, e ? std::to_string(errors[i].first).c_str() : "",
+                  e ? std::to_string(errors[i].second).c_str() : "");
+    csv += line;
+  }
+  return csv;
 }
 
 }  // namespace
@@ -194,12 +219,14 @@ int main(int argc, char** argv) {
                  r.keyframes ? (ls.ms_descriptor + ls.ms_search + ls.ms_verify + ls.ms_optimise) /
                                    double(r.keyframes)
                              : 0.0}};
+  std::vector<std::pair<double, double>> loop_errors;  // per loop, when there is ground truth
   if (!r.ground_truth.empty()) {
-    j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0);
+    j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0, &loop_errors);
     j["accuracy"] = accuracyOf(r.odometry, r.ground_truth);
     j["accuracy_slam"] = accuracyOf(r.trajectory, r.ground_truth);
   }
   writeFileAtomically(out + "timing.json", j.dump(2) + "\n", nullptr);
+  writeFileAtomically(out + "loops.csv", loopsCsv(r.loops, loop_errors), nullptr);
   if (json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {

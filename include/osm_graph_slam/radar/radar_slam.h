@@ -32,8 +32,8 @@ struct RadarLoopParams {
   double scan_context_threshold = 0.3;  ///< radar Scan Context distance accepted as a candidate
   int max_candidates = 4;               ///< verified per keyframe (nearest / most similar first)
   double submap_travel = 20.0;          ///< [m] keyframes within this much travel form a submap
-  double max_rms = 0.45;                ///< [m] registration residual accepted
-  double min_overlap = 0.3;             ///< fraction of the query submap with a correspondence
+  double max_rms = 0.32;                ///< [m] registration residual accepted
+  double min_overlap = 0.7;             ///< fraction of the query submap with a correspondence
   double gate_base = 10.0;              ///< [m] a loop may move the estimate by gate_base +
   double gate_fraction = 0.05;          ///< gate_fraction * travel since the candidate
   double sigma_translation = 0.2;       ///< [m] loop edge
