@@ -16,4 +16,15 @@ Eigen::Isometry3d isometryFromPlanar(const Pose2& pose) {
   return t;
 }
 
+Pose2 planarPose(const Eigen::Isometry2d& pose) {
+  return {pose.translation().x(), pose.translation().y(), yawOf(pose)};
+}
+
+Eigen::Isometry2d isometry2dFromPlanar(const Pose2& pose) {
+  Eigen::Isometry2d T = Eigen::Isometry2d::Identity();
+  T.linear() = pose.rotation();
+  T.translation() = pose.translation();
+  return T;
+}
+
 }  // namespace osm_graph_slam

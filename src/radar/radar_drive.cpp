@@ -3,6 +3,7 @@
 #include <chrono>
 #include <functional>
 
+#include "osm_graph_slam/common/timing.h"
 #include "osm_graph_slam/io/mulran.h"
 
 namespace osm_graph_slam::radar {
@@ -36,9 +37,6 @@ RadarDriveResult runMulranRadarSlam(
   bool have_first_truth = false;
   RadarSlam slam(params);
   using Clock = std::chrono::steady_clock;
-  auto ms = [](Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  };
   double first_time = 0, last_time = 0;
   for (int64_t stamp : stamps) {
     if (options.max_scans > 0 && result.scans >= options.max_scans) break;
@@ -49,7 +47,7 @@ RadarDriveResult runMulranRadarSlam(
       result.skipped.push_back(read.error);
       continue;
     }
-    result.ms_read += ms(t0);
+    result.ms_read += msSince(t0);
     RadarOdometryStep step = slam.process(read.scan);
     if (on_step) on_step(step, read.scan);
     step.feature_set = RadarFeatureSet();

@@ -4,15 +4,10 @@
 #include <cmath>
 
 #include "osm_graph_slam/common/param_reader.h"
+#include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/common/timing.h"
 
 namespace osm_graph_slam::radar {
-namespace {
-
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
 
 bool readParams(const ParamReader& r, RadarOdometryParams& p, std::string* error) {
   RadarFeatureParams& f = p.features;
@@ -185,7 +180,7 @@ void RadarOdometry::refine(RadarOdometryStep& step, const Eigen::Isometry2d& pre
 
 void RadarOdometry::updateKeyframe(RadarOdometryStep& step) {
   const Eigen::Isometry2d since = keyframe_pose_.inverse() * pose_;
-  const double turned = std::abs(std::atan2(since.linear()(1, 0), since.linear()(0, 0)));
+  const double turned = std::abs(yawOf(since));
   if (has_keyframe_ && since.translation().norm() < params_.keyframe_translation &&
       turned < params_.keyframe_rotation_deg * M_PI / 180.0)
     return;

@@ -6,27 +6,14 @@
 #include <unordered_set>
 
 #include "osm_graph_slam/common/param_reader.h"
+#include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/common/timing.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 
 namespace osm_graph_slam::radar {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-Pose2 toPose2(const Eigen::Isometry2d& T) {
-  return {T.translation().x(), T.translation().y(), std::atan2(T.linear()(1, 0), T.linear()(0, 0))};
-}
-
-Eigen::Isometry2d toIsometry(const Pose2& p) {
-  Eigen::Isometry2d T = Eigen::Isometry2d::Identity();
-  T.linear() = p.rotation();
-  T.translation() = p.translation();
-  return T;
-}
-
 Eigen::Matrix3d diagonalInformation(double sigma_xy, double sigma_yaw) {
   return Eigen::Vector3d(1.0 / (sigma_xy * sigma_xy), 1.0 / (sigma_xy * sigma_xy),
                          1.0 / (sigma_yaw * sigma_yaw))
@@ -127,18 +114,18 @@ void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
   kf.descriptor = radarScanContext(kf.points, powers, params_.loop.scan_context);
   stats_.ms_descriptor += msSince(t0);
   if (k == 0) {
-    graph_->addVertexSE2(0, toPose2(kf.odom), true);
+    graph_->addVertexSE2(0, planarPose(kf.odom), true);
   } else {
     const Keyframe& prev = keyframes_.back();
     const Eigen::Isometry2d rel = prev.odom.inverse() * kf.odom;
-    graph_->addVertexSE2(k, toPose2(estimate(k - 1) * rel));
+    graph_->addVertexSE2(k, planarPose(estimate(k - 1) * rel));
     const RadarGraphParams& g = params_.graph;
     const double d = kf.travel - prev.travel;
     const double st = std::max(g.min_sigma_translation, g.sigma_translation_per_m * d);
-    const double turned = std::abs(std::atan2(rel.linear()(1, 0), rel.linear()(0, 0)));
+    const double turned = std::abs(yawOf(rel));
     const double sy = std::max(g.min_sigma_yaw_deg, g.sigma_yaw_deg_per_m * d) * M_PI / 180.0 +
                       g.sigma_yaw_per_rad * turned;
-    graph_->addEdgeSE2(k - 1, k, toPose2(rel), diagonalInformation(st, sy));
+    graph_->addEdgeSE2(k - 1, k, planarPose(rel), diagonalInformation(st, sy));
   }
   keyframes_.push_back(std::move(kf));
   if (params_.loop.enabled) searchLoops(k);
@@ -146,7 +133,7 @@ void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
 
 Eigen::Isometry2d RadarSlam::estimate(int k) const {
   const std::optional<Pose2> p = graph_->vertexSE2(k);
-  return p ? toIsometry(*p) : keyframes_[size_t(k)].odom;
+  return p ? isometry2dFromPlanar(*p) : keyframes_[size_t(k)].odom;
 }
 
 std::vector<Eigen::Vector2d> RadarSlam::submap(int center, bool past_only) const {
@@ -228,7 +215,7 @@ void RadarSlam::searchLoops(int query) {
     loop.by_scan_context = c.by_descriptor;
     EdgeOptions options;
     options.kernel = RobustKernel::cauchy(lp.kernel_width);
-    graph_->addEdgeSE2(loop.from, loop.to, toPose2(loop.measurement),
+    graph_->addEdgeSE2(loop.from, loop.to, planarPose(loop.measurement),
                        diagonalInformation(lp.sigma_translation, lp.sigma_yaw_deg * M_PI / 180.0),
                        options);
     loops_.push_back(loop);

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/radar/radar_drive.h"
@@ -73,7 +74,7 @@ nlohmann::json loopErrors(const radar::RadarDriveResult& r, double max_m, double
     }
     const Eigen::Isometry2d e = (a.inverse() * b).inverse() * l.measurement;
     const double m = e.translation().norm();
-    const double deg = std::abs(std::atan2(e.linear()(1, 0), e.linear()(0, 0))) * 180 / M_PI;
+    const double deg = std::abs(yawOf(e)) * 180 / M_PI;
     if (errors) errors->push_back({m, deg});
     ++checked;
     if (m > max_m || deg > max_deg) ++wrong;
@@ -97,8 +98,8 @@ std::string loopsCsv(const std::vector<radar::RadarLoop>& loops,
     const bool e = i < errors.size();
     std::snprintf(line, sizeof(line), "%d,%d,%.6f,%.6f,%.3f,%.3f,%.3f,%.4f,%.3f,%d,%s,%s\n", l.from,
                   l.to, l.from_time, l.to_time, T.translation().x(), T.translation().y(),
-                  std::atan2(T.linear()(1, 0), T.linear()(0, 0)) * 180 / M_PI, l.rms, l.overlap,
-                  l.by_scan_context ? 1 : 0, e ? std::to_string(errors[i].first).c_str() : "",
+                  yawOf(T) * 180 / M_PI, l.rms, l.overlap, l.by_scan_context ? 1 : 0,
+                  e ? std::to_string(errors[i].first).c_str() : "",
                   e ? std::to_string(errors[i].second).c_str() : "");
     csv += line;
   }

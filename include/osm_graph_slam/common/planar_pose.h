@@ -2,6 +2,7 @@
 // SE3 <-> planar (x, y, yaw) conversions, used by the back-end, the markers, the benchmarks and
 // the tests; here rather than in graph/ so that none of them has to include the pose graph.
 #include <Eigen/Geometry>
+#include <cmath>
 
 #include "osm_graph_slam/common/geometry2d.h"
 
@@ -12,5 +13,13 @@ Pose2 planarPose(const Eigen::Isometry3d& pose);
 
 /// The SE3 pose of a planar pose: (x, y, 0) and a rotation about z by theta.
 Eigen::Isometry3d isometryFromPlanar(const Pose2& pose);
+
+/// The same for 2D rigid transforms (radar odometry and its SE2 graph).
+Pose2 planarPose(const Eigen::Isometry2d& pose);
+Eigen::Isometry2d isometry2dFromPlanar(const Pose2& pose);
+/// Rotation angle of a 2D rigid transform, atan2(R10, R00).
+inline double yawOf(const Eigen::Isometry2d& T) {
+  return std::atan2(T.linear()(1, 0), T.linear()(0, 0));
+}
 
 }  // namespace osm_graph_slam
