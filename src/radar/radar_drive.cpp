@@ -1,12 +1,47 @@
 #include "osm_graph_slam/radar/radar_drive.h"
 
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <functional>
+#include <optional>
 
 #include "osm_graph_slam/common/timing.h"
 #include "osm_graph_slam/io/mulran.h"
+#include "osm_graph_slam/osm/enu_converter.h"
 
 namespace osm_graph_slam::radar {
+namespace {
+
+// A sweep sees the navigation data up to half a second past its first azimuth (it lasts 0.25 s).
+constexpr int64_t kNavLookaheadNs = 500'000'000;
+
+/// gps.csv (in ENU around the first fix) and the xsens yaw rate, fed to the SLAM in time order.
+class NavigationFeed {
+ public:
+  NavigationFeed(const MulranSequence& seq, int64_t origin_ns) : seq_(seq), origin_ns_(origin_ns) {
+    if (!seq.gps.empty()) enu_.emplace(seq.gps.front().lat, seq.gps.front().lon, seq.gps.front().alt);
+  }
+  void feedUntil(int64_t stamp_ns, RadarSlam& slam) {
+    for (; gps_ < seq_.gps.size() && seq_.gps[gps_].stamp_ns <= stamp_ns; ++gps_) {
+      const MulranGps& g = seq_.gps[gps_];
+      const double sigma = std::sqrt(std::max(g.covariance[0], g.covariance[4]));
+      slam.addGnssFix(seconds(g.stamp_ns), enu_->toEnu(g.lat, g.lon, g.alt).head<2>(), sigma);
+    }
+    for (; imu_ < seq_.imu.size() && seq_.imu[imu_].stamp_ns <= stamp_ns; ++imu_)
+      if (seq_.imu[imu_].has_rates)
+        slam.addYawRate(seconds(seq_.imu[imu_].stamp_ns), seq_.imu[imu_].gyro.z());
+  }
+
+ private:
+  double seconds(int64_t stamp_ns) const { return double(stamp_ns - origin_ns_) * 1e-9; }
+  const MulranSequence& seq_;
+  int64_t origin_ns_;
+  std::optional<EnuConverter> enu_;
+  size_t gps_ = 0, imu_ = 0;
+};
+
+}  // namespace
 
 Eigen::Isometry3d planarTo3d(const Eigen::Isometry2d& T) {
   Eigen::Isometry3d P = Eigen::Isometry3d::Identity();
@@ -36,10 +71,12 @@ RadarDriveResult runMulranRadarSlam(
   Eigen::Isometry3d first_truth_inverse = Eigen::Isometry3d::Identity();
   bool have_first_truth = false;
   RadarSlam slam(params);
+  NavigationFeed nav(seq, origin_ns);
   using Clock = std::chrono::steady_clock;
   double first_time = 0, last_time = 0;
   for (int64_t stamp : stamps) {
     if (options.max_scans > 0 && result.scans >= options.max_scans) break;
+    nav.feedUntil(stamp + kNavLookaheadNs, slam);
     const auto t0 = Clock::now();
     MulranPolarResult read =
         readMulranPolarPng(seq.radarPolarPath(stamp), stamp, origin_ns, options.layout);
@@ -76,7 +113,9 @@ RadarDriveResult runMulranRadarSlam(
     result.error = "no radar sweep of '" + root + "' could be read";
     return result;
   }
+  nav.feedUntil(INT64_MAX, slam);
   slam.finish();
+  result.nav_stats = slam.navStats();
   const std::vector<Eigen::Isometry2d> corrected = slam.sweepPoses();
   for (size_t i = 0; i < corrected.size() && i < result.odometry.size(); ++i)
     result.trajectory.push_back({result.odometry[i].stamp, planarTo3d(corrected[i])});

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iterator>
+#include <limits>
 #include <unordered_set>
 
 #include "osm_graph_slam/common/param_reader.h"
@@ -14,6 +16,9 @@ namespace osm_graph_slam::radar {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr int kAnchorId = 1 << 30;  // the ENU frame's vertex; keyframes count up from 0
+constexpr double kDeg = M_PI / 180.0;
+
 Eigen::Matrix3d diagonalInformation(double sigma_xy, double sigma_yaw) {
   return Eigen::Vector3d(1.0 / (sigma_xy * sigma_xy), 1.0 / (sigma_xy * sigma_xy),
                          1.0 / (sigma_yaw * sigma_yaw))
@@ -74,6 +79,31 @@ bool readSlamParams(const ParamReader& r, RadarSlamParams& p, std::string* error
   r.param("loop/scan_context/num_sectors", l.scan_context.num_sectors);
   r.param("loop/scan_context/max_radius", l.scan_context.max_radius);
   r.param("loop/scan_context/min_radius", l.scan_context.min_radius);
+  RadarNavParams& n = p.nav;
+  r.param("gnss/enabled", n.gnss_enabled);
+  r.param("gnss/min_baseline", n.gnss_min_baseline);
+  r.param("gnss/min_spacing", n.gnss_min_spacing);
+  r.param("gnss/sigma_floor", n.gnss_sigma_floor);
+  r.param("gnss/sigma_scale", n.gnss_sigma_scale);
+  r.param("gnss/max_sigma", n.gnss_max_sigma);
+  r.param("gnss/max_interval", n.gnss_max_interval);
+  r.param("gnss/kernel_width", n.gnss_kernel_width);
+  r.param("gnss/optimise_every", n.gnss_optimise_every);
+  r.param("imu/enabled", n.imu_enabled);
+  r.param("imu/gyro_noise_deg_sqrt_s", n.gyro_noise_deg_sqrt_s);
+  r.param("imu/gyro_bias_deg_s", n.gyro_bias_deg_s);
+  r.param("imu/max_gap", n.imu_max_gap);
+  r.param("imu/wait_s", n.wait_s);
+  if (n.gnss_sigma_floor <= 0 || n.gnss_sigma_scale <= 0 || n.gnss_kernel_width <= 0 ||
+      n.gnss_max_interval <= 0 || n.gnss_optimise_every < 1 || n.gyro_noise_deg_sqrt_s < 0 ||
+      n.gyro_bias_deg_s < 0 || n.gyro_noise_deg_sqrt_s + n.gyro_bias_deg_s <= 0 ||
+      n.imu_max_gap <= 0 || n.wait_s < 0) {
+    if (error)
+      *error =
+          "radar parameters: gnss/sigma_floor, sigma_scale, kernel_width, max_interval, "
+          "optimise_every and imu/max_gap must be positive, imu/gyro_* and wait_s not negative";
+    return false;
+  }
   if (g.min_sigma_translation <= 0 || g.min_sigma_yaw_deg <= 0 || l.sigma_translation <= 0 ||
       l.sigma_yaw_deg <= 0 || l.kernel_width <= 0 || l.scan_context.num_rings < 1 ||
       l.scan_context.num_sectors < 1 || l.scan_context.max_radius <= 0) {
@@ -97,6 +127,7 @@ RadarOdometryStep RadarSlam::process(const RadarPolarScan& scan) {
   sweep_odom_.push_back(step.pose);
   if (step.keyframe) addKeyframe(step);
   sweep_keyframe_.push_back(int(keyframes_.size()) - 1);
+  if (!step.keyframe) attachNavigation(step.time, false);
   return step;
 }
 
@@ -128,7 +159,160 @@ void RadarSlam::addKeyframe(const RadarOdometryStep& step) {
     graph_->addEdgeSE2(k - 1, k, planarPose(rel), diagonalInformation(st, sy));
   }
   keyframes_.push_back(std::move(kf));
+  attachNavigation(keyframes_.back().time, false);  // before the loop search: a better estimate
   if (params_.loop.enabled) searchLoops(k);
+}
+
+void RadarSlam::addGnssFix(double time, const Eigen::Vector2d& enu, double sigma) {
+  if (!params_.nav.gnss_enabled) return;
+  if (!fixes_.empty() && !(time > fixes_.back().first)) {
+    ++nav_stats_.gnss_out_of_order;
+    return;
+  }
+  ++nav_stats_.gnss_fixes;
+  if (!std::isfinite(time) || !enu.allFinite() || !(sigma <= params_.nav.gnss_max_sigma)) {
+    ++nav_stats_.gnss_rejected_sigma;  // no fix, dead reckoning, or NaN
+    return;
+  }
+  fixes_.push_back({time, Eigen::Vector3d(enu.x(), enu.y(), std::max(0.0, sigma))});
+}
+
+void RadarSlam::addYawRate(double time, double rate) {
+  if (!params_.nav.imu_enabled) return;
+  if (!std::isfinite(time) || !std::isfinite(rate) ||
+      (!rates_.empty() && !(time > rates_.back().first))) {
+    ++nav_stats_.imu_out_of_order;
+    return;
+  }
+  ++nav_stats_.imu_samples;
+  rates_.push_back({time, rate});
+}
+
+void RadarSlam::attachNavigation(double now, bool final) {
+  while (nav_next_ < keyframes_.size()) {
+    const double t = keyframes_[nav_next_].time;
+    // A source that never delivered does not hold a keyframe back.
+    auto covered = [t](const auto& v) { return v.empty() || v.back().first >= t; };
+    if (!final && now < t + params_.nav.wait_s && !(covered(fixes_) && covered(rates_))) break;
+    attachYawRate(int(nav_next_));
+    attachFix(int(nav_next_));
+    ++nav_next_;
+  }
+  pruneNavigation();
+}
+
+void RadarSlam::attachYawRate(int k) {
+  if (k < 1 || rates_.empty()) return;
+  const double t0 = keyframes_[size_t(k - 1)].time, t1 = keyframes_[size_t(k)].time;
+  const RadarNavParams& n = params_.nav;
+  if (rates_.front().first > t0 || rates_.back().first < t1) {
+    ++nav_stats_.imu_missing;
+    return;
+  }
+  // The integral of the piecewise-linear rate over [t0, t1].
+  double yaw = 0.0;
+  for (size_t i = 1; i < rates_.size() && rates_[i - 1].first < t1; ++i) {
+    const auto& [ta, ra] = rates_[i - 1];
+    const auto& [tb, rb] = rates_[i];
+    if (tb <= t0) continue;
+    if (tb - ta > n.imu_max_gap) {
+      ++nav_stats_.imu_missing;
+      return;
+    }
+    const double a = std::max(ta, t0), b = std::min(tb, t1);
+    auto rateAt = [&](double t) { return ra + (rb - ra) * (t - ta) / (tb - ta); };
+    yaw += 0.5 * (rateAt(a) + rateAt(b)) * (b - a);
+  }
+  const double dt = t1 - t0;
+  const double sigma = std::max(1e-5, (n.gyro_noise_deg_sqrt_s * std::sqrt(dt) +
+                                       n.gyro_bias_deg_s * dt) * kDeg);
+  // An SE(2) edge that constrains only the yaw change: zero information on x and y.
+  const Eigen::Matrix3d info = Eigen::Vector3d(0, 0, 1.0 / (sigma * sigma)).asDiagonal();
+  graph_->addEdgeSE2(k - 1, k, Pose2(0, 0, yaw), info);
+  ++nav_stats_.imu_edges;
+}
+
+void RadarSlam::attachFix(int k) {
+  Keyframe& kf = keyframes_[size_t(k)];
+  if (fixes_.empty() || kf.travel - last_fix_travel_ < params_.nav.gnss_min_spacing) return;
+  const auto after = std::lower_bound(fixes_.begin(), fixes_.end(), kf.time,
+                                      [](const auto& f, double t) { return f.first < t; });
+  if (after == fixes_.end() || after == fixes_.begin() && after->first > kf.time) return;
+  Eigen::Vector3d fix = after->second;
+  if (after->first > kf.time) {  // interpolate between the fixes around the keyframe
+    const auto before = std::prev(after);
+    if (after->first - before->first > params_.nav.gnss_max_interval) return;
+    const double w = (kf.time - before->first) / (after->first - before->first);
+    fix = (1 - w) * before->second + w * after->second;
+    fix.z() = std::max(before->second.z(), after->second.z());
+  }
+  kf.has_fix = true;
+  kf.fix = fix.head<2>();
+  kf.fix_sigma = std::max(params_.nav.gnss_sigma_floor, params_.nav.gnss_sigma_scale * fix.z());
+  last_fix_travel_ = kf.travel;
+  if (!graph_->hasVertex(kAnchorId)) {
+    if (anchor()) optimise();
+    return;
+  }
+  addFixEdge(k);
+  if (++fixes_since_optimise_ >= params_.nav.gnss_optimise_every) optimise();
+}
+
+bool RadarSlam::anchor() {
+  // The fit p_map = R p_enu + t over the keyframes with a fix, once they span the baseline.
+  std::vector<int> with_fix;
+  for (int k = 0; k < int(keyframes_.size()); ++k)
+    if (keyframes_[size_t(k)].has_fix) with_fix.push_back(k);
+  if (with_fix.size() < 2) return false;
+  double span = 0;
+  const Eigen::Vector2d first = keyframes_[size_t(with_fix.front())].fix;
+  for (int k : with_fix) span = std::max(span, (keyframes_[size_t(k)].fix - first).norm());
+  if (span < params_.nav.gnss_min_baseline) return false;
+  Eigen::Vector2d zc = Eigen::Vector2d::Zero(), pc = Eigen::Vector2d::Zero();
+  for (int k : with_fix) {
+    zc += keyframes_[size_t(k)].fix;
+    pc += estimate(k).translation();
+  }
+  zc /= double(with_fix.size());
+  pc /= double(with_fix.size());
+  double dot = 0, cross = 0;
+  for (int k : with_fix) {
+    const Eigen::Vector2d z = keyframes_[size_t(k)].fix - zc, p = estimate(k).translation() - pc;
+    dot += z.dot(p);
+    cross += z.x() * p.y() - z.y() * p.x();
+  }
+  const double theta = std::atan2(cross, dot);
+  const Eigen::Vector2d t = pc - Eigen::Rotation2Dd(theta) * zc;
+  graph_->addVertexSE2(kAnchorId, Pose2(t.x(), t.y(), theta));
+  nav_stats_.anchored = true;
+  for (int k : with_fix) addFixEdge(k);
+  return true;
+}
+
+void RadarSlam::addFixEdge(int k) {
+  // Anchor -> keyframe with the fix as translation: e = A^-1 p_k - z; the yaw is free.
+  const Keyframe& kf = keyframes_[size_t(k)];
+  const double w = 1.0 / (kf.fix_sigma * kf.fix_sigma);
+  EdgeOptions options;
+  options.kernel = RobustKernel::huber(params_.nav.gnss_kernel_width);
+  graph_->addEdgeSE2(kAnchorId, k, Pose2(kf.fix.x(), kf.fix.y(), 0.0),
+                     Eigen::Vector3d(w, w, 0).asDiagonal(), options);
+  ++nav_stats_.gnss_edges;
+}
+
+void RadarSlam::pruneNavigation() {
+  // Keep what the undecided keyframes can still use: rates from the last decided keyframe on,
+  // fixes from the one before the first undecided keyframe.
+  if (keyframes_.empty()) return;
+  const size_t last = std::min(nav_next_, keyframes_.size()) - (nav_next_ > 0 ? 1 : 0);
+  const double t = keyframes_[last].time;
+  auto prune = [t](auto& v) {
+    size_t keep = 0;
+    while (keep + 1 < v.size() && v[keep + 1].first <= t) ++keep;
+    v.erase(v.begin(), v.begin() + std::ptrdiff_t(keep));
+  };
+  prune(rates_);
+  prune(fixes_);
 }
 
 Eigen::Isometry2d RadarSlam::estimate(int k) const {
@@ -258,7 +442,14 @@ void RadarSlam::optimise() {
 }
 
 void RadarSlam::finish() {
-  if (!loops_.empty()) optimise();
+  attachNavigation(std::numeric_limits<double>::infinity(), true);
+  if (!loops_.empty() || graph_->hasVertex(kAnchorId) || nav_stats_.imu_edges > 0) optimise();
+}
+
+std::optional<Eigen::Isometry2d> RadarSlam::mapFromEnu() const {
+  const std::optional<Pose2> a = graph_->vertexSE2(kAnchorId);
+  if (!a) return std::nullopt;
+  return isometry2dFromPlanar(*a);
 }
 
 Eigen::Isometry2d RadarSlam::mapToOdometry() const {

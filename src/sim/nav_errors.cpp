@@ -16,6 +16,7 @@ constexpr uint64_t kGnssBiasTag = 0x676e73735f62ULL;   // "gnss_b"
 constexpr uint64_t kOutageTag = 0x6f7574616765ULL;     // "outage"
 constexpr uint64_t kAttitudeTag = 0x617474697475ULL;   // "attitu"
 constexpr uint64_t kImuTag = 0x696d755f6e7aULL;        // "imu_nz"
+constexpr uint64_t kGyroBiasTag = 0x6779726f5f62ULL;   // "gyro_b"
 
 Eigen::Vector3d gaussian3(SimRng& rng, double sx, double sy, double sz) {
   const double x = rng.gaussian(), y = rng.gaussian(), z = rng.gaussian();
@@ -75,12 +76,14 @@ NavErrorSequence simulateNavErrors(const NavErrorParams& p, uint64_t seed, doubl
   SimRng imu(hashCombine(seed, kImuTag));
   const double sa = p.imu_attitude_sigma_deg * kDeg, sy = p.imu_heading_sigma_deg * kDeg;
   const double sg = p.gyro_sigma_deg_s * kDeg;
+  SimRng gyro_bias(hashCombine(seed, kGyroBiasTag));  // its own stream: other draws unchanged
+  out.gyro_bias_z = (gyro_bias.bernoulli(0.5) ? 1.0 : -1.0) * p.gyro_bias_deg_s * kDeg;
   for (auto& e : out.epochs) {
     const Eigen::Vector3d a = gaussian3(att, sa, sa, sy);
     e.roll = a.x();
     e.pitch = a.y();
     e.yaw = out.heading_bias + a.z();
-    e.gyro = gaussian3(imu, sg, sg, sg);
+    e.gyro = gaussian3(imu, sg, sg, sg) + Eigen::Vector3d(0, 0, out.gyro_bias_z);
     e.accel = gaussian3(imu, p.accel_sigma, p.accel_sigma, p.accel_sigma);
   }
   return out;

@@ -206,7 +206,10 @@ bool RadarSimulator::writeMulranDrive(const std::string& out_dir, RadarDriveStat
       events[stamp].push_back("gps");
       ++stats.gps;
     }
-    const Eigen::Quaterniond q(sim_.basePose(t).linear());
+    // The AHRS orientation is the measured one (with the INS's errors), as the euler columns.
+    const Eigen::Quaterniond q = Eigen::AngleAxisd(meas.yaw, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::AngleAxisd(meas.pitch, Eigen::Vector3d::UnitY()) *
+                                 Eigen::AngleAxisd(meas.roll, Eigen::Vector3d::UnitX());
     std::snprintf(line, sizeof(line),
                   "%lld,%.9f,%.9f,%.9f,%.9f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.5f,%.5f,%.5f,0,0,0\n",
                   (long long)stamp, q.x(), q.y(), q.z(), q.w(), meas.roll, meas.pitch, meas.yaw,

@@ -494,6 +494,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
          << ", \"imu_heading_bias_deg\": " << fmt("%.3f", nv.imu_heading_bias_deg)
          << ", \"imu_heading_sigma_deg\": " << fmt("%.3f", nv.imu_heading_sigma_deg)
          << ", \"gyro_sigma_deg_s\": " << fmt("%.3f", nv.gyro_sigma_deg_s)
+         << ", \"gyro_bias_drawn_deg_s\": " << fmt("%.4f", nav_errors_.gyro_bias_z * 180.0 / M_PI)
          << ", \"accel_sigma_m_s2\": " << fmt("%.3f", nv.accel_sigma)
          << ", \"heading_bias_drawn_deg\": " << fmt("%.4f", nav_errors_.heading_bias * 180.0 / M_PI)
          << ", \"first_fix_error_enu_m\": [" << fmt("%.4f", first.x()) << ", "

@@ -24,17 +24,21 @@ int usage() {
       "usage: offline_radar_slam --mulran DIR --output DIR [--config radar.yaml] [--json]\n"
       "       [--max-scans N] [--detector kstrongest|cfar] [--beta S]\n"
       "       [--no-motion-compensation] [--no-doppler] [--no-registration]\n"
-      "       [--no-loops]\n");
+      "       [--no-loops] [--no-gnss] [--no-imu]\n");
   return 2;
 }
 
-/// KITTI drift, ATE and RPE of a planar trajectory against the ground truth (first pose aligned).
+/// KITTI drift, ATE (first pose aligned, and best-fit aligned) and RPE of a planar trajectory.
 nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
   TrajectoryEvalOptions eo;
   eo.planar = true;
   eo.alignment = TrajectoryAlignment::kFirstPose;
   eo.max_time_difference = 0.01;
   const TrajectoryErrors e = evaluateTrajectory(estimate, truth, eo);
+  // With GNSS the map frame is still the first keyframe's, whose heading error the fixes cannot
+  // undo: the best rigid fit shows what the fixes hold.
+  eo.alignment = TrajectoryAlignment::kUmeyamaSE3;
+  const TrajectoryErrors aligned = evaluateTrajectory(estimate, truth, eo);
   double length = 0;
   for (size_t k = 1; k < truth.size(); ++k)
     length += (truth[k].pose.translation() - truth[k - 1].pose.translation()).norm();
@@ -44,6 +48,8 @@ nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
           {"kitti_rot_deg_per_100m", e.kitti_rot_deg_per_100m},
           {"ate_rmse_m", e.ate.rmse},
           {"ate_max_m", e.ate.max},
+          {"ate_aligned_rmse_m", aligned.ate.rmse},
+          {"ate_aligned_max_m", aligned.ate.max},
           {"rpe_trans_mean_m", e.rpe_trans.mean},
           {"rpe_rot_mean_deg", e.rpe_rot.mean * 180 / M_PI},
           {"end_drift_percent", length > 0 ? 100.0 * e.ate_per_pose.back() / length : 0.0}};
@@ -116,6 +122,7 @@ int main(int argc, char** argv) {
   radar::RadarDriveOptions options;
   std::string detector, beta;
   bool no_mc = false, no_doppler = false, no_registration = false, no_loops = false;
+  bool no_gnss = false, no_imu = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -147,6 +154,10 @@ int main(int argc, char** argv) {
       no_registration = true;
     else if (a == "--no-loops")
       no_loops = true;
+    else if (a == "--no-gnss")
+      no_gnss = true;
+    else if (a == "--no-imu")
+      no_imu = true;
     else
       return usage();
   }
@@ -166,6 +177,8 @@ int main(int argc, char** argv) {
   if (no_doppler) params.motion.doppler_correction = false;
   if (no_registration) params.registration.enabled = false;
   if (no_loops) slam_params.loop.enabled = false;
+  if (no_gnss) slam_params.nav.gnss_enabled = false;
+  if (no_imu) slam_params.nav.imu_enabled = false;
 
   const auto t0 = std::chrono::steady_clock::now();
   const radar::RadarDriveResult r = radar::runMulranRadarSlam(mulran, slam_params, options);
@@ -220,6 +233,18 @@ int main(int argc, char** argv) {
                  r.keyframes ? (ls.ms_descriptor + ls.ms_search + ls.ms_verify + ls.ms_optimise) /
                                    double(r.keyframes)
                              : 0.0}};
+  const radar::RadarNavStats& ns = r.nav_stats;
+  j["navigation"] = {{"gnss_enabled", slam_params.nav.gnss_enabled},
+                     {"gnss_fixes", ns.gnss_fixes},
+                     {"gnss_rejected_sigma", ns.gnss_rejected_sigma},
+                     {"gnss_out_of_order", ns.gnss_out_of_order},
+                     {"gnss_edges", ns.gnss_edges},
+                     {"anchored", ns.anchored},
+                     {"imu_enabled", slam_params.nav.imu_enabled},
+                     {"imu_samples", ns.imu_samples},
+                     {"imu_out_of_order", ns.imu_out_of_order},
+                     {"imu_edges", ns.imu_edges},
+                     {"imu_missing", ns.imu_missing}};
   std::vector<std::pair<double, double>> loop_errors;  // per loop, when there is ground truth
   if (!r.ground_truth.empty()) {
     j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0, &loop_errors);
@@ -239,6 +264,7 @@ int main(int argc, char** argv) {
         r.ms_read, r.ms_features, r.ms_matching, r.ms_motion, r.ms_registration, ms_scan,
         ms_scan > 0 ? 250.0 / ms_scan : 0.0);
     std::printf("loops: %s\n", j["loops"].dump().c_str());
+    std::printf("navigation: %s\n", j["navigation"].dump().c_str());
     if (j.contains("accuracy")) {
       std::printf("odometry: %s\n", j["accuracy"].dump().c_str());
       std::printf("with loops: %s\n", j["accuracy_slam"].dump().c_str());

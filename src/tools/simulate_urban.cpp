@@ -57,6 +57,7 @@ void usage() {
       "  --gnss-outages-per-km F (%g)  --gnss-outage-duration S (%g)   no fix (pos_accuracy %g)\n"
       "  --imu-heading-bias-deg D (%g, sign from the seed)  --imu-heading-sigma-deg D (%g)\n"
       "  --imu-attitude-sigma-deg D (%g)  --gyro-sigma-deg-s D (%g)  --accel-sigma M (%g)\n"
+      "  --gyro-bias-deg-s D (%g, sign from the seed)   constant yaw-rate gyro bias\n"
       "prior-map error model:\n"
       "  --prior-model independent|blocks|global|mixed (%s)\n"
       "  --prior-block-size M (%g)  --prior-block-sigma M (%g)  --prior-block-rotation-sigma-deg D "
@@ -67,7 +68,7 @@ void usage() {
       n.gnss_sigma, n.gnss_sigma_vertical, n.gnss_bias_sigma, n.gnss_bias_sigma_vertical,
       n.gnss_bias_tau_s, n.gnss_outages_per_km, n.gnss_outage_duration_s, kOxtsNoFixAccuracy,
       n.imu_heading_bias_deg, n.imu_heading_sigma_deg, n.imu_attitude_sigma_deg, n.gyro_sigma_deg_s,
-      n.accel_sigma, priorModelName(r.model), r.block_size, r.block_translation_sigma,
+      n.accel_sigma, n.gyro_bias_deg_s, priorModelName(r.model), r.block_size, r.block_translation_sigma,
       r.block_rotation_sigma_deg, r.block_residual_sigma, r.block_residual_rotation_sigma_deg,
       r.global_offset_min, r.global_offset_max, r.global_rotation_sigma_deg,
       r.mixed_translation_sigma, r.mixed_rotation_sigma_deg);
@@ -179,6 +180,8 @@ int main(int argc, char** argv) {
       p.nav.imu_attitude_sigma_deg = std::atof(next().c_str());
     else if (a == "--gyro-sigma-deg-s")
       p.nav.gyro_sigma_deg_s = std::atof(next().c_str());
+    else if (a == "--gyro-bias-deg-s")
+      p.nav.gyro_bias_deg_s = std::atof(next().c_str());
     else if (a == "--accel-sigma")
       p.nav.accel_sigma = std::atof(next().c_str());
     else if (a == "--prior-model") {

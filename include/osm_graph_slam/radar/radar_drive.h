@@ -25,6 +25,7 @@ struct RadarDriveResult {
   Trajectory trajectory;             ///< the same sweeps after the pose graph (loops)
   std::vector<RadarLoop> loops;
   RadarLoopStats loop_stats;
+  RadarNavStats nav_stats;  ///< GNSS fixes (gps.csv) and yaw rates (xsens_imu.csv) used
   size_t keyframes = 0;
   Trajectory ground_truth;  ///< global_pose at the same times, in the first pose's frame
   std::vector<RadarOdometryStep> steps;  ///< without feature sets (they are dropped to save memory)

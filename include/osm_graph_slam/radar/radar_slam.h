@@ -6,6 +6,7 @@
 // can have accumulated since the candidate; robust (Cauchy) loop edges, optimised on Ceres.
 #include <Eigen/Geometry>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,10 +51,37 @@ struct RadarGraphParams {
   double min_sigma_yaw_deg = 0.05;
 };
 
+/// GNSS fixes and a yaw-rate gyro in the graph (as available: a drive without them runs as
+/// before). The graph lives in the first keyframe's frame; the ENU frame of the fixes is an SE(2)
+/// anchor vertex, initialised by a least-squares fit once the fixes span min_baseline.
+struct RadarNavParams {
+  bool gnss_enabled = true;
+  double gnss_min_baseline = 30.0;  ///< [m] fixes this far apart before the anchor is set up
+  double gnss_min_spacing = 5.0;    ///< [m] of travel between fixes used (their errors correlate)
+  double gnss_sigma_floor = 0.5;    ///< [m] a fix is never trusted more than this
+  double gnss_sigma_scale = 1.0;    ///< times the fix's own sigma (its covariance)
+  double gnss_max_sigma = 10.0;     ///< [m] worse fixes (no fix, dead reckoning) are not used
+  double gnss_max_interval = 0.5;   ///< [s] fixes bracketing a keyframe are interpolated
+  double gnss_kernel_width = 2.0;   ///< Huber, on the whitened error
+  int gnss_optimise_every = 10;     ///< keyframes with a fix between optimisations
+  bool imu_enabled = true;
+  double gyro_noise_deg_sqrt_s = 0.05;  ///< angle random walk of the integrated yaw rate
+  double gyro_bias_deg_s = 0.01;        ///< unmodelled bias: sigma grows by this per second
+  double imu_max_gap = 0.5;             ///< [s] a longer gap between samples: no yaw edge
+  double wait_s = 1.0;  ///< [s] a keyframe waits this long (sweep time) for late navigation data
+};
+
+struct RadarNavStats {
+  int gnss_fixes = 0, gnss_rejected_sigma = 0, gnss_out_of_order = 0, gnss_edges = 0;
+  int imu_samples = 0, imu_out_of_order = 0, imu_edges = 0, imu_missing = 0;
+  bool anchored = false;
+};
+
 struct RadarSlamParams {
   RadarOdometryParams odometry;
   RadarGraphParams graph;
   RadarLoopParams loop;
+  RadarNavParams nav;
 };
 
 /// Reads the odometry keys (readParams) and "graph/...", "loop/...".
@@ -80,7 +108,13 @@ class RadarSlam {
 
   /// One sweep: odometry, then (on a keyframe) loop search and optimisation.
   RadarOdometryStep process(const RadarPolarScan& scan);
-  /// Final optimisation (all loops), call after the last sweep.
+  /// A GNSS fix (ENU [m], sigma per horizontal axis [m]) and a yaw rate about the vertical
+  /// [rad/s], each at a time on the sweeps' clock. Give them before the sweep that reaches their
+  /// time (a keyframe waits up to nav.wait_s for them); out-of-order samples are counted and
+  /// dropped.
+  void addGnssFix(double time, const Eigen::Vector2d& enu, double sigma);
+  void addYawRate(double time, double rate);
+  /// Final optimisation (all loops and navigation edges), call after the last sweep.
   void finish();
   /// A gap in the input: the odometry forgets its velocity and local map (RadarOdometry::restart)
   /// and its pose continues, so the next keyframe hangs from the last one by an odometry edge
@@ -92,6 +126,9 @@ class RadarSlam {
   const std::vector<double>& sweepTimes() const { return sweep_times_; }
   const std::vector<RadarLoop>& loops() const { return loops_; }
   const RadarLoopStats& loopStats() const { return stats_; }
+  const RadarNavStats& navStats() const { return nav_stats_; }
+  /// The ENU frame of the fixes in the map frame (p_map = T * p_enu), once anchored.
+  std::optional<Eigen::Isometry2d> mapFromEnu() const;
   size_t numKeyframes() const { return keyframes_.size(); }
   /// The map -> odometry correction at the last keyframe.
   Eigen::Isometry2d mapToOdometry() const;
@@ -107,6 +144,9 @@ class RadarSlam {
     double time = 0.0;                    ///< the sweep reference time
     std::vector<Eigen::Vector2d> points;  ///< in the keyframe frame
     ScanContext descriptor;
+    bool has_fix = false;  ///< a GNSS fix at this keyframe's time was used
+    Eigen::Vector2d fix = Eigen::Vector2d::Zero();
+    double fix_sigma = 0.0;
   };
   RadarSlamParams params_;
   RadarOdometry odometry_;
@@ -119,6 +159,19 @@ class RadarSlam {
   std::vector<int> sweep_keyframe_;  ///< the keyframe each sweep hangs from (-1: none yet)
   double travel_ = 0.0;
   Eigen::Isometry2d last_odom_ = Eigen::Isometry2d::Identity();
+  RadarNavStats nav_stats_;
+  std::vector<std::pair<double, Eigen::Vector3d>> fixes_;  ///< time, (x, y, sigma)
+  std::vector<std::pair<double, double>> rates_;           ///< time, yaw rate
+  size_t nav_next_ = 0;         ///< first keyframe whose navigation edges are not decided yet
+  double last_fix_travel_ = -1e18;  ///< travel at the last keyframe given a fix
+  int fixes_since_optimise_ = 0;
+
+  void attachNavigation(double now, bool final);
+  void attachYawRate(int k);
+  void attachFix(int k);
+  bool anchor();
+  void addFixEdge(int k);
+  void pruneNavigation();
 
   void addKeyframe(const RadarOdometryStep& step);
   void searchLoops(int query);

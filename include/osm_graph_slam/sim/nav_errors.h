@@ -35,6 +35,9 @@ struct NavErrorParams {
   double imu_heading_bias_deg = 0.3;
   double imu_heading_sigma_deg = 0.1;  ///< yaw white noise on top of the bias [deg]
   double gyro_sigma_deg_s = 0.1;       ///< white noise on the angular rates [deg/s]
+  /// Magnitude of a constant bias of the yaw-rate gyro per drive [deg/s]; its sign is drawn from
+  /// the seed. 0 keeps the LiDAR drives as they were; a MEMS IMU has 0.001-0.01 deg/s in run.
+  double gyro_bias_deg_s = 0.0;
   double accel_sigma = 0.05;           ///< white noise on the accelerations [m/s^2]
 };
 
@@ -50,7 +53,8 @@ struct NavEpochError {
 
 struct NavErrorSequence {
   std::vector<NavEpochError> epochs;
-  double heading_bias = 0.0;  ///< [rad]
+  double heading_bias = 0.0;    ///< [rad]
+  double gyro_bias_z = 0.0;     ///< [rad/s], in every epoch's gyro.z()
   int outages = 0;            ///< outages that start within the epochs
 };
 
