@@ -92,11 +92,13 @@ bool readSlamParams(const ParamReader& r, RadarSlamParams& p, std::string* error
   r.param("imu/enabled", n.imu_enabled);
   r.param("imu/gyro_noise_deg_sqrt_s", n.gyro_noise_deg_sqrt_s);
   r.param("imu/gyro_bias_deg_s", n.gyro_bias_deg_s);
+  r.param("imu/gyro_bias_horizon_s", n.gyro_bias_horizon_s);
   r.param("imu/max_gap", n.imu_max_gap);
   r.param("imu/wait_s", n.wait_s);
   if (n.gnss_sigma_floor <= 0 || n.gnss_sigma_scale <= 0 || n.gnss_kernel_width <= 0 ||
       n.gnss_max_interval <= 0 || n.gnss_optimise_every < 1 || n.gyro_noise_deg_sqrt_s < 0 ||
-      n.gyro_bias_deg_s < 0 || n.gyro_noise_deg_sqrt_s + n.gyro_bias_deg_s <= 0 ||
+      n.gyro_bias_deg_s < 0 || n.gyro_bias_horizon_s < 0 ||
+      n.gyro_noise_deg_sqrt_s + n.gyro_bias_deg_s <= 0 ||
       n.imu_max_gap <= 0 || n.wait_s < 0) {
     if (error)
       *error =
@@ -224,8 +226,10 @@ void RadarSlam::attachYawRate(int k) {
     yaw += 0.5 * (rateAt(a) + rateAt(b)) * (b - a);
   }
   const double dt = t1 - t0;
-  const double sigma = std::max(1e-5, (n.gyro_noise_deg_sqrt_s * std::sqrt(dt) +
-                                       n.gyro_bias_deg_s * dt) * kDeg);
+  const double variance_deg2 =
+      dt * (n.gyro_noise_deg_sqrt_s * n.gyro_noise_deg_sqrt_s +
+            n.gyro_bias_deg_s * n.gyro_bias_deg_s * n.gyro_bias_horizon_s);
+  const double sigma = std::max(1e-5, std::sqrt(variance_deg2) * kDeg);
   // An SE(2) edge that constrains only the yaw change: zero information on x and y.
   const Eigen::Matrix3d info = Eigen::Vector3d(0, 0, 1.0 / (sigma * sigma)).asDiagonal();
   graph_->addEdgeSE2(k - 1, k, Pose2(0, 0, yaw), info);

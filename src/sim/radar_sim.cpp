@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 
 #include "osm_graph_slam/sim/sim_random.h"
@@ -14,6 +15,16 @@ namespace fs = std::filesystem;
 
 namespace osm_graph_slam::sim {
 namespace {
+
+/// Body angular rate of a rotation path at t (central difference, h = 5 ms).
+Eigen::Vector3d bodyRate(const std::function<Eigen::Matrix3d(double)>& R, double t) {
+  const double h = 0.005;
+  const Eigen::AngleAxisd d(R(t - h).transpose() * R(t + h));
+  return d.axis() * d.angle() / (2 * h);
+}
+
+constexpr uint64_t kImuRowsTag = 0x696d753130304856ULL;  // "imu100HV"
+constexpr int kImuRowsPerEpoch = 10;                      // 100 Hz, as MulRan's Xsens
 
 /// Radar reflectivity relative to the LiDAR one: metal (cars, poles) reflects far more at
 /// 77 GHz, foliage less.
@@ -184,6 +195,7 @@ bool RadarSimulator::writeMulranDrive(const std::string& out_dir, RadarDriveStat
   };
   std::string poses, gps, imu;
   char line[512];
+  SimRng imu_rng(hashCombine(sim_.params().seed, kImuRowsTag));
   for (size_t k = 0; k < sim_.numScans(); ++k) {
     const double t = sim_.scanTime(k);
     if (t > end_time) break;
@@ -206,17 +218,7 @@ bool RadarSimulator::writeMulranDrive(const std::string& out_dir, RadarDriveStat
       events[stamp].push_back("gps");
       ++stats.gps;
     }
-    // The AHRS orientation is the measured one (with the INS's errors), as the euler columns.
-    const Eigen::Quaterniond q = Eigen::AngleAxisd(meas.yaw, Eigen::Vector3d::UnitZ()) *
-                                 Eigen::AngleAxisd(meas.pitch, Eigen::Vector3d::UnitY()) *
-                                 Eigen::AngleAxisd(meas.roll, Eigen::Vector3d::UnitX());
-    std::snprintf(line, sizeof(line),
-                  "%lld,%.9f,%.9f,%.9f,%.9f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.5f,%.5f,%.5f,0,0,0\n",
-                  (long long)stamp, q.x(), q.y(), q.z(), q.w(), meas.roll, meas.pitch, meas.yaw,
-                  meas.wx, meas.wy, meas.wz, meas.ax, meas.ay, meas.az);
-    imu += line;
-    events[stamp].push_back("imu");
-    ++stats.imu;
+    imu += imuRows(k, t, meas, end_time, stampOf, imu_rng, events, stats);
   }
   std::string stamps;
   for (const auto& [stamp, sensors] : events)
@@ -233,6 +235,48 @@ bool RadarSimulator::writeMulranDrive(const std::string& out_dir, RadarDriveStat
   stats.scans_per_s = stats.generation_s > 0 ? n / stats.generation_s : 0.0;
   stats.drive_dir = out_dir;
   return true;
+}
+
+
+std::string RadarSimulator::imuRows(size_t k, double t, const OxtsRecord& meas, double end_time,
+                                    const std::function<int64_t(double)>& stamp_of, SimRng& rng,
+                                    std::map<int64_t, std::vector<std::string>>& events,
+                                    RadarDriveStats& stats) const {
+  // 100 Hz rows between this epoch and the next: the attitude carries the epoch's INS errors
+  // along the true rotation since the epoch; the rates are the true body rates plus white noise
+  // and the drive's yaw-rate bias (at 10 Hz a gyro integrated over a sharp turn errs by degrees).
+  auto rotation = [this](double s) { return Eigen::Matrix3d(sim_.basePose(s).linear()); };
+  const Eigen::Matrix3d measured_at_epoch =
+      (Eigen::AngleAxisd(meas.yaw, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(meas.pitch, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(meas.roll, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  const NavErrorParams& nav = sim_.params().nav;
+  const double sg = nav.rtk ? 0.0 : nav.gyro_sigma_deg_s * M_PI / 180.0;
+  const double bias = sim_.navErrors().gyro_bias_z;
+  const double next_epoch = k + 1 < sim_.numScans() ? sim_.scanTime(k + 1) : end_time;
+  std::string rows;
+  char line[512];
+  for (int j = 0; j < kImuRowsPerEpoch; ++j) {
+    const double tj = t + (next_epoch - t) * j / kImuRowsPerEpoch;
+    if (tj > end_time) break;
+    const Eigen::Matrix3d R = measured_at_epoch * rotation(t).transpose() * rotation(tj);
+    const Eigen::Quaterniond q(R);
+    const double roll = std::atan2(R(2, 1), R(2, 2)), pitch = std::asin(-std::clamp(R(2, 0), -1.0, 1.0));
+    const double yaw = std::atan2(R(1, 0), R(0, 0));
+    const Eigen::Vector3d w = bodyRate(rotation, tj) +
+                              Eigen::Vector3d(sg * rng.gaussian(), sg * rng.gaussian(),
+                                              sg * rng.gaussian() + bias);
+    const int64_t stamp = stamp_of(tj);
+    std::snprintf(line, sizeof(line),
+                  "%lld,%.9f,%.9f,%.9f,%.9f,%.6f,%.6f,%.6f,%.7f,%.7f,%.7f,%.5f,%.5f,%.5f,0,0,0\n",
+                  (long long)stamp, q.x(), q.y(), q.z(), q.w(), roll, pitch, yaw, w.x(), w.y(),
+                  w.z(), meas.ax, meas.ay, meas.az);
+    rows += line;
+    events[stamp].push_back("imu");
+    ++stats.imu;
+  }
+  return rows;
 }
 
 }  // namespace osm_graph_slam::sim

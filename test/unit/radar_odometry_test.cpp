@@ -209,7 +209,7 @@ TEST(RadarConfig, YamlEqualsTheDefaults) {
   // 39 of the odometry (14 registration/*), 22 of the back-end (graph/*, loop/*), 10 of the
   // radar_odometry nodelet (input/*, frames with radar_map_frame); config_consistency_test
   // audits all of them.
-  EXPECT_EQ(yaml.keys().size(), 85u);
+  EXPECT_EQ(yaml.keys().size(), 86u);
   const YamlParamReader bad = YamlParamReader::fromString("features:\n  detector: cfra\n");
   RadarOdometryParams p;
   EXPECT_FALSE(readParams(bad, p, &error));

@@ -72,7 +72,7 @@ TEST(RadarSim, MulranDriveParsesBackAndIsDeterministic) {
   for (const MulranStamp& s : seq.stamps)
     if (s.sensor == "radar") radar_stamps.push_back(s.stamp_ns);
   ASSERT_EQ(radar_stamps.size(), n);
-  EXPECT_EQ(stats_a.imu, 31u);  // 10 Hz over the 3 s of 12 sweeps, both ends
+  EXPECT_EQ(stats_a.imu, 301u);  // 100 Hz over the 3 s of 12 sweeps, both ends
   EXPECT_EQ(radar_stamps[1] - radar_stamps[0], 250000000);  // 4 Hz
   EXPECT_EQ(seq.gps.size(), stats_a.gps);
   EXPECT_EQ(seq.imu.size(), stats_a.imu);
@@ -91,6 +91,18 @@ TEST(RadarSim, MulranDriveParsesBackAndIsDeterministic) {
     EXPECT_EQ(r.scan.power, radar.simulate(k).power) << "sweep " << k;
     EXPECT_EQ(readBytes(path), readBytes(fs::path(b) / fs::relative(path, a))) << path;
   }
+  // The yaw rate integrated over the 3 s is the true yaw change (global_pose) within the gyro's
+  // white noise (0.1 deg/s per 100 Hz sample: 0.02 deg over 3 s) and the seed's bias (0 here).
+  double integrated = 0;
+  for (size_t i = 1; i < seq.imu.size(); ++i)
+    integrated += 0.5 * (seq.imu[i].gyro.z() + seq.imu[i - 1].gyro.z()) *
+                  double(seq.imu[i].stamp_ns - seq.imu[i - 1].stamp_ns) * 1e-9;
+  auto yawOfPose = [](const Eigen::Isometry3d& P) {
+    return std::atan2(P.linear()(1, 0), P.linear()(0, 0));
+  };
+  const double true_change = std::remainder(
+      yawOfPose(seq.poses.back().pose) - yawOfPose(seq.poses.front().pose), 2 * M_PI);
+  EXPECT_NEAR(integrated, true_change, 0.1 * M_PI / 180) << "true " << true_change;
   for (const std::string f : {"global_pose.csv", "sensor_data/gps.csv", "sensor_data/xsens_imu.csv",
                               "sensor_data/data_stamp.csv"})
     EXPECT_EQ(readBytes(fs::path(a) / f), readBytes(fs::path(b) / f)) << f;

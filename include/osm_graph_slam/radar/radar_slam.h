@@ -66,7 +66,12 @@ struct RadarNavParams {
   int gnss_optimise_every = 10;     ///< keyframes with a fix between optimisations
   bool imu_enabled = true;
   double gyro_noise_deg_sqrt_s = 0.05;  ///< angle random walk of the integrated yaw rate
-  double gyro_bias_deg_s = 0.01;        ///< unmodelled bias: sigma grows by this per second
+  /// The gyro's unmodelled bias [deg/s] and the time over which a loop or the fixes must be able
+  /// to correct what it accumulates: the bias is the same in every edge, so it is spread over
+  /// them as a random walk, sigma^2 = dt (noise^2 + bias^2 horizon), not added per edge (sqrt(N)
+  /// independent edges would hold a drift of bias * horizon as if it were impossible).
+  double gyro_bias_deg_s = 0.01;
+  double gyro_bias_horizon_s = 600.0;
   double imu_max_gap = 0.5;             ///< [s] a longer gap between samples: no yaw edge
   double wait_s = 1.0;  ///< [s] a keyframe waits this long (sweep time) for late navigation data
 };

@@ -6,13 +6,18 @@
 // 0.25 s turn (motion skew) and its range shifted by the Doppler term of seed eq. 7.9.
 // Seeded: the same seed gives byte-identical files.
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "osm_graph_slam/radar/radar_scan.h"
 #include "osm_graph_slam/sim/simulator.h"
 
 namespace osm_graph_slam::sim {
+
+class SimRng;
 
 struct NavtechModel {
   int azimuths = 400;                   ///< rows per turn (0.9 deg)
@@ -69,6 +74,12 @@ class RadarSimulator {
                         std::string* error = nullptr) const;
 
  private:
+  /// xsens_imu.csv rows at 100 Hz from LiDAR epoch k (time t, measured record meas) to the next.
+  std::string imuRows(size_t k, double t, const OxtsRecord& meas, double end_time,
+                      const std::function<int64_t(double)>& stamp_of, SimRng& rng,
+                      std::map<int64_t, std::vector<std::string>>& events,
+                      RadarDriveStats& stats) const;
+
   const UrbanSimulator& sim_;
   NavtechModel model_;
   uint64_t seed_;
