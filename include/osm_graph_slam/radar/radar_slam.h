@@ -71,7 +71,7 @@ struct RadarNavParams {
   /// them as a random walk, sigma^2 = dt (noise^2 + bias^2 horizon), not added per edge (sqrt(N)
   /// independent edges would hold a drift of bias * horizon as if it were impossible).
   double gyro_bias_deg_s = 0.01;
-  double gyro_bias_horizon_s = 600.0;
+  double gyro_bias_horizon_s = 100.0;
   double imu_max_gap = 0.5;             ///< [s] a longer gap between samples: no yaw edge
   double wait_s = 1.0;  ///< [s] a keyframe waits this long (sweep time) for late navigation data
 };
