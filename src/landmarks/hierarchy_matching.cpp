@@ -219,29 +219,6 @@ std::vector<std::pair<int, int>> matchTrianglesDirectly(
 
 }  // namespace
 
-Eigen::Isometry2d fitRigid2d(const std::vector<Eigen::Vector2d>& a,
-                             const std::vector<Eigen::Vector2d>& b) {
-  Eigen::Isometry2d T = Eigen::Isometry2d::Identity();
-  if (a.size() < 2 || a.size() != b.size()) return T;
-  Eigen::Vector2d ma = Eigen::Vector2d::Zero(), mb = Eigen::Vector2d::Zero();
-  for (size_t i = 0; i < a.size(); ++i) {
-    ma += a[i];
-    mb += b[i];
-  }
-  ma /= double(a.size());
-  mb /= double(b.size());
-  double sxx = 0.0, sxy = 0.0;  // sum of dot and cross products of the centred pairs
-  for (size_t i = 0; i < a.size(); ++i) {
-    const Eigen::Vector2d p = a[i] - ma, q = b[i] - mb;
-    sxx += p.dot(q);
-    sxy += p.x() * q.y() - p.y() * q.x();
-  }
-  const double theta = std::atan2(sxy, sxx);
-  T.linear() = Eigen::Rotation2Dd(theta).toRotationMatrix();
-  T.translation() = mb - T.linear() * ma;
-  return T;
-}
-
 std::vector<LandmarkCorrespondence> matchHierarchies(
     const GeometricHierarchy& query, const GeometricHierarchy& candidate,
     const HierarchyMatchParams& params, const std::vector<PolygonPair>* polygon_pairs,

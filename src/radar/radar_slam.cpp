@@ -272,22 +272,12 @@ bool RadarSlam::anchor() {
   const Eigen::Vector2d first = keyframes_[size_t(with_fix.front())].fix;
   for (int k : with_fix) span = std::max(span, (keyframes_[size_t(k)].fix - first).norm());
   if (span < params_.nav.gnss_min_baseline) return false;
-  Eigen::Vector2d zc = Eigen::Vector2d::Zero(), pc = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector2d> enu, map;
   for (int k : with_fix) {
-    zc += keyframes_[size_t(k)].fix;
-    pc += estimate(k).translation();
+    enu.push_back(keyframes_[size_t(k)].fix);
+    map.push_back(estimate(k).translation());
   }
-  zc /= double(with_fix.size());
-  pc /= double(with_fix.size());
-  double dot = 0, cross = 0;
-  for (int k : with_fix) {
-    const Eigen::Vector2d z = keyframes_[size_t(k)].fix - zc, p = estimate(k).translation() - pc;
-    dot += z.dot(p);
-    cross += z.x() * p.y() - z.y() * p.x();
-  }
-  const double theta = std::atan2(cross, dot);
-  const Eigen::Vector2d t = pc - Eigen::Rotation2Dd(theta) * zc;
-  graph_->addVertexSE2(kAnchorId, Pose2(t.x(), t.y(), theta));
+  graph_->addVertexSE2(kAnchorId, planarPose(fitRigid2d(enu, map)));
   nav_stats_.anchored = true;
   for (int k : with_fix) addFixEdge(k);
   return true;

@@ -14,6 +14,7 @@
 #include <optional>
 #include <random>
 
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/radar/radar_motion.h"
 #include "osm_graph_slam/radar/radar_registration.h"
@@ -32,10 +33,6 @@ Eigen::Isometry2d pose2(double x, double y, double yaw_deg) {
   T.linear() = Eigen::Rotation2Dd(yaw_deg * kDeg).toRotationMatrix();
   T.translation() << x, y;
   return T;
-}
-
-double yawOf(const Eigen::Isometry2d& T) {
-  return std::atan2(T.linear()(1, 0), T.linear()(0, 0));
 }
 
 struct Segment {
@@ -549,24 +546,14 @@ RadarSlamParams navOnly() {
 /// the first keyframe's, whose heading error the fixes cannot undo, so the first-pose frame would
 /// charge the GNSS run with the start's heading error over the whole drive.
 double maxAlignedError(const std::vector<Eigen::Isometry2d>& poses, const SlamRun& run) {
-  Eigen::Vector2d pc = Eigen::Vector2d::Zero(), tc = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector2d> est, truth;
   for (size_t i = 0; i < poses.size(); ++i) {
-    pc += poses[i].translation();
-    tc += run.truth[i].translation();
+    est.push_back(poses[i].translation());
+    truth.push_back(run.truth[i].translation());
   }
-  pc /= double(poses.size());
-  tc /= double(poses.size());
-  double dot = 0, cross = 0;
-  for (size_t i = 0; i < poses.size(); ++i) {
-    const Eigen::Vector2d p = poses[i].translation() - pc, t = run.truth[i].translation() - tc;
-    dot += p.dot(t);
-    cross += p.x() * t.y() - p.y() * t.x();
-  }
-  const Eigen::Rotation2Dd R(std::atan2(cross, dot));
+  const Eigen::Isometry2d T = fitRigid2d(est, truth);
   double worst = 0;
-  for (size_t i = 0; i < poses.size(); ++i)
-    worst = std::max(worst, (R * (poses[i].translation() - pc) + tc - run.truth[i].translation())
-                                .norm());
+  for (size_t i = 0; i < est.size(); ++i) worst = std::max(worst, (T * est[i] - truth[i]).norm());
   return worst;
 }
 

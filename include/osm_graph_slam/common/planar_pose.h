@@ -3,6 +3,7 @@
 // the tests; here rather than in graph/ so that none of them has to include the pose graph.
 #include <Eigen/Geometry>
 #include <cmath>
+#include <vector>
 
 #include "osm_graph_slam/common/geometry2d.h"
 
@@ -21,5 +22,9 @@ Eigen::Isometry2d isometry2dFromPlanar(const Pose2& pose);
 inline double yawOf(const Eigen::Isometry2d& T) {
   return std::atan2(T.linear()(1, 0), T.linear()(0, 0));
 }
+
+/// Least-squares rigid 2D transform (p_b = T p_a) of paired points; identity if < 2 pairs.
+Eigen::Isometry2d fitRigid2d(const std::vector<Eigen::Vector2d>& a,
+                             const std::vector<Eigen::Vector2d>& b);
 
 }  // namespace osm_graph_slam

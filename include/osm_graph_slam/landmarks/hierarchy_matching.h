@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "osm_graph_slam/common/planar_pose.h"  // fitRigid2d
 #include "osm_graph_slam/landmarks/geometric_hierarchy.h"
 
 namespace osm_graph_slam {
@@ -81,10 +82,6 @@ struct RigidMatch {
   int correspondences = 0;
   std::vector<std::pair<int, int>> associations;  ///< (query, candidate) landmark indices
 };
-
-/// Least-squares rigid 2D transform (p_b = T p_a) of paired points; identity if < 2 pairs.
-Eigen::Isometry2d fitRigid2d(const std::vector<Eigen::Vector2d>& a,
-                             const std::vector<Eigen::Vector2d>& b);
 
 /// The whole match: hierarchical correspondences, RANSAC, refinement, acceptance tests.
 RigidMatch matchLandmarkHierarchies(const GeometricHierarchy& query,
