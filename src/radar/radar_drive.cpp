@@ -20,7 +20,8 @@ constexpr int64_t kNavLookaheadNs = 500'000'000;
 class NavigationFeed {
  public:
   NavigationFeed(const MulranSequence& seq, int64_t origin_ns) : seq_(seq), origin_ns_(origin_ns) {
-    if (!seq.gps.empty()) enu_.emplace(seq.gps.front().lat, seq.gps.front().lon, seq.gps.front().alt);
+    if (!seq.gps.empty())
+      enu_.emplace(seq.gps.front().lat, seq.gps.front().lon, seq.gps.front().alt);
   }
   void feedUntil(int64_t stamp_ns, RadarSlam& slam) {
     for (; gps_ < seq_.gps.size() && seq_.gps[gps_].stamp_ns <= stamp_ns; ++gps_) {

@@ -24,7 +24,7 @@ Eigen::Vector3d bodyRate(const std::function<Eigen::Matrix3d(double)>& R, double
 }
 
 constexpr uint64_t kImuRowsTag = 0x696d753130304856ULL;  // "imu100HV"
-constexpr int kImuRowsPerEpoch = 10;                      // 100 Hz, as MulRan's Xsens
+constexpr int kImuRowsPerEpoch = 10;                     // 100 Hz, as MulRan's Xsens
 
 /// Radar reflectivity relative to the LiDAR one: metal (cars, poles) reflects far more at
 /// 77 GHz, foliage less.
@@ -237,7 +237,6 @@ bool RadarSimulator::writeMulranDrive(const std::string& out_dir, RadarDriveStat
   return true;
 }
 
-
 std::string RadarSimulator::imuRows(size_t k, double t, const OxtsRecord& meas, double end_time,
                                     const std::function<int64_t(double)>& stamp_of, SimRng& rng,
                                     std::map<int64_t, std::vector<std::string>>& events,
@@ -262,11 +261,12 @@ std::string RadarSimulator::imuRows(size_t k, double t, const OxtsRecord& meas, 
     if (tj > end_time) break;
     const Eigen::Matrix3d R = measured_at_epoch * rotation(t).transpose() * rotation(tj);
     const Eigen::Quaterniond q(R);
-    const double roll = std::atan2(R(2, 1), R(2, 2)), pitch = std::asin(-std::clamp(R(2, 0), -1.0, 1.0));
+    const double roll = std::atan2(R(2, 1), R(2, 2)),
+                 pitch = std::asin(-std::clamp(R(2, 0), -1.0, 1.0));
     const double yaw = std::atan2(R(1, 0), R(0, 0));
-    const Eigen::Vector3d w = bodyRate(rotation, tj) +
-                              Eigen::Vector3d(sg * rng.gaussian(), sg * rng.gaussian(),
-                                              sg * rng.gaussian() + bias);
+    const Eigen::Vector3d w =
+        bodyRate(rotation, tj) +
+        Eigen::Vector3d(sg * rng.gaussian(), sg * rng.gaussian(), sg * rng.gaussian() + bias);
     const int64_t stamp = stamp_of(tj);
     std::snprintf(line, sizeof(line),
                   "%lld,%.9f,%.9f,%.9f,%.9f,%.6f,%.6f,%.6f,%.7f,%.7f,%.7f,%.5f,%.5f,%.5f,0,0,0\n",

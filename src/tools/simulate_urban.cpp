@@ -68,10 +68,10 @@ void usage() {
       n.gnss_sigma, n.gnss_sigma_vertical, n.gnss_bias_sigma, n.gnss_bias_sigma_vertical,
       n.gnss_bias_tau_s, n.gnss_outages_per_km, n.gnss_outage_duration_s, kOxtsNoFixAccuracy,
       n.imu_heading_bias_deg, n.imu_heading_sigma_deg, n.imu_attitude_sigma_deg, n.gyro_sigma_deg_s,
-      n.accel_sigma, n.gyro_bias_deg_s, priorModelName(r.model), r.block_size, r.block_translation_sigma,
-      r.block_rotation_sigma_deg, r.block_residual_sigma, r.block_residual_rotation_sigma_deg,
-      r.global_offset_min, r.global_offset_max, r.global_rotation_sigma_deg,
-      r.mixed_translation_sigma, r.mixed_rotation_sigma_deg);
+      n.accel_sigma, n.gyro_bias_deg_s, priorModelName(r.model), r.block_size,
+      r.block_translation_sigma, r.block_rotation_sigma_deg, r.block_residual_sigma,
+      r.block_residual_rotation_sigma_deg, r.global_offset_min, r.global_offset_max,
+      r.global_rotation_sigma_deg, r.mixed_translation_sigma, r.mixed_rotation_sigma_deg);
 }
 
 }  // namespace

@@ -509,12 +509,13 @@ namespace {
 
 /// The true ENU frame of the fixes, seen from the simulator's world: rotated 35 deg and shifted,
 /// so that nothing works by the frames happening to coincide.
-Eigen::Isometry2d enuFromWorld() { return pose2(120.0, -40.0, 35.0); }
+Eigen::Isometry2d enuFromWorld() {
+  return pose2(120.0, -40.0, 35.0);
+}
 
 /// 10 Hz fixes of the true radar position in that frame with white noise (sigma per axis), one
 /// fix `outlier_m` off at t = 20 s when non-zero; 100 Hz yaw rates of the truth plus a bias.
-NavFeed simulatedNavigation(double sigma, double outlier_m, double gyro_bias, bool gnss,
-                            bool imu) {
+NavFeed simulatedNavigation(double sigma, double outlier_m, double gyro_bias, bool gnss, bool imu) {
   auto state = std::make_shared<std::pair<double, double>>(0.0, 0.0);  // next fix, next rate
   auto rng = std::make_shared<std::mt19937>(7);
   return [=](RadarSlam& slam, const sim::RadarSimulator& radar, double until) {
@@ -528,9 +529,9 @@ NavFeed simulatedNavigation(double sigma, double outlier_m, double gyro_bias, bo
     }
     for (; imu && state->second <= end; state->second += 0.01) {
       const double t = state->second, h = 0.005;
-      const double rate = yawOf(planar(radar.radarPose(t - h)).inverse() *
-                                planar(radar.radarPose(t + h))) /
-                          (2 * h);
+      const double rate =
+          yawOf(planar(radar.radarPose(t - h)).inverse() * planar(radar.radarPose(t + h))) /
+          (2 * h);
       slam.addYawRate(t, rate + gyro_bias);
     }
   };
@@ -564,8 +565,8 @@ double maxAlignedError(const std::vector<Eigen::Isometry2d>& poses, const SlamRu
 TEST(RadarSlamNavigation, GnssAnchorsTheMapAndBoundsTheError) {
   std::optional<Eigen::Isometry2d> map_from_enu;
   RadarNavStats stats;
-  const SlamRun run = runSimulatedDrive(
-      navOnly(), simulatedNavigation(0.5, 0.0, 0.0, true, false), &map_from_enu, &stats);
+  const SlamRun run = runSimulatedDrive(navOnly(), simulatedNavigation(0.5, 0.0, 0.0, true, false),
+                                        &map_from_enu, &stats);
   ASSERT_TRUE(map_from_enu.has_value());
   EXPECT_TRUE(stats.anchored);
   EXPECT_GT(stats.gnss_edges, 20);
@@ -575,7 +576,7 @@ TEST(RadarSlamNavigation, GnssAnchorsTheMapAndBoundsTheError) {
   // (sigma 0.5 m each), so degrees, not tenths.
   const Eigen::Isometry2d error =
       (enuFromWorld() * run.first_world).inverse() * map_from_enu->inverse();
-  EXPECT_LT(error.translation().norm(), 1.0);  // measured 0.50 m
+  EXPECT_LT(error.translation().norm(), 1.0);     // measured 0.50 m
   EXPECT_LT(std::abs(yawOf(error)) / kDeg, 3.0);  // measured 1.80 deg
   const double odom = maxAlignedError(run.odometry, run);
   const double slam = maxAlignedError(run.corrected, run);

@@ -38,7 +38,7 @@ struct NavErrorParams {
   /// Magnitude of a constant bias of the yaw-rate gyro per drive [deg/s]; its sign is drawn from
   /// the seed. 0 keeps the LiDAR drives as they were; a MEMS IMU has 0.001-0.01 deg/s in run.
   double gyro_bias_deg_s = 0.0;
-  double accel_sigma = 0.05;           ///< white noise on the accelerations [m/s^2]
+  double accel_sigma = 0.05;  ///< white noise on the accelerations [m/s^2]
 };
 
 /// The errors of one OXTS record (one epoch).
@@ -53,8 +53,8 @@ struct NavEpochError {
 
 struct NavErrorSequence {
   std::vector<NavEpochError> epochs;
-  double heading_bias = 0.0;    ///< [rad]
-  double gyro_bias_z = 0.0;     ///< [rad/s], in every epoch's gyro.z()
+  double heading_bias = 0.0;  ///< [rad]
+  double gyro_bias_z = 0.0;   ///< [rad/s], in every epoch's gyro.z()
   int outages = 0;            ///< outages that start within the epochs
 };
 
