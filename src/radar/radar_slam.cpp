@@ -98,8 +98,7 @@ bool readSlamParams(const ParamReader& r, RadarSlamParams& p, std::string* error
   if (n.gnss_sigma_floor <= 0 || n.gnss_sigma_scale <= 0 || n.gnss_kernel_width <= 0 ||
       n.gnss_max_interval <= 0 || n.gnss_optimise_every < 1 || n.gyro_noise_deg_sqrt_s < 0 ||
       n.gyro_bias_deg_s < 0 || n.gyro_bias_horizon_s < 0 ||
-      n.gyro_noise_deg_sqrt_s + n.gyro_bias_deg_s <= 0 ||
-      n.imu_max_gap <= 0 || n.wait_s < 0) {
+      n.gyro_noise_deg_sqrt_s + n.gyro_bias_deg_s <= 0 || n.imu_max_gap <= 0 || n.wait_s < 0) {
     if (error)
       *error =
           "radar parameters: gnss/sigma_floor, sigma_scale, kernel_width, max_interval, "
@@ -226,9 +225,8 @@ void RadarSlam::attachYawRate(int k) {
     yaw += 0.5 * (rateAt(a) + rateAt(b)) * (b - a);
   }
   const double dt = t1 - t0;
-  const double variance_deg2 =
-      dt * (n.gyro_noise_deg_sqrt_s * n.gyro_noise_deg_sqrt_s +
-            n.gyro_bias_deg_s * n.gyro_bias_deg_s * n.gyro_bias_horizon_s);
+  const double variance_deg2 = dt * (n.gyro_noise_deg_sqrt_s * n.gyro_noise_deg_sqrt_s +
+                                     n.gyro_bias_deg_s * n.gyro_bias_deg_s * n.gyro_bias_horizon_s);
   const double sigma = std::max(1e-5, std::sqrt(variance_deg2) * kDeg);
   // An SE(2) edge that constrains only the yaw change: zero information on x and y.
   const Eigen::Matrix3d info = Eigen::Vector3d(0, 0, 1.0 / (sigma * sigma)).asDiagonal();
@@ -442,6 +440,7 @@ void RadarSlam::optimise() {
   OptimizerOptions options;
   options.max_iterations = 50;
   graph_->optimize(INT_MAX, options);
+  ++stats_.optimisations;
   stats_.ms_optimise += msSince(t0);
 }
 

@@ -72,7 +72,7 @@ struct RadarNavParams {
   /// independent edges would hold a drift of bias * horizon as if it were impossible).
   double gyro_bias_deg_s = 0.01;
   double gyro_bias_horizon_s = 600.0;
-  double imu_max_gap = 0.5;             ///< [s] a longer gap between samples: no yaw edge
+  double imu_max_gap = 0.5;  ///< [s] a longer gap between samples: no yaw edge
   double wait_s = 1.0;  ///< [s] a keyframe waits this long (sweep time) for late navigation data
 };
 
@@ -103,6 +103,7 @@ struct RadarLoop {
 struct RadarLoopStats {
   int keyframes_searched = 0, candidates = 0, verified = 0, accepted = 0;
   int rejected_registration = 0, rejected_gate = 0;
+  int optimisations = 0;  ///< of the whole graph (on a loop, the GNSS anchor, every few fixes)
   double ms_descriptor = 0, ms_search = 0, ms_verify = 0, ms_optimise = 0;  ///< totals
 };
 
@@ -167,7 +168,7 @@ class RadarSlam {
   RadarNavStats nav_stats_;
   std::vector<std::pair<double, Eigen::Vector3d>> fixes_;  ///< time, (x, y, sigma)
   std::vector<std::pair<double, double>> rates_;           ///< time, yaw rate
-  size_t nav_next_ = 0;         ///< first keyframe whose navigation edges are not decided yet
+  size_t nav_next_ = 0;             ///< first keyframe whose navigation edges are not decided yet
   double last_fix_travel_ = -1e18;  ///< travel at the last keyframe given a fix
   int fixes_since_optimise_ = 0;
 
