@@ -3,7 +3,9 @@
 // TF radar_odom -> the image's frame, radar/path, radar/features (x y z power) and radar/status
 // (diagnostic_msgs/DiagnosticArray, one entry per image). With loop/enabled also the back-end's
 // TF radar_map -> radar_odom, radar/slam_path (corrected sweep poses) and radar/loops (the loop
-// edges). doc/radar.md "ROS: radar_odometry nodelet and radar.launch", "Radar SLAM through ROS".
+// edges), and it feeds gps/fix (sensor_msgs/NavSatFix) and imu/data (sensor_msgs/Imu, the yaw
+// rate) into the graph (gnss/enabled, imu/enabled). doc/radar.md "ROS: radar_odometry nodelet and
+// radar.launch", "Radar SLAM through ROS", "GNSS and gyro through ROS".
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -11,14 +13,19 @@
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,15 +62,48 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       loops_pub_ = nh.advertise<visualization_msgs::MarkerArray>("radar/loops", 1, true);
     }
     sub_ = nh.subscribe("radar/polar", 10, &RadarOdometryNodelet::onImage, this);
+    // GNSS and gyro feed the back-end only. The nodelet's callbacks (getNodeHandle: one queue,
+    // one thread) never run concurrently, so the stream needs no lock.
+    std::string nav;
+    if (stream_->loopsEnabled() && slam_params.nav.gnss_enabled) {
+      gps_sub_ = nh.subscribe("gps/fix", uint32_t(node_params_.nav_queue_size),
+                              &RadarOdometryNodelet::onFix, this);
+      nav += ", GNSS from " + gps_sub_.getTopic();
+    }
+    if (stream_->loopsEnabled() && slam_params.nav.imu_enabled) {
+      imu_sub_ = nh.subscribe("imu/data", uint32_t(node_params_.nav_queue_size),
+                              &RadarOdometryNodelet::onImu, this);
+      nav += ", yaw rate from " + imu_sub_.getTopic();
+    }
     const std::string loops = stream_->loopsEnabled() ? "on, TF " + node_params_.radar_map_frame +
                                                             " -> " + node_params_.radar_odom_frame
                                                       : "off";
     NODELET_INFO(
         "radar odometry: %s features, %d x %d images, max gap %.2f s, %s -> image frame; loop "
-        "closure %s",
+        "closure %s%s",
         slam_params.odometry.features.detector.c_str(), stream_params.layout.expected_bins,
         stream_params.layout.expected_azimuths, stream_params.max_gap,
-        node_params_.radar_odom_frame.c_str(), loops.c_str());
+        node_params_.radar_odom_frame.c_str(), loops.c_str(), nav.c_str());
+  }
+
+  /// NavSatFix -> RadarOdometryStream::addGnssFix: STATUS_NO_FIX is not a fix; the horizontal
+  /// sigma from the covariance's east / north diagonal (the larger), unknown for
+  /// COVARIANCE_TYPE_UNKNOWN (the stream uses input/gnss_unknown_sigma).
+  void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
+    const bool valid = msg->status.status >= sensor_msgs::NavSatStatus::STATUS_FIX;
+    const double sigma =
+        msg->position_covariance_type == sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN
+            ? -1.0
+            : std::sqrt(std::max(msg->position_covariance[0], msg->position_covariance[4]));
+    stream_->addGnssFix(int64_t(msg->header.stamp.toNSec()), msg->latitude, msg->longitude,
+                        msg->altitude, sigma, valid);
+  }
+
+  /// Imu -> RadarOdometryStream::addYawRate: angular_velocity.z; REP-145 marks a message without
+  /// rates by angular_velocity_covariance[0] = -1.
+  void onImu(const sensor_msgs::ImuConstPtr& msg) {
+    stream_->addYawRate(int64_t(msg->header.stamp.toNSec()), msg->angular_velocity.z,
+                        msg->angular_velocity_covariance[0] != -1.0);
   }
 
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
@@ -106,6 +146,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       publishOdometry(stamp, frame, r.step);
       publishFeatures(stamp, frame, r.step.feature_set);
       if (stream_->loopsEnabled()) publishSlam(stamp, r);
+      if (r.new_anchor) logAnchor();
       if (r.new_loops > 0) {
         const radar::RadarLoopStats& ls = stream_->slam().loopStats();
         NODELET_INFO("radar loop closed: keyframes %d - %d (%d accepted, %d candidates)",
@@ -114,6 +155,21 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       }
     }
     publishStatus(msg->header.stamp, frame, r);
+  }
+
+  /// Once: the ENU frame of the fixes (origin: the first valid fix) in radar_map.
+  void logAnchor() {
+    const std::optional<Eigen::Isometry2d> T = stream_->slam().mapFromEnu();
+    const std::optional<EnuConverter>& enu = stream_->enu();
+    if (!T || !enu) return;
+    const radar::RadarNavStats& n = stream_->slam().navStats();
+    NODELET_INFO(
+        "radar GNSS anchor set: ENU (origin %.7f, %.7f, %.2f m) -> %s: translation (%.2f, %.2f) "
+        "m, yaw %.2f deg; %d fixes, %d GNSS edges",
+        enu->originLat(), enu->originLon(), enu->originAlt(), node_params_.radar_map_frame.c_str(),
+        T->translation().x(), T->translation().y(),
+        std::atan2(T->linear()(1, 0), T->linear()(0, 0)) * 180.0 / M_PI, n.gnss_fixes,
+        n.gnss_edges);
   }
 
   /// The radar pose at the sweep's mid time (the time the odometry keys it by).
@@ -147,7 +203,8 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
   }
 
   /// The back-end: TF radar_map -> radar_odom (every sweep), radar/slam_path (appended; rebuilt
-  /// from the corrected poses when a loop moved them) and radar/loops (when a loop is accepted).
+  /// from the corrected poses when an optimisation moved them: a loop, the GNSS anchor, GNSS
+  /// edges) and radar/loops (when a loop is accepted).
   void publishSlam(const ros::Time& stamp, const radar::RadarStreamResult& r) {
     geometry_msgs::TransformStamped tf;
     tf.header.stamp = stamp;
@@ -165,7 +222,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       ps.pose = toPoseMsg(radar::planarTo3d(pose));
       return ps;
     };
-    if (r.new_loops > 0) {
+    if (r.new_loops > 0 || r.optimised) {
       const radar::RadarSlam& slam = stream_->slam();
       const std::vector<Eigen::Isometry2d> poses = slam.sweepPoses();
       const std::vector<double>& times = slam.sweepTimes();
@@ -173,7 +230,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       slam_path_.poses.reserve(poses.size());
       for (size_t i = 0; i < poses.size() && i < times.size(); ++i)
         slam_path_.poses.push_back(poseStamped(stream_->toInputTime(times[i]), poses[i]));
-      publishLoops(stamp);
+      if (r.new_loops > 0) publishLoops(stamp);
     } else {
       slam_path_.poses.push_back(poseStamped(r.time_ns, r.corrected));
     }
@@ -278,6 +335,26 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
       add("loops_rejected_registration", std::to_string(ls.rejected_registration));
       add("loops_rejected_gate", std::to_string(ls.rejected_gate));
       add("loop_ms_per_keyframe", num(c.ms_loop_per_keyframe));
+      add("optimisations", std::to_string(ls.optimisations));
+      // GNSS and gyro: what the stream took (RadarStreamCounters) and what the graph made of it
+      // (RadarNavStats).
+      const radar::RadarNavStats& n = slam.navStats();
+      add("gnss_received", std::to_string(c.gnss_received));
+      add("gnss_invalid", std::to_string(c.gnss_invalid));
+      add("gnss_unknown_sigma", std::to_string(c.gnss_unknown_sigma));
+      add("gnss_fixes", std::to_string(n.gnss_fixes));
+      add("gnss_rejected_sigma", std::to_string(n.gnss_rejected_sigma));
+      add("gnss_out_of_order", std::to_string(n.gnss_out_of_order));
+      add("gnss_edges", std::to_string(n.gnss_edges));
+      add("gnss_anchored", n.anchored ? "true" : "false");
+      add("imu_received", std::to_string(c.imu_received));
+      add("imu_invalid", std::to_string(c.imu_invalid));
+      add("imu_samples", std::to_string(n.imu_samples));
+      add("imu_out_of_order", std::to_string(n.imu_out_of_order));
+      add("imu_edges", std::to_string(n.imu_edges));
+      add("imu_missing", std::to_string(n.imu_missing));
+      add("nav_buffered", std::to_string(c.nav_buffered));
+      add("nav_dropped_early", std::to_string(c.nav_dropped_early));
     }
     array->status.push_back(s);
     status_pub_.publish(boost::shared_ptr<const diagnostic_msgs::DiagnosticArray>(array));
@@ -288,7 +365,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
   nav_msgs::Path path_, slam_path_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher odom_pub_, path_pub_, features_pub_, status_pub_, slam_path_pub_, loops_pub_;
-  ros::Subscriber sub_;
+  ros::Subscriber sub_, gps_sub_, imu_sub_;
 };
 
 }  // namespace osm_graph_slam

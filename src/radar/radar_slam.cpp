@@ -430,6 +430,8 @@ void RadarSlam::optimise() {
   OptimizerOptions options;
   options.max_iterations = 50;
   graph_->optimize(INT_MAX, options);
+  ++stats_.optimisations;
+  fixes_since_optimise_ = 0;  // every optimisation counts, whatever triggered it
   stats_.ms_optimise += msSince(t0);
 }
 

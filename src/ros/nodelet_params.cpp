@@ -66,12 +66,14 @@ bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string
   r.param("radar_frame", p.radar_frame);
   r.param("publish_tf", p.publish_tf);
   r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("nav_queue_size", p.nav_queue_size);
   if (p.radar_odom_frame.empty() || p.radar_map_frame.empty() || p.radar_frame.empty() ||
-      p.radar_map_frame == p.radar_odom_frame || !(p.warn_throttle_period > 0.0)) {
+      p.radar_map_frame == p.radar_odom_frame || !(p.warn_throttle_period > 0.0) ||
+      p.nav_queue_size < 1) {
     if (error)
       *error =
           "radar_odom_frame, radar_map_frame and radar_frame must not be empty, radar_map_frame "
-          "!= radar_odom_frame, warn_throttle_period > 0";
+          "!= radar_odom_frame, warn_throttle_period > 0, nav_queue_size >= 1";
     return false;
   }
   return true;

@@ -1,12 +1,15 @@
 #pragma once
 // Shared by the radar rostest nodes (radar_odometry_node.cpp, radar_slam_node.cpp): simulated
 // sweeps as radar/polar images (mono8, frame radar_polar, as mulran2bag writes them), published
-// in lock-step with the nodelet's radar/status, and the odometry and status they get back.
+// in lock-step with the nodelet's radar/status, and the odometry and status they get back; GNSS
+// fixes (gps/fix) and yaw rates (imu/data) as mulran2bag writes them.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/NavSatFix.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -49,6 +52,40 @@ inline sensor_msgs::Image toImage(const radar::RadarPolarScan& s, const ros::Tim
   return img;
 }
 
+/// A fix with a known diagonal covariance (sigma per horizontal axis), as mulran2bag writes
+/// gps.csv.
+inline sensor_msgs::NavSatFix toNavSatFix(double lat, double lon, double alt, double sigma,
+                                          const ros::Time& stamp) {
+  sensor_msgs::NavSatFix fix;
+  fix.header.stamp = stamp;
+  fix.header.frame_id = "gps";
+  fix.status.status = sensor_msgs::NavSatStatus::STATUS_FIX;
+  fix.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS;
+  fix.latitude = lat;
+  fix.longitude = lon;
+  fix.altitude = alt;
+  fix.position_covariance = {sigma * sigma, 0, 0, 0, sigma * sigma, 0, 0, 0, 4 * sigma * sigma};
+  fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_DIAGONAL_KNOWN;
+  return fix;
+}
+
+/// An Imu with the body rates (x, y, z) [rad/s]; without rates: angular_velocity_covariance[0]
+/// = -1 (REP-145), as mulran2bag writes a row of xsens_imu.csv without them.
+inline sensor_msgs::Imu toImu(const Eigen::Vector3d& rate, const ros::Time& stamp,
+                              bool has_rates = true) {
+  sensor_msgs::Imu imu;
+  imu.header.stamp = stamp;
+  imu.header.frame_id = "imu";
+  imu.orientation.w = 1.0;
+  imu.orientation_covariance[0] = -1.0;
+  imu.angular_velocity.x = rate.x();
+  imu.angular_velocity.y = rate.y();
+  imu.angular_velocity.z = rate.z();
+  if (!has_rates) imu.angular_velocity_covariance[0] = -1.0;
+  imu.linear_acceleration_covariance[0] = -1.0;
+  return imu;
+}
+
 /// Rx holds at least: std::mutex mutex; std::vector<nav_msgs::Odometry> odom;
 /// std::vector<diagnostic_msgs::DiagnosticArray> status.
 template <class Rx>
@@ -72,15 +109,24 @@ class RadarImageFixture : public ::testing::Test {
         });
   }
 
+  /// gps/fix and imu/data (the topics of mulran2bag and radar.launch).
+  void setUpNavigation(uint32_t queue) {
+    gps_pub_ = nh_.advertise<sensor_msgs::NavSatFix>("gps/fix", queue);
+    imu_pub_ = nh_.advertise<sensor_msgs::Imu>("imu/data", queue);
+  }
+
   size_t statusCount() {
     std::lock_guard<std::mutex> lock(rx_.mutex);
     return rx_.status.size();
   }
 
-  /// Publishes one image and waits for its status; returns that status.
-  diagnostic_msgs::DiagnosticArray send(const sensor_msgs::Image& img) {
+  /// Publishes one image and waits for its status (meanwhile: runs while the nodelet works);
+  /// returns that status.
+  diagnostic_msgs::DiagnosticArray send(const sensor_msgs::Image& img,
+                                        const std::function<void()>& meanwhile = {}) {
     const size_t before = statusCount();
     image_pub_.publish(img);
+    if (meanwhile) meanwhile();
     EXPECT_TRUE(waitFor([&] { return statusCount() > before; }, 60.0))
         << "no radar/status for the image at " << img.header.stamp.toSec();
     std::lock_guard<std::mutex> lock(rx_.mutex);
@@ -88,7 +134,7 @@ class RadarImageFixture : public ::testing::Test {
   }
 
   ros::NodeHandle nh_;
-  ros::Publisher image_pub_;
+  ros::Publisher image_pub_, gps_pub_, imu_pub_;
   ros::Subscriber odom_sub_, status_sub_;
   Rx rx_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;

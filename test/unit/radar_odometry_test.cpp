@@ -206,10 +206,11 @@ TEST(RadarConfig, YamlEqualsTheDefaults) {
   EXPECT_EQ(read.registration.submap_keyframes, d.registration.submap_keyframes);
   EXPECT_DOUBLE_EQ(read.registration.max_correspondence, d.registration.max_correspondence);
   EXPECT_DOUBLE_EQ(read.registration.huber, d.registration.huber);
-  // 39 of the odometry (14 registration/*), 22 of the back-end (graph/*, loop/*), 10 of the
-  // radar_odometry nodelet (input/*, frames with radar_map_frame); config_consistency_test
-  // audits all of them.
-  EXPECT_EQ(yaml.keys().size(), 86u);
+  // 39 of the odometry (14 registration/*), 22 of the back-end (graph/*, loop/*), 15 of GNSS
+  // and gyro (gnss/*, imu/*), 13 of the radar_odometry nodelet (input/* with
+  // gnss_unknown_sigma and nav_buffer, frames with radar_map_frame, nav_queue_size);
+  // config_consistency_test audits all of them.
+  EXPECT_EQ(yaml.keys().size(), 89u);
   const YamlParamReader bad = YamlParamReader::fromString("features:\n  detector: cfra\n");
   RadarOdometryParams p;
   EXPECT_FALSE(readParams(bad, p, &error));

@@ -4,7 +4,10 @@
 // velocity and the pose kept, and follows simulated sweeps.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/radar/radar_stream.h"
@@ -232,4 +235,191 @@ TEST(RadarStream, RunsRadarSlamAndKeepsTheGraphThroughAGap) {
   EXPECT_GT(slam.counters().ms_loop_per_keyframe, 0.0);
   EXPECT_EQ(slam.counters().gaps, 1u);
   EXPECT_EQ(slam.slam().loopStats().accepted, 0);
+}
+
+// GNSS and gyro before the first sweep: held (in arrival order), handed over with the first
+// sweep but for what is more than nav_buffer older than it (counted), the invalid ones counted
+// and never handed over; a stream without loops ignores them (counted).
+TEST(RadarStream, NavigationBeforeTheFirstSweepIsHeldForItAndCounted) {
+  sim::SimulationParams sp;
+  sp.seed = 5;
+  sp.route.length = 200.0;
+  sp.city.blocks_x = sp.city.blocks_y = 4;
+  sim::UrbanSimulator world;
+  std::string error;
+  ASSERT_TRUE(world.build(sp, &error)) << error;
+  const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  const RadarPolarScan sweep = radar.simulate(40);
+  const int64_t t0 = 1700000000000000000;  // the first sweep's stamp [ns]
+  const int64_t ms = 1000000;
+
+  RadarSlamParams slam_params;
+  RadarStreamParams stream_params;
+  ASSERT_DOUBLE_EQ(stream_params.nav_buffer, 1.0);
+  RadarOdometryStream stream{slam_params, stream_params};
+  // 100 Hz yaw rates and 10 Hz fixes from 2 s before the first sweep to 0.5 s after it.
+  stream.addGnssFix(t0 - 3000 * ms, 10.0, 10.0, 0.0, 0.5, false);  // no fix: not the origin
+  for (int j = 0; j <= 250; ++j) {
+    const int64_t stamp = t0 + (j - 200) * 10 * ms;
+    stream.addYawRate(stamp, 0.01);
+    if (j % 10 == 0)  // the last one without a covariance (sigma unknown)
+      stream.addGnssFix(stamp, 49.011 + j * 1e-6, 8.417, 115.0, j == 250 ? -1.0 : 0.5);
+  }
+  stream.addYawRate(t0 - 500 * ms, 0.0, false);  // an Imu without rates
+  stream.addYawRate(t0 - 400 * ms, std::nan(""));
+  {
+    const RadarStreamCounters& c = stream.counters();
+    EXPECT_EQ(c.imu_received, 253u);
+    EXPECT_EQ(c.imu_invalid, 2u);
+    EXPECT_EQ(c.gnss_received, 27u);
+    EXPECT_EQ(c.gnss_invalid, 1u);
+    EXPECT_EQ(c.gnss_unknown_sigma, 1u);
+    EXPECT_EQ(c.nav_buffered, 0u);
+    EXPECT_EQ(c.nav_dropped_early, 0u);
+    EXPECT_EQ(stream.slam().navStats().imu_samples, 0);  // nothing handed over yet
+    EXPECT_EQ(stream.slam().navStats().gnss_fixes, 0);
+    // The ENU origin is the first valid fix, not the invalid one before it.
+    ASSERT_TRUE(stream.enu().has_value());
+    EXPECT_DOUBLE_EQ(stream.enu()->originLat(), 49.011);
+    EXPECT_DOUBLE_EQ(stream.enu()->originLon(), 8.417);
+  }
+  ASSERT_TRUE(stream.process(viewOf(sweep), t0).has_step);
+  {
+    // Older than t0 - 1 s: 100 rates (j < 100) and 10 fixes dropped; 151 rates and 16 fixes
+    // (j = 100 .. 250, the one at exactly t0 - 1 s kept) handed over.
+    const RadarStreamCounters& c = stream.counters();
+    EXPECT_EQ(c.nav_dropped_early, 110u);
+    EXPECT_EQ(c.nav_buffered, 167u);
+    const RadarNavStats& n = stream.slam().navStats();
+    EXPECT_EQ(n.imu_samples, 151);
+    EXPECT_EQ(n.gnss_fixes, 16);
+    EXPECT_EQ(n.gnss_rejected_sigma, 0);  // the unknown sigma is 5 m, below gnss/max_sigma
+    EXPECT_EQ(n.imu_out_of_order + n.gnss_out_of_order, 0);
+  }
+  // After the first sweep: straight to the back-end; older than the last one: out of order there.
+  stream.addYawRate(t0 + 510 * ms, 0.01);
+  stream.addYawRate(t0 + 505 * ms, 0.01);
+  EXPECT_EQ(stream.slam().navStats().imu_samples, 152);
+  EXPECT_EQ(stream.slam().navStats().imu_out_of_order, 1);
+  EXPECT_EQ(stream.counters().nav_buffered, 167u);
+
+  // More than 4096 before the first sweep: the oldest go (counted) as they come.
+  RadarOdometryStream flood{slam_params, stream_params};
+  for (int j = 0; j < 5000; ++j) flood.addYawRate(t0 - (4999 - j) * 10 * ms, 0.01);
+  EXPECT_EQ(flood.counters().nav_dropped_early, 5000u - 4096u);
+  ASSERT_TRUE(flood.process(viewOf(sweep), t0).has_step);
+  EXPECT_EQ(flood.counters().nav_buffered, 101u);  // t0 - 1 s .. t0
+  EXPECT_EQ(flood.counters().nav_dropped_early, 4899u);
+  EXPECT_EQ(flood.slam().navStats().imu_samples, 101);
+
+  // Pure odometry: navigation is not used (the back-end's result is the odometry's).
+  RadarOdometryStream odometry{RadarOdometryParams(), stream_params};
+  odometry.addYawRate(t0, 0.01);
+  odometry.addGnssFix(t0, 49.011, 8.417, 115.0, 0.5);
+  EXPECT_EQ(odometry.counters().nav_ignored, 2u);
+  EXPECT_FALSE(odometry.enu().has_value());
+  ASSERT_TRUE(odometry.process(viewOf(sweep), t0).has_step);
+  EXPECT_EQ(odometry.counters().nav_buffered, 0u);
+  EXPECT_EQ(odometry.slam().navStats().imu_samples, 0);
+
+  // The parameters: a non-positive unknown sigma or a negative buffer is refused.
+  const YamlParamReader bad =
+      YamlParamReader::fromString("input:\n  gnss_unknown_sigma: 0.0\n  nav_buffer: -1.0\n");
+  RadarStreamParams q;
+  EXPECT_FALSE(readParams(bad, q, &error));
+  EXPECT_NE(error.find("input/gnss_unknown_sigma"), std::string::npos) << error;
+}
+
+// Fixes (the true radar position as latitude / longitude) and yaw rates fed with simulated
+// sweeps as a bag would deliver them: the fixes reach the graph in ENU around the first valid
+// fix and on the sweeps' clock, so the anchor maps each sweep's true position (converted as the
+// fixes were) onto its corrected pose; a clock or conversion error of a sweep's length would put
+// them metres apart.
+TEST(RadarStream, GnssFixesReachTheGraphInEnuOnTheSweepsClock) {
+  sim::SimulationParams sp;
+  sp.seed = 5;
+  sp.route.length = 200.0;
+  sp.city.blocks_x = sp.city.blocks_y = 4;
+  sim::UrbanSimulator world;
+  std::string error;
+  ASSERT_TRUE(world.build(sp, &error)) << error;
+  const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  const size_t first = 40, n = 48;
+  const double sim0 = radar.sweepStart(first);  // stream time 0 = simulator time sim0
+  const int64_t t0 = 1700000000000000000;
+  auto stamp = [&](double t) { return t0 + std::llround(t * 1e9); };  // stream time -> stamp
+  auto geodetic = [&](double t) {
+    return world.enu().toGeodetic(radar.radarPose(sim0 + t).translation());
+  };
+  auto yawRate = [&](double t) {
+    const double h = 1e-3;
+    const Eigen::AngleAxisd turn(radar.radarPose(sim0 + t - h).linear().transpose() *
+                                 radar.radarPose(sim0 + t + h).linear());
+    return (turn.axis() * turn.angle()).z() / (2 * h);
+  };
+
+  RadarOdometryStream stream{RadarSlamParams(), RadarStreamParams()};
+  stream.addGnssFix(stamp(-0.9), 0.0, 0.0, 0.0, 0.5, false);  // no fix
+  stream.addGnssFix(stamp(-0.85), std::nan(""), 8.4, 0.0, 0.5);
+  // 10 Hz fixes and 100 Hz rates from 0.5 s before the first sweep, each up to 0.5 s past the
+  // start of the sweep that follows them [ms].
+  int fix_ms = -500, rate_ms = -500;
+  std::vector<Eigen::Vector3d> fixes;
+  for (size_t k = 0; k < n; ++k) {
+    const int start_ms = 250 * int(k);
+    for (; fix_ms <= start_ms + 500; fix_ms += 100) {
+      const Eigen::Vector3d g = geodetic(fix_ms * 1e-3);
+      stream.addGnssFix(stamp(fix_ms * 1e-3), g.x(), g.y(), g.z(), 0.3);
+      fixes.push_back(g);
+    }
+    for (; rate_ms <= start_ms + 500; rate_ms += 10)
+      stream.addYawRate(stamp(rate_ms * 1e-3), yawRate(rate_ms * 1e-3));
+    ASSERT_TRUE(stream.process(viewOf(radar.simulate(first + k)), stamp(start_ms * 1e-3)).has_step)
+        << k;
+  }
+  stream.finish();  // as at the end of a bag: the last fixes are in the graph, optimised
+  ASSERT_TRUE(stream.enu().has_value());
+  EXPECT_DOUBLE_EQ(stream.enu()->originLat(), fixes.front().x());  // the first valid fix
+  EXPECT_DOUBLE_EQ(stream.enu()->originLon(), fixes.front().y());
+  // ENU is metric: the distances between fixes are the simulator's.
+  const Eigen::Vector3d a = stream.enu()->toEnu(fixes.front().x(), fixes.front().y(),
+                                                fixes.front().z()),
+                        b = stream.enu()->toEnu(fixes.back().x(), fixes.back().y(),
+                                                fixes.back().z());
+  const double true_distance = (radar.radarPose(sim0 + (fix_ms - 100) * 1e-3).translation() -
+                                radar.radarPose(sim0 - 0.5).translation())
+                                   .norm();
+  EXPECT_NEAR((b - a).norm(), true_distance, 0.01);
+  EXPECT_GT(true_distance, 40.0);
+
+  const RadarStreamCounters& c = stream.counters();
+  EXPECT_EQ(c.gnss_invalid, 2u);
+  EXPECT_EQ(c.nav_buffered, 5u + 50u + 6u + 51u);  // -0.5 .. +0.5 s, before the first sweep
+  EXPECT_EQ(c.nav_dropped_early, 0u);
+  const RadarNavStats& nav = stream.slam().navStats();
+  EXPECT_EQ(nav.gnss_fixes, int(fixes.size()));
+  EXPECT_TRUE(nav.anchored);
+  EXPECT_GT(nav.gnss_edges, 5);
+  EXPECT_GT(nav.imu_edges, 5);
+  EXPECT_EQ(nav.imu_missing, 0);
+  const std::optional<Eigen::Isometry2d> map_from_enu = stream.slam().mapFromEnu();
+  ASSERT_TRUE(map_from_enu.has_value());
+  const std::vector<Eigen::Isometry2d> poses = stream.slam().sweepPoses();
+  const std::vector<double>& times = stream.slam().sweepTimes();
+  ASSERT_EQ(poses.size(), n);
+  double worst = 0.0, rms = 0.0;
+  for (size_t k = 0; k < n; ++k) {
+    const Eigen::Vector3d g = geodetic(times[k]);
+    const Eigen::Vector2d enu = stream.enu()->toEnu(g.x(), g.y(), g.z()).head<2>();
+    const double e = ((*map_from_enu) * enu - poses[k].translation()).norm();
+    worst = std::max(worst, e);
+    rms += e * e;
+  }
+  rms = std::sqrt(rms / double(n));
+  std::printf(
+      "[ RESULT   ] %d fixes, %d GNSS edges, %d yaw edges; sweeps vs anchored truth: rms %.3f m, "
+      "max %.3f m\n",
+      nav.gnss_fixes, nav.gnss_edges, nav.imu_edges, rms, worst);
+  EXPECT_LT(rms, 0.3);
+  EXPECT_LT(worst, 0.6);
 }

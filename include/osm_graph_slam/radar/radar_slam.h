@@ -103,6 +103,7 @@ struct RadarLoop {
 struct RadarLoopStats {
   int keyframes_searched = 0, candidates = 0, verified = 0, accepted = 0;
   int rejected_registration = 0, rejected_gate = 0;
+  int optimisations = 0;  ///< of the whole graph (on a loop, the GNSS anchor, every few fixes)
   double ms_descriptor = 0, ms_search = 0, ms_verify = 0, ms_optimise = 0;  ///< totals
 };
 

@@ -78,6 +78,9 @@ struct RadarOdometryNodeletParams {
   std::string radar_frame = "radar_polar";
   bool publish_tf = true;             ///< TF radar_odom_frame -> the image's frame
   double warn_throttle_period = 5.0;  ///< [s]
+  /// Subscriber queue of gps/fix and of imu/data (loop/enabled): a 100 Hz IMU fills 1000 in
+  /// 10 s, more than a sweep with a loop search and an optimisation takes.
+  int nav_queue_size = 1000;
 };
 
 void readParams(const ParamReader& r, PrefilteringNodeletParams& p);
@@ -87,7 +90,7 @@ void readParams(const ParamReader& r, LoopDetectionNodeletParams& p);
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p);
 void readParams(const ParamReader& r, GraphBackendNodeletParams& p);
 void readParams(const ParamReader& r, LocalizationNodeletParams& p);
-/// False with the reason for an empty frame name or a non-positive throttle period.
+/// False with the reason for an empty frame name, a non-positive throttle period or queue size.
 bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string* error);
 
 }  // namespace osm_graph_slam
