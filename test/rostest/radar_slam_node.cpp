@@ -320,17 +320,23 @@ TEST_F(RadarSlamRostest, ClosesTheLoopOfADriveBackToItsStart) {
     EXPECT_FALSE(v.empty()) << "no '" << key << "' in radar/status";
     return v.empty() ? -1L : std::stol(v);
   };
-  EXPECT_EQ(count("gnss_received"), long(nav.fixes.size()));
+  // ROS orders messages per topic only: the last few small messages may still be queued when
+  // the last sweep's status goes out (seen: 2 of 4210 rates under load). The counts must agree
+  // with each other exactly.
+  const long gnss_received = count("gnss_received"), imu_received = count("imu_received");
+  EXPECT_LE(gnss_received, long(nav.fixes.size()));
+  EXPECT_GE(gnss_received, long(nav.fixes.size()) - 5);
   EXPECT_EQ(count("gnss_invalid"), 2);
   EXPECT_EQ(count("gnss_unknown_sigma"), 0);
-  EXPECT_EQ(count("gnss_fixes"), long(nav.fixes.size()) - 2);
+  EXPECT_EQ(count("gnss_fixes"), gnss_received - 2);
   EXPECT_EQ(count("gnss_rejected_sigma"), 0);
   EXPECT_EQ(count("gnss_out_of_order"), 0);
   EXPECT_GT(count("gnss_edges"), 0);
   EXPECT_EQ(value(last, "gnss_anchored"), "true");
-  EXPECT_EQ(count("imu_received"), long(nav.imu.size()));
+  EXPECT_LE(imu_received, long(nav.imu.size()));
+  EXPECT_GE(imu_received, long(nav.imu.size()) - 50);  // 0.5 s of 100 Hz
   EXPECT_EQ(count("imu_invalid"), 1);
-  EXPECT_EQ(count("imu_samples"), long(nav.imu.size()) - 1);
+  EXPECT_EQ(count("imu_samples"), imu_received - 1);
   EXPECT_EQ(count("imu_out_of_order"), 0);
   EXPECT_GT(count("imu_edges"), 0);
   EXPECT_EQ(count("imu_missing"), 0);
