@@ -38,6 +38,16 @@ PolarImageView viewOf(const RadarPolarScan& s) {
   return v;
 }
 
+/// The world of the stream tests: seed 5, a 200 m route through 4 x 4 blocks.
+void buildStreamWorld(sim::UrbanSimulator& world) {
+  sim::SimulationParams sp;
+  sp.seed = 5;
+  sp.route.length = 200.0;
+  sp.city.blocks_x = sp.city.blocks_y = 4;
+  std::string error;
+  ASSERT_TRUE(world.build(sp, &error)) << error;
+}
+
 }  // namespace
 
 TEST(RadarStream, FromMulranImageEqualsThePngReader) {
@@ -117,14 +127,10 @@ TEST(RadarStream, ParamsAreCheckedAndRead) {
 
 // Simulated sweeps through the stream, with every kind of bad input in between.
 TEST(RadarStream, DropsBadInputRestartsAfterAGapAndFollowsTheSweeps) {
-  sim::SimulationParams sp;
-  sp.seed = 5;
-  sp.route.length = 200.0;
-  sp.city.blocks_x = sp.city.blocks_y = 4;
   sim::UrbanSimulator world;
-  std::string error;
-  ASSERT_TRUE(world.build(sp, &error)) << error;
+  ASSERT_NO_FATAL_FAILURE(buildStreamWorld(world));
   const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  std::string error;
 
   RadarOdometryStream stream{RadarOdometryParams(), RadarStreamParams()};
   const int64_t t0 = 1700000000000000000;  // a UNIX stamp [ns]
@@ -191,14 +197,10 @@ TEST(RadarStream, DropsBadInputRestartsAfterAGapAndFollowsTheSweeps) {
 // enabled a gap restarts the odometry inside RadarSlam and the keyframe graph goes on (the pose
 // continues, the next keyframe hangs from the last one).
 TEST(RadarStream, RunsRadarSlamAndKeepsTheGraphThroughAGap) {
-  sim::SimulationParams sp;
-  sp.seed = 5;
-  sp.route.length = 200.0;
-  sp.city.blocks_x = sp.city.blocks_y = 4;
   sim::UrbanSimulator world;
-  std::string error;
-  ASSERT_TRUE(world.build(sp, &error)) << error;
+  ASSERT_NO_FATAL_FAILURE(buildStreamWorld(world));
   const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  std::string error;
   std::vector<RadarPolarScan> sweeps;
   for (size_t k = 0; k < 16; ++k) sweeps.push_back(radar.simulate(40 + k));
   const int64_t t0 = 1700000000000000000;
@@ -241,14 +243,10 @@ TEST(RadarStream, RunsRadarSlamAndKeepsTheGraphThroughAGap) {
 // sweep but for what is more than nav_buffer older than it (counted), the invalid ones counted
 // and never handed over; a stream without loops ignores them (counted).
 TEST(RadarStream, NavigationBeforeTheFirstSweepIsHeldForItAndCounted) {
-  sim::SimulationParams sp;
-  sp.seed = 5;
-  sp.route.length = 200.0;
-  sp.city.blocks_x = sp.city.blocks_y = 4;
   sim::UrbanSimulator world;
-  std::string error;
-  ASSERT_TRUE(world.build(sp, &error)) << error;
+  ASSERT_NO_FATAL_FAILURE(buildStreamWorld(world));
   const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  std::string error;
   const RadarPolarScan sweep = radar.simulate(40);
   const int64_t t0 = 1700000000000000000;  // the first sweep's stamp [ns]
   const int64_t ms = 1000000;
@@ -336,14 +334,10 @@ TEST(RadarStream, NavigationBeforeTheFirstSweepIsHeldForItAndCounted) {
 // fixes were) onto its corrected pose; a clock or conversion error of a sweep's length would put
 // them metres apart.
 TEST(RadarStream, GnssFixesReachTheGraphInEnuOnTheSweepsClock) {
-  sim::SimulationParams sp;
-  sp.seed = 5;
-  sp.route.length = 200.0;
-  sp.city.blocks_x = sp.city.blocks_y = 4;
   sim::UrbanSimulator world;
-  std::string error;
-  ASSERT_TRUE(world.build(sp, &error)) << error;
+  ASSERT_NO_FATAL_FAILURE(buildStreamWorld(world));
   const sim::RadarSimulator radar(world, sim::NavtechModel(), 5);
+  std::string error;
   const size_t first = 40, n = 48;
   const double sim0 = radar.sweepStart(first);  // stream time 0 = simulator time sim0
   const int64_t t0 = 1700000000000000000;
