@@ -25,6 +25,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -95,6 +96,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
         msg->position_covariance_type == sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN
             ? -1.0
             : std::sqrt(std::max(msg->position_covariance[0], msg->position_covariance[4]));
+    std::lock_guard<std::mutex> lock(stream_mutex_);
     stream_->addGnssFix(int64_t(msg->header.stamp.toNSec()), msg->latitude, msg->longitude,
                         msg->altitude, sigma, valid);
   }
@@ -102,11 +104,14 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
   /// Imu -> RadarOdometryStream::addYawRate: angular_velocity.z; REP-145 marks a message without
   /// rates by angular_velocity_covariance[0] = -1.
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(stream_mutex_);
     stream_->addYawRate(int64_t(msg->header.stamp.toNSec()), msg->angular_velocity.z,
                         msg->angular_velocity_covariance[0] != -1.0);
   }
 
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
+    // The manager's worker threads may run the image and the navigation callbacks at once.
+    std::lock_guard<std::mutex> lock(stream_mutex_);
     radar::PolarImageView view;
     view.data = msg->data.data();
     view.size = msg->data.size();
@@ -362,6 +367,7 @@ class RadarOdometryNodelet : public nodelet::Nodelet {
 
   RadarOdometryNodeletParams node_params_;  ///< frames, TF, throttling (nodelet_params.h)
   std::unique_ptr<radar::RadarOdometryStream> stream_;
+  std::mutex stream_mutex_;  ///< guards stream_ (image and navigation callbacks)
   nav_msgs::Path path_, slam_path_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher odom_pub_, path_pub_, features_pub_, status_pub_, slam_path_pub_, loops_pub_;

@@ -83,6 +83,7 @@ TEST_F(RadarOdometryRostest, FollowsTheSimulatedDriveThroughBadInput) {
   ASSERT_TRUE(waitFor([&] { return image_pub_.getNumSubscribers() > 0; }, 60.0))
       << "the radar_odometry nodelet did not subscribe to radar/polar";
   ASSERT_TRUE(waitFor([&] { return features_sub_.getNumPublishers() > 0; }, 10.0));
+  ASSERT_TRUE(statusConnected()) << "radar/status is not connected";
 
   const size_t half = kSweeps / 2;
   for (size_t k = 0; k < kSweeps; ++k) {

@@ -115,6 +115,12 @@ class RadarImageFixture : public ::testing::Test {
     imu_pub_ = nh_.advertise<sensor_msgs::Imu>("imu/data", queue);
   }
 
+  /// The nodelet's radar/status reaches this node: a status published before the connection is
+  /// up is lost, and send() would wait for it in vain (seen once in CI, on the first sweep).
+  bool statusConnected(double timeout_s = 30.0) {
+    return waitFor([&] { return status_sub_.getNumPublishers() > 0; }, timeout_s);
+  }
+
   size_t statusCount() {
     std::lock_guard<std::mutex> lock(rx_.mutex);
     return rx_.status.size();

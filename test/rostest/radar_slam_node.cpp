@@ -197,6 +197,7 @@ TEST_F(RadarSlamRostest, ClosesTheLoopOfADriveBackToItsStart) {
   ASSERT_TRUE(waitFor(
       [&] { return gps_pub_.getNumSubscribers() > 0 && imu_pub_.getNumSubscribers() > 0; }, 10.0))
       << "the nodelet did not subscribe to gps/fix and imu/data: gnss/imu enabled?";
+  ASSERT_TRUE(statusConnected()) << "radar/status is not connected";
 
   const auto wall0 = std::chrono::steady_clock::now();
   size_t next_fix = 0, next_imu = 0;
