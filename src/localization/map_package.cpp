@@ -11,6 +11,8 @@
 #include <sstream>
 
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/pcd_file.h"
+#include "osm_graph_slam/io/staged_folder.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/params_io.h"
@@ -71,11 +73,6 @@ std::string mapYaml(const MapPackage& p) {
   return y.str();
 }
 
-bool savePcd(const std::string& path, const PointCloud& cloud, std::string* error) {
-  if (pcl::io::savePCDFileBinary(path, cloud) != 0) return fail(error, "cannot write " + path);
-  return true;
-}
-
 }  // namespace
 
 MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
@@ -123,7 +120,8 @@ bool writeMapPackage(const MapPackage& package, const std::string& directory, st
     return fail(error, why);
   };
   std::string why;
-  if (!savePcd((partial / "map.pcd").string(), *package.map_cloud, &why)) return abandon(why);
+  if (!writePcdAtomically((partial / "map.pcd").string(), *package.map_cloud, &why))
+    return abandon(why);
 
   std::ostringstream kf_csv, sc_csv;
   kf_csv << std::setprecision(17) << "# id stamp pose(3x4 row-major: base_link in map)\n";
@@ -131,7 +129,7 @@ bool writeMapPackage(const MapPackage& package, const std::string& directory, st
   for (const auto& kf : package.keyframes) {
     if (!kf.cloud || kf.cloud->empty())
       return abandon("keyframe " + std::to_string(kf.id) + " has no cloud");
-    if (!savePcd((partial / keyframeCloudName(kf.id)).string(), *kf.cloud, &why))
+    if (!writePcdAtomically((partial / keyframeCloudName(kf.id)).string(), *kf.cloud, &why))
       return abandon(why);
     kf_csv << kf.id << ' ' << kf.stamp << ' ' << poseRow(kf.pose) << '\n';
     sc_csv << kf.id;
@@ -152,19 +150,7 @@ bool writeMapPackage(const MapPackage& package, const std::string& directory, st
   if (!writeFileAtomically((partial / "map.yaml").string(), mapYaml(package), &why))
     return abandon(why);
 
-  // Swap in: the old package (if any) is moved aside first and removed only after the rename.
-  const fs::path old = target.string() + ".old-" + std::to_string(::getpid());
-  const bool had_old = fs::exists(target);
-  if (had_old) {
-    fs::rename(target, old, ec);
-    if (ec) return abandon("cannot replace '" + target.string() + "': " + ec.message());
-  }
-  fs::rename(partial, target, ec);
-  if (ec) {
-    if (had_old) fs::rename(old, target, ec);
-    return abandon("cannot rename '" + partial.string() + "' to '" + target.string() + "'");
-  }
-  if (had_old) fs::remove_all(old, ec);
+  if (!replacePath(partial.string(), target.string(), &why)) return abandon(why);
   return true;
 }
 

@@ -1,7 +1,6 @@
 #include "osm_graph_slam/slam/map_export.h"
 
 #include <pcl/common/transforms.h>
-#include <pcl/io/pcd_io.h>
 
 #include <cmath>
 #include <cstdio>
@@ -15,6 +14,8 @@
 #include "osm_graph_slam/common/xml_escape.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/pcd_file.h"
+#include "osm_graph_slam/io/staged_folder.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -37,56 +38,33 @@ int64_t voxelKey(const PointT& p, double inv) {
   return (q(p.x) << 42) | (q(p.y) << 21) | q(p.z);
 }
 
-bool prepareDirectory(const std::string& directory, MapExportResult& result) {
-  if (directory.empty()) {
-    result.message = "no destination folder given";
-    return false;
-  }
-  std::error_code ec;
-  fs::create_directories(directory, ec);
-  if (ec || !fs::is_directory(directory)) {
-    result.message = "cannot create folder '" + directory + "': " + ec.message();
-    return false;
-  }
-  const fs::path probe = fs::path(directory) / ".osm_graph_slam_write_test";
-  std::string error;
-  if (!writeFileAtomically(probe.string(), "", &error)) {
-    result.message = "folder '" + directory + "' is not writable";
-    return false;
-  }
-  fs::remove(probe, ec);
-  return true;
-}
-
-bool writePcdAtomically(const std::string& path, const PointCloud& cloud, std::string* error) {
-  const std::string tmp = path + ".tmp";
-  if (cloud.empty() || pcl::io::savePCDFileBinary(tmp, cloud) != 0) {
-    if (error) *error = cloud.empty() ? "empty cloud for '" + path + "'" : "cannot write " + tmp;
-    std::remove(tmp.c_str());
-    return false;
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    if (error) *error = "cannot rename '" + tmp + "'";
-    std::remove(tmp.c_str());
-    return false;
-  }
-  return true;
-}
-
-/// Adds one written file or records the first failure.
+/// Writes one save's files into a StagedFolder: each file is recorded, or the first failure.
 struct Writer {
   MapExportResult& result;
-  const std::string directory;
+  StagedFolder& folder;
+  std::vector<std::string> names;
   std::string first_error;
 
   void operator()(const std::string& name, bool ok, const std::string& error) {
-    if (ok) {
-      result.files.push_back((fs::path(directory) / name).string());
-    } else if (first_error.empty()) {
+    if (ok)
+      names.push_back(name);
+    else if (first_error.empty())
       first_error = name + ": " + error;
-    }
   }
-  std::string path(const std::string& name) const { return (fs::path(directory) / name).string(); }
+  std::string path(const std::string& name) const { return folder.stagedPath(name); }
+  /// Moves the files into place if every one was written; otherwise the previous ones stay.
+  bool finish() {
+    if (!first_error.empty()) {
+      result.message = first_error + " (nothing replaced: the previous files are unchanged)";
+      return false;
+    }
+    if (!folder.commit(&first_error)) {
+      result.message = "moving the written files into place failed: " + first_error;
+      return false;
+    }
+    for (const auto& name : names) result.files.push_back(folder.finalPath(name));
+    return true;
+  }
 };
 
 std::string poseRow(const Eigen::Isometry3d& pose) {
@@ -182,8 +160,9 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
     result.message = "the graph is empty: no keyframe has been received yet";
     return result;
   }
-  if (!prepareDirectory(directory, result)) return result;
-  Writer write{result, directory, {}};
+  StagedFolder folder;
+  if (!folder.open(directory, &result.message)) return result;
+  Writer write{result, folder, {}, {}};
   std::string error;
 
   const PointCloudPtr map = buildMapCloud(keyframes, resolution);
@@ -217,12 +196,12 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
                         write.path("map_package"), &error),
         error);
 
-  result.success = write.first_error.empty();
-  result.message = result.success ? "wrote " + std::to_string(result.files.size()) + " files (" +
-                                        std::to_string(map->size()) + " map points, " +
-                                        std::to_string(buildings.size()) + " buildings, " +
-                                        std::to_string(keyframes.size()) + " keyframes)"
-                                  : write.first_error;
+  result.success = write.finish();
+  if (result.success)
+    result.message = "wrote " + std::to_string(result.files.size()) + " files (" +
+                     std::to_string(map->size()) + " map points, " +
+                     std::to_string(buildings.size()) + " buildings, " +
+                     std::to_string(keyframes.size()) + " keyframes)";
   return result;
 }
 
@@ -233,10 +212,11 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     result.message = "the graph is empty: no keyframe has been received yet";
     return result;
   }
-  if (!prepareDirectory(directory, result)) return result;
+  StagedFolder folder;
+  if (!folder.open(directory, &result.message)) return result;
   std::error_code ec;
-  fs::create_directories(fs::path(directory) / "keyframes", ec);
-  Writer write{result, directory, {}};
+  fs::create_directories(fs::path(folder.stagedPath("keyframes")), ec);
+  Writer write{result, folder, {}, {}};
   std::string error;
 
   std::ostringstream kf_csv, seg_csv;
@@ -292,11 +272,10 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   const G2oWriteResult g2o = writeG2o(backend.graphSnapshot(), write.path("graph.g2o"));
   write("graph.g2o", g2o.ok, g2o.message);
 
-  result.success = write.first_error.empty();
-  result.message = result.success
-                       ? "dumped " + std::to_string(keyframes.size()) + " keyframes in " +
-                             std::to_string(result.files.size()) + " files"
-                       : write.first_error;
+  result.success = write.finish();
+  if (result.success)
+    result.message = "dumped " + std::to_string(keyframes.size()) + " keyframes in " +
+                     std::to_string(result.files.size()) + " files";
   return result;
 }
 

@@ -2,8 +2,15 @@
 
 #include <pcl/io/pcd_io.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <sstream>
 
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/g2o_io.h"
@@ -54,6 +61,40 @@ struct ExportFixture : ::testing::Test {
   static test::StreetDrive* drive_;
   static GraphBackend* backend_;
 };
+
+/// Every regular file below dir, by relative path, with its content.
+std::map<std::string, std::string> folderContents(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    std::ifstream in(e.path(), std::ios::binary);
+    std::ostringstream content;
+    content << in.rdbuf();
+    files[fs::relative(e.path(), dir).string()] = content.str();
+  }
+  return files;
+}
+
+/// A full disk for this process: writes past `bytes` per file fail with EFBIG (a file-size limit
+/// works for root too, where a read-only folder would not). Restored on destruction.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    getrlimit(RLIMIT_FSIZE, &saved_);
+    previous_handler_ = std::signal(SIGXFSZ, SIG_IGN);  // else the write kills the process
+    rlimit limit = saved_;
+    limit.rlim_cur = bytes;
+    setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    setrlimit(RLIMIT_FSIZE, &saved_);
+    std::signal(SIGXFSZ, previous_handler_);
+  }
+
+ private:
+  rlimit saved_{};
+  void (*previous_handler_)(int) = SIG_DFL;
+};
 test::StreetDrive* ExportFixture::drive_ = nullptr;
 GraphBackend* ExportFixture::backend_ = nullptr;
 
@@ -70,11 +111,19 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   std::string error;
   ASSERT_TRUE(loadMapPackage(dir + "/map_package", package, &error)) << error;
   EXPECT_EQ(package.keyframes.size(), backend_->keyframes().size());
-  for (const auto& entry : fs::directory_iterator(dir))
+  for (const auto& entry : fs::directory_iterator(dir)) {
     EXPECT_NE(entry.path().extension(), ".tmp") << "temporary file left behind";
+    EXPECT_NE(entry.path().filename().string().rfind(".partial", 0), 0u) << "staging left behind";
+  }
 
   PointCloud map;
   ASSERT_EQ(pcl::io::loadPCDFile(dir + "/map.pcd", map), 0);
+  const PointCloudPtr built = buildMapCloud(backend_->keyframes(), 0.2);
+  ASSERT_EQ(map.size(), built->size());
+  for (size_t i = 0; i < map.size(); i += 97) {  // our binary writer against PCL's reader
+    EXPECT_EQ(map[i].getVector4fMap(), (*built)[i].getVector4fMap());
+    EXPECT_EQ(map[i].intensity, (*built)[i].intensity);
+  }
   size_t raw = 0;
   for (const auto& c : drive_->clouds) raw += c->size();
   EXPECT_GT(map.size(), 1000u);
@@ -106,6 +155,47 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   const G2oReadResult g2o = readG2o(dir + "/graph.g2o", &graph);
   ASSERT_TRUE(g2o.ok) << g2o.message;
   EXPECT_GE(graph.numVertices(), 12u);
+}
+
+TEST_F(ExportFixture, AFailedOrInterruptedSaveLeavesThePreviousFilesUnchanged) {
+  const std::string dir = tempDir("save_map_no_lost_work");
+  ASSERT_TRUE(saveMap(*backend_, dir, 0.2).success);
+  const auto before = folderContents(dir);
+  // The coarse save's files, measured in a scratch folder: its map.pcd is small, another is larger.
+  const std::string scratch = tempDir("save_map_coarse");
+  ASSERT_TRUE(saveMap(*backend_, scratch, 5.0).success);
+  const auto coarse = folderContents(scratch);
+  const size_t map_bytes = coarse.at("map.pcd").size();
+  size_t largest = 0;
+  for (const auto& [name, content] : coarse) largest = std::max(largest, content.size());
+  ASSERT_GT(largest, map_bytes) << "the test needs a file that fails after map.pcd was written";
+
+  {
+    const FileSizeLimit disk_full(map_bytes);  // map.pcd is written, a later file is not
+    const MapExportResult r = saveMap(*backend_, dir, 5.0);
+    EXPECT_FALSE(r.success);
+    EXPECT_NE(r.message.find("File too large"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("previous files are unchanged"), std::string::npos) << r.message;
+    EXPECT_TRUE(r.files.empty());
+  }
+  EXPECT_EQ(folderContents(dir), before) << "a failed save replaced some of the previous files";
+
+  // A save killed mid-way (SIGINT) leaves its staging folder: the next save removes it.
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  waitpid(child, nullptr, 0);  // a pid that is gone
+  const fs::path abandoned = fs::path(dir) / (".partial-" + std::to_string(child) + "-0");
+  fs::create_directories(abandoned);
+  std::ofstream(abandoned / "map.pcd") << "half";
+  EXPECT_EQ(folderContents(dir).size(), before.size() + 1);
+
+  const MapExportResult r = saveMap(*backend_, dir, 5.0);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_FALSE(fs::exists(abandoned));
+  const auto after = folderContents(dir);
+  EXPECT_EQ(after.size(), before.size());
+  EXPECT_EQ(after.at("map.pcd"), coarse.at("map.pcd"));
+  EXPECT_EQ(after.at("trajectory_tum.txt"), before.at("trajectory_tum.txt"));
 }
 
 TEST_F(ExportFixture, DumpGraphKeepsEveryInput) {

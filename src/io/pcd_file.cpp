@@ -1,0 +1,34 @@
+#include "osm_graph_slam/io/pcd_file.h"
+
+#include <pcl/io/pcd_io.h>
+
+#include "osm_graph_slam/io/trajectory_io.h"
+
+namespace osm_graph_slam {
+namespace {
+
+/// The binary PCD layout PCL's reader expects: its own header, then the registered fields of each
+/// point packed in order (x y z intensity, no padding).
+std::string binaryPcd(const PointCloud& cloud) {
+  std::string bytes = pcl::PCDWriter::generateHeader(cloud) + "DATA binary\n";
+  bytes.reserve(bytes.size() + cloud.size() * 4 * sizeof(float));
+  for (const auto& p : cloud.points) {
+    const float fields[4] = {p.x, p.y, p.z, p.intensity};
+    bytes.append(reinterpret_cast<const char*>(fields), sizeof(fields));
+  }
+  return bytes;
+}
+
+}  // namespace
+
+bool writePcdAtomically(const std::string& path, const PointCloud& cloud, std::string* error) {
+  // Not pcl::io::savePCDFileBinary: it throws on a full disk without saying why, and does not
+  // sync before the rename. The bytes are the same.
+  if (cloud.empty()) {
+    if (error) *error = "empty cloud for '" + path + "'";
+    return false;
+  }
+  return writeFileAtomically(path, binaryPcd(cloud), error);
+}
+
+}  // namespace osm_graph_slam
