@@ -263,6 +263,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       wake_.wait_for(lock, std::chrono::duration<double>(node_params_.optimization_period));
       if (stop_) break;
       lock.unlock();
+      std::unique_lock<std::mutex> graph_lock(graph_mutex_);
       const BackendUpdateReport report = backend_->update();
       if (report.optimized) {
         {
@@ -278,6 +279,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
             report.phase1.final_chi2, report.total_ms);
         publishOutputs();
       }
+      graph_lock.unlock();
       lock.lock();
     }
   }
@@ -351,6 +353,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   // --- services ---------------------------------------------------------------------------------
   bool onSaveMap(SaveMap::Request& req, SaveMap::Response& res) {
+    std::lock_guard<std::mutex> graph_lock(graph_mutex_);
     backend_->update();  // include everything received so far
     const MapExportResult r = saveMap(*backend_, req.destination, req.resolution);
     res.success = r.success;
@@ -364,6 +367,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   bool onDumpGraph(DumpGraph::Request& req, DumpGraph::Response& res) {
+    std::lock_guard<std::mutex> graph_lock(graph_mutex_);
     const MapExportResult r = dumpGraph(*backend_, req.destination);
     res.success = r.success;
     res.message = r.message;
@@ -380,7 +384,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Time last_stamp_;
   std::map<uint64_t, ros::Time> keyframe_stamps_;
 
-  uint64_t map_to_odom_version_ = 0;  ///< counts optimisations that set map_to_odom_
+  uint64_t map_to_odom_version_ = 0;
+  /// One optimisation or one save at a time: the files of a save come from one state of the graph
+  /// (the backend locks each accessor, not the sequence of them a save makes).
+  std::mutex graph_mutex_;  ///< counts optimisations that set map_to_odom_
   ros::Time last_tf_stamp_;           ///< stamp of the last map -> odom broadcast
   uint64_t tf_version_ = 0;           ///< map_to_odom_version_ of that broadcast
   std::thread worker_;

@@ -277,6 +277,10 @@ TEST_F(SlamRegressionNodelets, OsmPriorsMeetTheTargets) {
             param("rpe_ratio_max", 1.05) * m.baseline_same_steps.rpe_trans.mean);
   EXPECT_LE(m.slam.rpe_rot.mean,
             param("rpe_rot_ratio_max", 1.05) * m.baseline_same_steps.rpe_rot.mean);
+  // The median as well: a few transient roll/pitch kinks move the mean, a systematic loss of
+  // rotational accuracy moves both (see slam_regression_nodelets.test).
+  EXPECT_LE(m.slam.rpe_rot.median,
+            param("rpe_rot_median_ratio_max", 1.05) * m.baseline_same_steps.rpe_rot.median);
   EXPECT_GE(m.after.matched, 5u) << "fewer than 5 buildings observed (robot<->building edges)";
   EXPECT_LE(m.after.mean_corner_error,
             param("building_ratio_max", 0.5) * m.before.mean_corner_error);
