@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <unordered_map>
 #include <vector>
 
@@ -100,7 +101,16 @@ struct Localizer::Impl {
   PointCloudPtr local_map;
   Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
   std::vector<Eigen::Vector2d> keyframe_xy;
-  Eigen::MatrixXf ring_keys;  ///< one column per keyframe
+  Eigen::MatrixXf ring_keys;                      ///< one column per keyframe
+  std::unique_ptr<LandmarkLoopSource> landmarks;  ///< geometric_hierarchy / combined
+};
+
+/// A map keyframe to register the scan against, with the initial guess of the scan's pose.
+struct Localizer::Place {
+  int index = 0;  ///< map keyframe
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  double descriptor_distance = -1.0;  ///< Scan Context's (-1: a hierarchy place)
+  const char* source = "scan_context";
 };
 
 Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const MapPackage> map)
@@ -114,6 +124,16 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
   coarse.max_correspondence_distance = params_.global_coarse_max_correspondence;
   impl_->coarse = createRegistration(coarse);
   impl_->fine = createRegistration(params_.registration);
+  if (params_.global_method != "scan_context" && params_.global_method != "geometric_hierarchy" &&
+      params_.global_method != "combined")
+    throw std::invalid_argument("localization: unknown global_method '" + params_.global_method +
+                                "' (scan_context | geometric_hierarchy | combined)");
+  if (params_.global_method != "scan_context") {
+    impl_->landmarks =
+        std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
+    for (const MapKeyframe& kf : map_->keyframes)
+      impl_->landmarks->add(kf.cloud ? kf.cloud : std::make_shared<PointCloud>());
+  }
   learnDescriptorLimit();
   const size_t n = map_->keyframes.size();
   impl_->ring_keys.resize(n > 0 ? map_->keyframes.front().descriptor.ring_key.size() : 0, n);
@@ -200,41 +220,11 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     ++stats_.global_failures;
     return result;
   }
-  const ScanContext query = computeScanContext(*cloud, map_->scan_context);
-  // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
-  const int n = static_cast<int>(map_->keyframes.size());
-  std::vector<std::pair<float, int>> by_ring;
-  by_ring.reserve(n);
-  if (query.ring_key.size() == impl_->ring_keys.rows())
-    for (int i = 0; i < n; ++i)
-      by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
-  const int k = std::min<int>(params_.global_ring_key_candidates, by_ring.size());
-  std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());
-  struct Candidate {
-    double distance;
-    int index;
-    double yaw;
-  };
-  std::vector<Candidate> candidates;
-  for (int i = 0; i < k; ++i) {
-    const int index = by_ring[i].second;
-    const ScanContextMatch m =
-        matchScanContexts(query, map_->keyframes[index].descriptor, map_->scan_context);
-    if (m.distance <= descriptor_limit_) candidates.push_back({m.distance, index, m.yaw});
-  }
-  std::sort(candidates.begin(), candidates.end(),
-            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
-  // Close keyframes with close descriptors give the same answer: keep candidates 5 m apart.
-  std::vector<Candidate> distinct;
-  for (const Candidate& c : candidates) {
-    bool near = false;
-    for (const Candidate& d : distinct)
-      near = near || (impl_->keyframe_xy[c.index] - impl_->keyframe_xy[d.index]).norm() < 5.0;
-    if (!near) distinct.push_back(c);
-    if (static_cast<int>(distinct.size()) >= params_.global_candidates) break;
-  }
-  if (distinct.empty()) {
-    result.message = "no keyframe with a similar Scan Context";
+  const std::vector<Place> places = candidatePlaces(cloud);
+  if (places.empty()) {
+    result.message = params_.global_method == "geometric_hierarchy"
+                         ? "no map keyframe with a matching landmark layout"
+                         : "no keyframe with a similar Scan Context or landmark layout";
     stats_.global_ms += msSince(t0);
     ++stats_.global_failures;
     return result;
@@ -246,17 +236,18 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
   };
   std::vector<Passed> passed;
   double best_score = std::numeric_limits<double>::infinity();
-  for (const Candidate& c : distinct) {
+  const Place* answer = nullptr;
+  for (const Place& c : places) {
     ++result.candidates_tried;
     const MapKeyframe& kf = map_->keyframes[c.index];
-    Eigen::Isometry3d guess = kf.pose;
-    guess.linear() = kf.pose.linear() * Eigen::AngleAxisd(c.yaw, Eigen::Vector3d::UnitZ()).matrix();
+    const Eigen::Isometry3d& guess = c.guess;
     const Eigen::Vector2d centre = kf.pose.translation().head<2>();
     const double radius = std::min(params_.local_map_radius, 50.0);
     impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
     GlobalCandidate& record = result.candidates.emplace_back();
     record.keyframe_id = kf.id;
-    record.descriptor_distance = c.distance;
+    record.source = c.source;
+    record.descriptor_distance = c.descriptor_distance;
     record.outcome = "coarse_failed";
     const RegistrationResult coarse = impl_->coarse->align(coarse_source, guess);
     if (!coarse.converged) continue;
@@ -305,7 +296,9 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
       result.success = true;
       result.pose = fine.transform;
       result.keyframe_id = kf.id;
-      result.descriptor_distance = c.distance;
+      result.source = c.source;
+      result.descriptor_distance = c.descriptor_distance;
+      answer = &c;
       result.fitness = fine.fitness;
       result.overlap = overlap;
     }
@@ -330,9 +323,66 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     result.message =
         "no candidate passed registration (" + std::to_string(result.candidates_tried) + " tried)";
     ++stats_.global_failures;
+  } else if (answer && std::string(answer->source) == "geometric_hierarchy") {
+    ++stats_.global_by_hierarchy;
   }
   stats_.global_ms += msSince(t0);
   return result;
+}
+
+std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPtr& cloud) {
+  std::vector<Place> places;
+  if (impl_->landmarks) {  // first: its guess holds the translation too
+    const auto proposal = impl_->landmarks->propose(cloud, impl_->landmarks->size());
+    if (proposal) {
+      Place& p = places.emplace_back();
+      p.index = static_cast<int>(proposal->index);
+      p.guess = map_->keyframes[proposal->index].pose * proposal->relative_pose;
+      p.source = "geometric_hierarchy";
+    }
+  }
+  if (params_.global_method != "geometric_hierarchy") addScanContextPlaces(cloud, places);
+  // Close keyframes give the same answer: keep places 5 m apart, at most global_candidates.
+  std::vector<Place> distinct;
+  for (const Place& c : places) {
+    bool near = false;
+    for (const Place& d : distinct)
+      near = near || (impl_->keyframe_xy[c.index] - impl_->keyframe_xy[d.index]).norm() < 5.0;
+    if (!near) distinct.push_back(c);
+    if (static_cast<int>(distinct.size()) >= params_.global_candidates) break;
+  }
+  return distinct;
+}
+
+void Localizer::addScanContextPlaces(const PointCloudConstPtr& cloud,
+                                     std::vector<Place>& places) const {
+  const ScanContext query = computeScanContext(*cloud, map_->scan_context);
+  // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
+  const int n = static_cast<int>(map_->keyframes.size());
+  std::vector<std::pair<float, int>> by_ring;
+  by_ring.reserve(n);
+  if (query.ring_key.size() == impl_->ring_keys.rows())
+    for (int i = 0; i < n; ++i)
+      by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
+  const int k = std::min<int>(params_.global_ring_key_candidates, by_ring.size());
+  std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());
+  std::vector<Place> by_descriptor;
+  for (int i = 0; i < k; ++i) {
+    const int index = by_ring[i].second;
+    const MapKeyframe& kf = map_->keyframes[index];
+    const ScanContextMatch m = matchScanContexts(query, kf.descriptor, map_->scan_context);
+    if (m.distance > descriptor_limit_) continue;
+    Place& p = by_descriptor.emplace_back();
+    p.index = index;
+    p.guess = kf.pose;
+    p.guess.linear() =
+        kf.pose.linear() * Eigen::AngleAxisd(m.yaw, Eigen::Vector3d::UnitZ()).matrix();
+    p.descriptor_distance = m.distance;
+  }
+  std::sort(by_descriptor.begin(), by_descriptor.end(), [](const Place& a, const Place& b) {
+    return a.descriptor_distance < b.descriptor_distance;
+  });
+  places.insert(places.end(), by_descriptor.begin(), by_descriptor.end());
 }
 
 LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cloud,

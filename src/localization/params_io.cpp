@@ -1,5 +1,6 @@
 #include "osm_graph_slam/localization/params_io.h"
 
+#include "osm_graph_slam/landmarks/params_io.h"
 #include "osm_graph_slam/registration/params_io.h"
 
 namespace osm_graph_slam {
@@ -37,6 +38,11 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("init_orientation_std", p.init_orientation_std);
   r.param("init_velocity_std", p.init_velocity_std);
   r.param("init_rate_std", p.init_rate_std);
+  r.param("global_method", p.global_method);
+  // Same layout as config/landmarks.yaml, under "landmarks/" (as loop_detection's).
+  const PrefixedParamReader landmarks(r, "landmarks");
+  readParams(PrefixedParamReader(landmarks, "extraction"), p.landmark_extraction);
+  readParams(landmarks, p.landmarks);
   r.param("global_ring_key_candidates", p.global_ring_key_candidates);
   r.param("global_candidates", p.global_candidates);
   r.param("global_max_descriptor_distance", p.global_max_descriptor_distance);

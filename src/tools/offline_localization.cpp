@@ -75,7 +75,7 @@ double yawOfPose(const Eigen::Isometry3d& pose) {
 void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocalizationResult& g,
                       const std::optional<Eigen::Isometry3d>& truth) {
   if (g.candidates.empty())
-    log << stamp << ' ' << (g.success ? "success" : "failure") << " - - none - - - - - - -\n";
+    log << stamp << ' ' << (g.success ? "success" : "failure") << " - - - none - - - - - - - -\n";
   for (const GlobalCandidate& c : g.candidates) {
     double e = std::nan(""), yaw_error = std::nan("");
     if (truth) {
@@ -84,7 +84,7 @@ void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocaliz
           Eigen::AngleAxisd(truth->linear().transpose() * c.pose.linear()).angle() * 180 / M_PI;
     }
     log << stamp << ' ' << (g.success ? "success" : "failure") << ' ' << c.keyframe_id << ' '
-        << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' ' << c.overlap << ' '
+        << c.source << ' ' << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' ' << c.overlap << ' '
         << c.structure_overlap << ' ' << c.pose.translation().x() << ' ' << c.pose.translation().y()
         << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error << '\n';
   }
@@ -240,7 +240,7 @@ int main(int argc, char** argv) {
   size_t wrong_relocalizations = 0;
   std::ostringstream global_log;
   global_log << std::setprecision(15)
-             << "# stamp result keyframe descriptor_distance outcome fitness overlap "
+             << "# stamp result keyframe source descriptor_distance outcome fitness overlap "
                 "structure_overlap x y yaw "
                 "error_m error_yaw_deg (one line per place tried; result: the attempt's answer)\n";
   bool last_relocalization_correct = false;

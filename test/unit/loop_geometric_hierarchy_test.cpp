@@ -11,15 +11,17 @@
 #include <map>
 #include <stdexcept>
 
-#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "forest_trail.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
-#include "osm_graph_slam/sim/forest_world.h"
-#include "osm_graph_slam/sim/lidar.h"
 
 using namespace osm_graph_slam;
 using namespace osm_graph_slam::sim;
+using osm_graph_slam::test::along;
+using osm_graph_slam::test::keyframeCloud;
+using osm_graph_slam::test::makeForest;
+using osm_graph_slam::test::sensorPose;
 
 namespace {
 
@@ -31,46 +33,6 @@ struct Drive {
   std::vector<Eigen::Isometry3d> truth;  ///< sensor in the world
   std::vector<LoopKeyframe> keyframes;
 };
-
-Scene makeForest(uint64_t seed) {
-  ForestParams p;
-  forestPreset("intermediate", p);
-  p.seed = seed;
-  p.size = 220.0;
-  p.trail_spacing = 110.0;
-  Scene scene = forestScene(p);
-  scene.world.finalize();
-  return scene;
-}
-
-/// Point and heading `s` metres along a polyline.
-std::pair<Eigen::Vector2d, double> along(const std::vector<Eigen::Vector2d>& line, double s) {
-  for (size_t i = 0; i + 1 < line.size(); ++i) {
-    const Eigen::Vector2d d = line[i + 1] - line[i];
-    const double len = d.norm();
-    if (s <= len || i + 2 == line.size()) {
-      return {line[i] + d * std::min(1.0, s / len), std::atan2(d.y(), d.x())};
-    }
-    s -= len;
-  }
-  return {line.front(), 0.0};
-}
-
-Eigen::Isometry3d sensorPose(const Scene& scene, const Eigen::Vector2d& xy, double yaw) {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
-  pose.translation() =
-      Eigen::Vector3d(xy.x(), xy.y(), scene.world.ground.height(xy.x(), xy.y()) + 1.73);
-  return pose;
-}
-
-PointCloudConstPtr keyframeCloud(const Scene& scene, const Eigen::Isometry3d& pose, uint64_t seed) {
-  const PointCloud raw =
-      simulateScan(
-          scene.world, LidarModel::hdl64e(), [pose](double) { return pose; }, 0.0, seed, 0)
-          .cloud;
-  return CloudPrefilter().filter(raw).cloud;
-}
 
 /// Out along the first trail, a detour, back the other way 1 m to the side. Odometry: exact on
 /// the way out, then off by a rigid drift (0.6 m, -0.4 m, 0.3 deg) after the detour.

@@ -16,6 +16,7 @@
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/pose_ukf.h"
+#include "osm_graph_slam/loop/landmark_loop_source.h"
 #include "osm_graph_slam/registration/registration.h"
 
 namespace osm_graph_slam {
@@ -44,6 +45,12 @@ struct LocalizationParams {
   double init_velocity_std = 5.0;      ///< [m/s] unknown at the start
   double init_rate_std = 0.5;          ///< [rad/s]
   // Global localisation.
+  /// Where the candidate places come from: scan_context | geometric_hierarchy (the trunks and
+  /// poles of the scan against those of every map keyframe, GeoSLAM; doc/landmarks.md) |
+  /// combined (the hierarchy's place first, then Scan Context's). All get the same registration.
+  std::string global_method = "scan_context";
+  LandmarkExtractionParams landmark_extraction = loopLandmarkExtractionDefaults();
+  LandmarkPlaceRecognitionParams landmarks;
   int global_ring_key_candidates = 30;          ///< nearest ring keys searched
   int global_candidates = 8;                    ///< best Scan Context matches registered
   double global_max_descriptor_distance = 0.6;  ///< upper bound of the limit below
@@ -98,7 +105,8 @@ struct LocalizationOutput {
 /// One place global localisation considered (for diagnosis and tests).
 struct GlobalCandidate {
   uint64_t keyframe_id = 0;
-  double descriptor_distance = 1.0;
+  std::string source = "scan_context";  ///< or geometric_hierarchy
+  double descriptor_distance = 1.0;     ///< Scan Context (-1: a hierarchy candidate)
   std::string outcome;  ///< coarse_failed | fine_failed | fitness | overlap | passed
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< after registration
   double fitness = -1.0, overlap = 0.0;
@@ -109,6 +117,7 @@ struct GlobalLocalizationResult {
   bool success = false;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   uint64_t keyframe_id = 0;
+  std::string source;  ///< of the answer: scan_context | geometric_hierarchy
   double descriptor_distance = 1.0;
   double fitness = -1.0;
   double overlap = 0.0;
@@ -126,6 +135,7 @@ struct LocalizationStats {
   size_t local_map_builds = 0;
   double global_descriptor_limit = 0.0;  ///< the learnt Scan Context limit (see params)
   size_t global_impostor_pairs = 0;      ///< the pairs it was learnt from
+  size_t global_by_hierarchy = 0;        ///< global answers whose place the hierarchy proposed
 };
 
 class Localizer {
@@ -157,7 +167,11 @@ class Localizer {
 
  private:
   struct Impl;
+  struct Place;
   GlobalLocalizationResult searchGlobally(const PointCloudConstPtr& cloud);
+  /// The places worth registering, best first, 5 m apart (global_method decides the sources).
+  std::vector<Place> candidatePlaces(const PointCloudConstPtr& cloud);
+  void addScanContextPlaces(const PointCloudConstPtr& cloud, std::vector<Place>& places) const;
   void learnDescriptorLimit();
   double descriptor_limit_ = 0.6;  ///< learnt at construction
   LocalizationParams params_;

@@ -15,6 +15,10 @@
 
 namespace osm_graph_slam {
 
+/// Landmark extraction for the prefiltered keyframe cloud (0.5 m voxels) that loop detection and
+/// localisation get, sparser than the raw scans LandmarkExtractionParams' defaults are set for.
+LandmarkExtractionParams loopLandmarkExtractionDefaults();
+
 struct LandmarkProposal {
   size_t index = 0;  ///< database index of the proposed keyframe
   /// Query keyframe in the proposed keyframe's frame (planar: x, y, yaw; z = 0).

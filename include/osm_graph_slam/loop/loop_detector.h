@@ -26,16 +26,13 @@
 #include "osm_graph_slam/landmarks/landmark_extraction.h"
 #include "osm_graph_slam/landmarks/landmark_place_recognizer.h"
 #include "osm_graph_slam/loop/bev_correlation.h"
+#include "osm_graph_slam/loop/landmark_loop_source.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/registration/registration.h"
 
 namespace osm_graph_slam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
-
-/// Landmark extraction for loop detection: the keyframe cloud it gets is the prefiltered one
-/// (0.5 m voxels), sparser than the raw scans LandmarkExtractionParams' defaults are set for.
-LandmarkExtractionParams loopLandmarkExtractionDefaults();
 
 struct LoopDetectorParams {
   /// Candidate source: scan_context | geometric_hierarchy | combined.
