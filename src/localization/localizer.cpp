@@ -236,7 +236,6 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
   };
   std::vector<Passed> passed;
   double best_score = std::numeric_limits<double>::infinity();
-  const Place* answer = nullptr;
   for (const Place& c : places) {
     ++result.candidates_tried;
     const MapKeyframe& kf = map_->keyframes[c.index];
@@ -298,7 +297,6 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
       result.keyframe_id = kf.id;
       result.source = c.source;
       result.descriptor_distance = c.descriptor_distance;
-      answer = &c;
       result.fitness = fine.fitness;
       result.overlap = overlap;
     }
@@ -323,7 +321,7 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     result.message =
         "no candidate passed registration (" + std::to_string(result.candidates_tried) + " tried)";
     ++stats_.global_failures;
-  } else if (answer && std::string(answer->source) == "geometric_hierarchy") {
+  } else if (result.source == "geometric_hierarchy") {
     ++stats_.global_by_hierarchy;
   }
   stats_.global_ms += msSince(t0);
