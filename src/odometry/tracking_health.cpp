@@ -42,6 +42,8 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
     case TrackStatus::kRejectedStamp:
     case TrackStatus::kRejectedCloud:
       return updateRejected(stamp, result.message);
+    case TrackStatus::kRestarted:
+      return restarted(stamp, result);
   }
   ++stats_.scans;
   if (stats_.scans == 1) stats_.first_stamp = stamp;
@@ -77,6 +79,23 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
   state_ = TrackingState::kOk;
   last_keyframe_stamp_ = stamp;
   return event;
+}
+
+std::optional<TrackingEvent> TrackingHealth::restarted(double stamp, const TrackResult& result) {
+  // The spans without a keyframe restart with the stamps; a lost state ends with the new keyframe.
+  stats_.longest_no_keyframe_s = std::max(stats_.longest_no_keyframe_s, timeSinceKeyframe());
+  ++stats_.scans;
+  ++stats_.keyframes;
+  ++stats_.restarts;
+  failures_in_row_ = 0;
+  stats_.last_stamp = stamp;
+  last_keyframe_stamp_ = stamp;
+  state_ = TrackingState::kOk;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf), "tracking restart %zu at scan %zu: %s (keyframe %llu)",
+                stats_.restarts, stats_.scans - 1, result.message.c_str(),
+                static_cast<unsigned long long>(result.keyframe_id));
+  return TrackingEvent{TrackingState::kOk, buf};
 }
 
 std::optional<TrackingEvent> TrackingHealth::updateRejected(double stamp,

@@ -21,6 +21,7 @@ struct TrackingStats {
   size_t rejected_scans = 0;  ///< empty/too small clouds and out-of-order stamps
   size_t keyframes = 0;
   size_t reanchors = 0;         ///< keyframes re-anchored on a guess after failed matches
+  size_t restarts = 0;          ///< tracking restarts after the time jumped back (looped bag)
   size_t lost_events = 0;       ///< times the track was declared lost
   size_t scans_while_lost = 0;  ///< scans that arrived while the track was lost
   double first_stamp = 0.0, last_stamp = 0.0;  ///< [s] of the scans offered (0 before any)
@@ -53,6 +54,8 @@ class TrackingHealth {
 
  private:
   std::optional<TrackingEvent> checkGap(double stamp, const std::string& reason);
+  /// The tracker restarted after the time jumped back: one event to log, counted.
+  std::optional<TrackingEvent> restarted(double stamp, const TrackResult& result);
 
   double lost_after_;
   TrackingStats stats_;
