@@ -468,7 +468,10 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   s.last_floor_keyframe = kf.id;
   if (!params_.floor_edges || !prev_id) return;
   const KeyframeState& prev = s.keyframes.at(*prev_id);
-  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance) {
+  // Far apart along the path, or stamped before the previous one (the time jumped back: a looped
+  // bag starts elsewhere): not the same stretch of ground.
+  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance ||
+      kf.stamp < prev.stamp) {
     ++report.floor_gaps;
     return;
   }

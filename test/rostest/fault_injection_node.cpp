@@ -8,21 +8,25 @@
 // reach the back-end, and save_map at the end holds every keyframe published before.
 #include <geometry_msgs/TransformStamped.h>
 #include <gtest/gtest.h>
+#include <nav_msgs/Path.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <set>
 #include <sstream>
@@ -70,6 +74,8 @@ struct Inbox {
   std::vector<ScanMatchingStatus> status;
   std::vector<KeyFrame> keyframes;  ///< without clouds
   std::vector<rosgraph_msgs::Log> logs;
+  nav_msgs::Path path;                        ///< the back-end's latest
+  std::vector<ros::Time> map_to_odom_stamps;  ///< of graph_backend's TF broadcasts
   size_t filtered = 0;
 
   template <typename F>
@@ -121,18 +127,26 @@ std::vector<std::string> unpackScans(const fs::path& dir, std::string* why) {
   return files;
 }
 
-/// Robot vertex ids in a saved graph.g2o (VERTEX_SE3:QUAT lines).
-std::set<uint64_t> g2oVertexIds(const std::string& path) {
-  std::set<uint64_t> ids;
+/// A saved graph.g2o: keyframe positions by id (VERTEX_SE3:QUAT) and the SE3 edges' vertex pairs.
+struct SavedGraph {
+  std::map<uint64_t, Eigen::Vector3d> vertices;
+  std::vector<std::pair<uint64_t, uint64_t>> edges;
+};
+
+SavedGraph readG2o(const std::string& path) {
+  SavedGraph g;
   std::ifstream in(path);
   std::string line;
   while (std::getline(in, line)) {
     std::istringstream s(line);
     std::string tag;
-    uint64_t id = 0;
-    if (s >> tag >> id && tag.rfind("VERTEX_SE3", 0) == 0) ids.insert(id);
+    uint64_t a = 0, b = 0;
+    Eigen::Vector3d p;
+    if (!(s >> tag >> a)) continue;
+    if (tag == "VERTEX_SE3:QUAT" && s >> p.x() >> p.y() >> p.z()) g.vertices[a] = p;
+    if (tag == "EDGE_SE3:QUAT" && s >> b) g.edges.emplace_back(a, b);
   }
-  return ids;
+  return g;
 }
 
 class FaultInjection : public ::testing::Test {
@@ -148,6 +162,15 @@ class FaultInjection : public ::testing::Test {
       k.cloud.data.clear();
       in_.locked([&] { in_.keyframes.push_back(k); });
     });
+    tf_sub_ = nh_.subscribe<tf2_msgs::TFMessage>(
+        "/tf", 100, [this](const tf2_msgs::TFMessageConstPtr& m) {
+          for (const auto& t : m->transforms)
+            if (t.header.frame_id == "map" && t.child_frame_id == "odom")
+              in_.locked([&] { in_.map_to_odom_stamps.push_back(t.header.stamp); });
+        });
+    path_sub_ = nh_.subscribe<nav_msgs::Path>(
+        "slam/path", 10,
+        [this](const nav_msgs::PathConstPtr& m) { in_.locked([&] { in_.path = *m; }); });
     filtered_sub_ = nh_.subscribe<sensor_msgs::PointCloud2>(
         "filtered_points", 100,
         [this](const sensor_msgs::PointCloud2ConstPtr&) { in_.locked([&] { ++in_.filtered; }); });
@@ -255,7 +278,7 @@ class FaultInjection : public ::testing::Test {
   Inbox in_;
   fs::path dir_;
   std::vector<std::string> files_;
-  ros::Subscriber status_sub_, kf_sub_, filtered_sub_, log_sub_;
+  ros::Subscriber status_sub_, kf_sub_, tf_sub_, path_sub_, filtered_sub_, log_sub_;
   ros::Publisher clock_pub_, scan_pub_, imu_pub_, fix_pub_;
   ros::Time now_, imu_next_;
 };
@@ -369,14 +392,20 @@ TEST_F(FaultInjection, EveryFaultIsReportedOnceAndTheMapIsKept) {
   for (int i = 50; i < kScans; ++i) normal(i);
   const ros::Time first_pass_end = t - period;
 
-  // Everything of the first pass reaches the back-end before the jump.
+  // Everything of the first pass reaches the back-end and is optimised before the jump: the map
+  // (slam/path) to compare the end's with.
   ros::WallDuration(1.0).sleep();
   const std::vector<KeyFrame> first_pass = in_.locked([&] { return in_.keyframes; });
   ASSERT_FALSE(first_pass.empty());
   EXPECT_GT(first_pass.size(), keyframes_before_gap) << "no keyframe after the 30 s gap";
+  ASSERT_TRUE(waitFor(
+      [&] { return in_.locked([&] { return in_.path.poses.size() == first_pass.size(); }); }, 20.0))
+      << "slam/path never held the first pass's " << first_pass.size() << " keyframes";
+  const nav_msgs::Path map_before_jump = in_.locked([&] { return in_.path; });
 
   // 8. The time jumps back to the start (a looped bag): scans 0..29 again with their stamps,
   //    the IMU and the fix too.
+  const size_t tf_before_jump = in_.locked([&] { return in_.map_to_odom_stamps.size(); });
   t = kStart;
   imu_next_ = kStart;
   clock(kStart);
@@ -390,7 +419,9 @@ TEST_F(FaultInjection, EveryFaultIsReportedOnceAndTheMapIsKept) {
   srv.request.resolution = 0.5;
   ASSERT_TRUE(save.call(srv));
   ASSERT_TRUE(srv.response.success) << srv.response.message;
-  const std::set<uint64_t> saved = g2oVertexIds((dir_ / "map" / "graph.g2o").string());
+  const SavedGraph graph = readG2o((dir_ / "map" / "graph.g2o").string());
+  std::set<uint64_t> saved;
+  for (const auto& v : graph.vertices) saved.insert(v.first);
   ros::WallDuration(1.0).sleep();  // the last log lines
 
   std::lock_guard<std::mutex> lock(in_.mutex);
@@ -403,12 +434,39 @@ TEST_F(FaultInjection, EveryFaultIsReportedOnceAndTheMapIsKept) {
     if (l.level >= rosgraph_msgs::Log::WARN || l.msg.find("jumped back") != std::string::npos)
       std::printf("[fault_injection] log %d: %s\n", int(l.level), l.msg.c_str());
 
+  const KeyFrame& restart_kf = in_.keyframes[first_pass.size()];
+  std::printf(
+      "[fault_injection] the first pass ended %.1f m from the start; the restart keyframe "
+      "%lu (really at the start) continues there\n",
+      fromPoseMsg(first_pass.back().odom_pose).translation().norm(),
+      static_cast<unsigned long>(restart_kf.id));
   for (const auto& s : in_.status)
     if (s.failed || s.tracking_state != "ok")
       std::printf("[fault_injection] status at %s: %s, %s\n", stampText(s.header.stamp).c_str(),
                   s.tracking_state.c_str(), s.message.c_str());
   for (const auto& k : in_.keyframes)
     EXPECT_TRUE(saved.count(k.id)) << "keyframe " << k.id << " lost from the map";
+  // The first pass's map is where it was before the jump (the second pass hangs from it by a
+  // weak edge and pulls nothing).
+  double moved = 0.0;
+  for (size_t i = 0; i < first_pass.size(); ++i) {
+    const auto v = graph.vertices.find(first_pass[i].id);
+    if (v == graph.vertices.end()) continue;
+    const auto& p = map_before_jump.poses[i].pose.position;
+    moved = std::max(moved, (v->second - Eigen::Vector3d(p.x, p.y, p.z)).norm());
+  }
+  size_t loops = 0;
+  for (const auto& [a, b] : graph.edges) loops += (a > b ? a - b : b - a) > 1;
+  std::printf(
+      "[fault_injection] first-pass keyframes moved at most %.3f m from slam/path before "
+      "the jump to the saved map; %zu loop edges\n",
+      moved, loops);
+  // map -> odom goes on at the new (earlier) times after the clock jumped back.
+  const size_t tf_after_jump =
+      std::count_if(in_.map_to_odom_stamps.begin() + tf_before_jump, in_.map_to_odom_stamps.end(),
+                    [&](const ros::Time& t) { return t < first_pass_end - ros::Duration(5.0); });
+  EXPECT_GT(tf_after_jump, 0u) << "no map -> odom at the times after the jump";
+  EXPECT_LT(moved, 0.05);  // 0.004 m; 0.12 m while a floor edge tied the restart keyframe
   EXPECT_GE(saved.size(), in_.keyframes.size());
   // Keyframe ids keep increasing across the restart (the back-end orders by id).
   for (size_t i = 1; i < in_.keyframes.size(); ++i)
