@@ -68,6 +68,15 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                    imu_.newestStamp() - stamp);
       imu_.clear();
     }
+    // An IMU too slow (or with gaps) for the imu guess: scans between two samples get no
+    // orientation and silently fall back to constant velocity. Measured on the samples' stamps,
+    // not on their arrival, so an IMU that arrives a little after the scans is not reported.
+    const double dt = imu_.size() > 0 ? stamp - imu_.newestStamp() : 0.0;
+    if (dt > 2.0 * imu_.maxGap())
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "imu/data: %.2f s between samples (up to %.3f), more than %.2f s: "
+                            "scans between them get no IMU orientation (constant-velocity guess)",
+                            dt, stamp, 2.0 * imu_.maxGap());
     if (msg->orientation_covariance[0] >= 0.0) {  // REP-145: -1 = no orientation
       const auto& q = msg->orientation;
       imu_.addOrientation(stamp, Eigen::Quaterniond(q.w, q.x, q.y, q.z));
@@ -79,15 +88,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
 
   std::optional<Eigen::Quaterniond> imuOrientationAt(double stamp) {
     std::lock_guard<std::mutex> lock(imu_mutex_);
-    const auto q = imu_.orientationAt(stamp);
-    // An IMU that publishes but has no sample near the scan (too slow, delayed): say so, as the
-    // imu guess then silently becomes constant velocity.
-    if (!q && imu_.size() > 0)
-      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
-                            "imu/data has no sample near the scan at %.3f (newest %.3f; IMU too "
-                            "slow or late?): constant-velocity guess",
-                            stamp, imu_.newestStamp());
-    return q;
+    return imu_.orientationAt(stamp);
   }
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {

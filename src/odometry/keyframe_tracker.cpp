@@ -191,7 +191,6 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
   // pre-tracker references); the keyframe ids and the pose continue so that the back-end keeps
   // its map and links the new keyframe weakly, as after a re-anchor.
   std::ostringstream why;
-  why.precision(9);
   why << "time jumped back " << std::fixed << std::setprecision(3) << last_stamp_ - stamp
       << " s (stamp " << stamp << " after " << last_stamp_
       << "): tracking restarted, the new keyframe continues from the last pose";

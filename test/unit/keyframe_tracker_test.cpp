@@ -209,6 +209,9 @@ TEST(KeyframeTrackerTest, JumpBackInTimeRestartsTrackingSmallStepsBackAreRejecte
               0.1);
   EXPECT_EQ(health.stats().restarts, 1u);
   EXPECT_EQ(health.stats().rejected_scans, 2u);
+  // The time since a keyframe runs from the restart, the drive's last stamp stays the latest.
+  EXPECT_LT(health.timeSinceKeyframe(), 1.0);
+  EXPECT_DOUBLE_EQ(health.stats().last_stamp, 110.5);
 }
 
 TEST(KeyframeTrackerTest, RestartAfterJumpBackCanBeDisabled) {

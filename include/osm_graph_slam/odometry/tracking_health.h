@@ -61,6 +61,8 @@ class TrackingHealth {
   TrackingStats stats_;
   TrackingState state_ = TrackingState::kOk;
   std::optional<double> last_keyframe_stamp_;
+  /// [s] the latest scan stamp since the last restart (the time since a keyframe runs from it).
+  double latest_stamp_ = 0.0;
   size_t failures_in_row_ = 0;
   std::optional<double> recovery_gap_;
 };
