@@ -195,10 +195,18 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
-    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX) return;
+    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX) {
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "gps/fix at %.3f has no fix (status %d); ignored",
+                            msg->header.stamp.toSec(), msg->status.status);
+      return;
+    }
     // NaN altitude: unknown (then the fix holds x and y only).
-    inputs_->addFix({msg->header.stamp.toSec(), msg->latitude, msg->longitude, msg->altitude,
-                     navSatFixStd(*msg)});
+    if (!inputs_->addFix({msg->header.stamp.toSec(), msg->latitude, msg->longitude, msg->altitude,
+                          navSatFixStd(*msg)}))
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "gps/fix at %.3f has a non-finite position (%f, %f); ignored",
+                            msg->header.stamp.toSec(), msg->latitude, msg->longitude);
   }
 
   bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
@@ -337,6 +345,13 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     }
     const ros::Time now = ros::Time::now();
     ros::Time stamp = now.isZero() ? lastStamp() : now;
+    if (!last_tf_stamp_.isZero() && stamp + ros::Duration(kClockJumpBack) < last_tf_stamp_) {
+      // The clock jumped back (a looped bag): TF listeners cleared their buffers, so map -> odom
+      // must go out at the new times, not only once the clock passes the old ones.
+      NODELET_WARN("clock jumped back %.1f s: map -> odom restamped from now on",
+                   (last_tf_stamp_ - stamp).toSec());
+      last_tf_stamp_ = ros::Time();
+    }
     if (stamp <= last_tf_stamp_) {
       if (version == tf_version_) return;
       stamp = last_tf_stamp_ + ros::Duration(0, 1000);
@@ -376,6 +391,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  /// [s] the clock going back more than this is a jump (a looped bag), not jitter.
+  static constexpr double kClockJumpBack = 1.0;
   GraphBackendNodeletParams node_params_;  ///< frames, rates, TF (nodelet_params.h)
   std::unique_ptr<GraphBackend> backend_;
   std::mutex map_to_odom_mutex_;

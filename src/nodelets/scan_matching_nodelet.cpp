@@ -61,6 +61,22 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
     const double stamp = msg->header.stamp.toSec();
     std::lock_guard<std::mutex> lock(imu_mutex_);
+    const double jump = tracker_->params().restart_after_jump_back;
+    if (imu_.size() > 0 && jump > 0.0 && stamp < imu_.newestStamp() - jump) {
+      // A looped bag: the buffer would refuse every later sample as out of order.
+      NODELET_INFO("imu/data jumped back %.1f s in time: IMU buffer cleared",
+                   imu_.newestStamp() - stamp);
+      imu_.clear();
+    }
+    // An IMU too slow (or with gaps) for the imu guess: scans between two samples get no
+    // orientation and silently fall back to constant velocity. Measured on the samples' stamps,
+    // not on their arrival, so an IMU that arrives a little after the scans is not reported.
+    const double dt = imu_.size() > 0 ? stamp - imu_.newestStamp() : 0.0;
+    if (dt > 2.0 * imu_.maxGap())
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "imu/data: %.2f s between samples (up to %.3f), more than %.2f s: "
+                            "scans between them get no IMU orientation (constant-velocity guess)",
+                            dt, stamp, 2.0 * imu_.maxGap());
     if (msg->orientation_covariance[0] >= 0.0) {  // REP-145: -1 = no orientation
       const auto& q = msg->orientation;
       imu_.addOrientation(stamp, Eigen::Quaterniond(q.w, q.x, q.y, q.z));
@@ -91,6 +107,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                             msg->header.frame_id.c_str(), node_params_.base_link_frame.c_str());
     }
     const double stamp = msg->header.stamp.toSec();
+    warnOnGap(stamp);
     const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp));
     // Lost and recovered are each one line, whatever the throttling.
     if (const auto event = health_->update(msg->header.stamp.toSec(), result))
@@ -102,13 +119,22 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                             msg->header.stamp.toSec(), result.message.c_str());
       return;
     }
-    if (result.failed()) {
+    if (result.failed() && result.status != TrackStatus::kRestarted) {
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "scan at %.3f: %s (constant-velocity prediction kept)",
                             msg->header.stamp.toSec(), result.message.c_str());
     }
     publishOdometry(msg->header.stamp, result.pose);
     if (result.new_keyframe) publishKeyframe(*msg, result);
+  }
+
+  /// One line per gap in the scans longer than the motion model extrapolates over.
+  void warnOnGap(double stamp) {
+    const double gap = stamp - last_scan_stamp_;
+    if (last_scan_stamp_ > 0.0 && gap > tracker_->params().max_prediction_gap)
+      NODELET_WARN("no scan for %.1f s before %.3f: the motion guess extrapolates %.1f s of it",
+                   gap, stamp, tracker_->params().max_prediction_gap);
+    last_scan_stamp_ = stamp;
   }
 
   void publishOdometry(const ros::Time& stamp, const Eigen::Isometry3d& pose) {
@@ -158,10 +184,14 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->message = result.failed() ? std::string(toString(result.status)) + ": " + result.message
                                    : std::string(toString(result.status));
     const TrackingStats health = health_->stats();
-    msg->tracking_state = result.reanchored ? "recovered" : toString(health_->state());
+    msg->tracking_state = result.status == TrackStatus::kRestarted ? "restarted"
+                          : result.reanchored                      ? "recovered"
+                                                                   : toString(health_->state());
     msg->failed_matches = static_cast<uint32_t>(health.failed_matches);
     msg->lost_events = static_cast<uint32_t>(health.lost_events);
     msg->time_since_keyframe = health_->timeSinceKeyframe();
+    msg->restarts = static_cast<uint32_t>(health.restarts);
+    msg->rejected_scans = static_cast<uint32_t>(health.rejected_scans);
     status_pub_.publish(boost::shared_ptr<const ScanMatchingStatus>(msg));
   }
 
@@ -198,6 +228,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   ros::Subscriber sub_, imu_sub_;
   std::mutex imu_mutex_;
   ImuOrientationBuffer imu_;
+  double last_scan_stamp_ = 0.0;  ///< [s] of the last scan received (0 before any)
 };
 
 }  // namespace osm_graph_slam

@@ -15,6 +15,11 @@ void ImuOrientationBuffer::push(double stamp, const Eigen::Quaterniond& q) {
   if (samples_.size() > capacity_) samples_.pop_front();
 }
 
+void ImuOrientationBuffer::clear() {
+  samples_.clear();
+  last_rate_.reset();
+}
+
 void ImuOrientationBuffer::addOrientation(double stamp, const Eigen::Quaterniond& orientation) {
   last_rate_.reset();
   push(stamp, orientation);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <exception>
+#include <iomanip>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -38,6 +39,8 @@ const char* toString(TrackStatus status) {
       return "rejected_cloud";
     case TrackStatus::kReanchored:
       return "reanchored";
+    case TrackStatus::kRestarted:
+      return "restarted";
   }
   return "unknown";
 }
@@ -177,6 +180,47 @@ std::optional<Eigen::Isometry3d> KeyframeTracker::imuPredict(
   return pose_ * motion;
 }
 
+bool KeyframeTracker::jumpedBack(double stamp) const {
+  return has_keyframe_ && params_.restart_after_jump_back > 0.0 &&
+         stamp < last_stamp_ - params_.restart_after_jump_back;
+}
+
+TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& cloud,
+                                     const std::optional<Eigen::Quaterniond>& imu_orientation) {
+  // Nothing of the old motion model holds across the jump (velocity, fitness level, IMU and
+  // pre-tracker references); the keyframe ids and the pose continue so that the back-end keeps
+  // its map and links the new keyframe weakly, as after a re-anchor.
+  std::ostringstream why;
+  why << "time jumped back " << std::fixed << std::setprecision(3) << last_stamp_ - stamp
+      << " s (stamp " << stamp << " after " << last_stamp_
+      << "): tracking restarted, the new keyframe continues from the last pose";
+  TrackResult result;
+  try {
+    makeKeyframe(stamp, cloud);
+  } catch (const std::exception& e) {
+    result.status = TrackStatus::kRejectedCloud;
+    result.message = std::string("could not index the restart keyframe: ") + e.what();
+    result.pose = pose_;
+    return result;
+  }
+  prev_pose_ = pose_;
+  last_stamp_ = prev_stamp_ = stamp;
+  poses_seen_ = 1;
+  failures_in_row_ = 0;
+  fitness_gate_.clear();
+  last_imu_ = imu_orientation;
+  if (pre_tracker_) {
+    pre_tracker_->reset();
+    pre_tracker_->remember(cloud);
+  }
+  result.status = TrackStatus::kRestarted;
+  result.new_keyframe = result.reanchored = true;
+  result.pose = pose_;
+  result.keyframe_id = keyframe_.id;
+  result.message = why.str();
+  return result;
+}
+
 TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud,
                                    const std::optional<Eigen::Quaterniond>& imu_orientation) {
   TrackResult result;
@@ -186,16 +230,18 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     result.message = "stamp is not finite";
     return result;
   }
+  const bool cloud_ok = cloud && static_cast<int>(cloud->size()) >= params_.min_points;
+  if (cloud_ok && jumpedBack(stamp)) return restart(stamp, cloud, imu_orientation);
   if (has_keyframe_ && stamp <= last_stamp_) {
     std::ostringstream why;
-    why.precision(9);
-    why << "stamp " << stamp << " is not after the last processed stamp " << last_stamp_;
+    why << std::fixed << std::setprecision(3) << "stamp " << stamp
+        << " is not after the last processed stamp " << last_stamp_;
     result.status = TrackStatus::kRejectedStamp;
     result.message = why.str();
     result.pose = pose_;
     return result;
   }
-  if (!cloud || static_cast<int>(cloud->size()) < params_.min_points) {
+  if (!cloud_ok) {
     result.status = TrackStatus::kRejectedCloud;
     result.message = "cloud has " + std::to_string(cloud ? cloud->size() : 0) +
                      " points, fewer than min_points " + std::to_string(params_.min_points);

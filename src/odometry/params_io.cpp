@@ -23,6 +23,7 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("min_points", p.min_points);
   r.param("lost_track_after", p.lost_track_after);
   r.param("max_prediction_gap", p.max_prediction_gap);
+  r.param("restart_after_jump_back", p.restart_after_jump_back);
   r.param("guess", p.guess);
   r.param("pre_tracker_coarse_voxel", p.pre_tracker.coarse_voxel);
   r.param("pre_tracker_fine_voxel", p.pre_tracker.fine_voxel);

@@ -13,7 +13,7 @@ const char* toString(TrackingState state) {
 TrackingHealth::TrackingHealth(double lost_after) : lost_after_(lost_after) {}
 
 double TrackingHealth::timeSinceKeyframe() const {
-  return last_keyframe_stamp_ ? std::max(0.0, stats_.last_stamp - *last_keyframe_stamp_) : 0.0;
+  return last_keyframe_stamp_ ? std::max(0.0, latest_stamp_ - *last_keyframe_stamp_) : 0.0;
 }
 
 TrackingStats TrackingHealth::stats() const {
@@ -42,10 +42,13 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
     case TrackStatus::kRejectedStamp:
     case TrackStatus::kRejectedCloud:
       return updateRejected(stamp, result.message);
+    case TrackStatus::kRestarted:
+      return restarted(stamp, result);
   }
   ++stats_.scans;
   if (stats_.scans == 1) stats_.first_stamp = stamp;
   stats_.last_stamp = std::max(stats_.last_stamp, stamp);
+  latest_stamp_ = std::max(latest_stamp_, stamp);
   if (!result.new_keyframe) return checkGap(stamp, result.message);
 
   ++stats_.keyframes;
@@ -79,6 +82,24 @@ std::optional<TrackingEvent> TrackingHealth::update(double stamp, const TrackRes
   return event;
 }
 
+std::optional<TrackingEvent> TrackingHealth::restarted(double stamp, const TrackResult& result) {
+  // The spans without a keyframe restart with the stamps; a lost state ends with the new keyframe.
+  recovery_gap_.reset();
+  stats_.longest_no_keyframe_s = std::max(stats_.longest_no_keyframe_s, timeSinceKeyframe());
+  ++stats_.scans;
+  ++stats_.keyframes;
+  ++stats_.restarts;
+  failures_in_row_ = 0;
+  latest_stamp_ = stamp;  // stats_.last_stamp stays the latest of all
+  last_keyframe_stamp_ = stamp;
+  state_ = TrackingState::kOk;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf), "tracking restart %zu at scan %zu: %s (keyframe %llu)",
+                stats_.restarts, stats_.scans - 1, result.message.c_str(),
+                static_cast<unsigned long long>(result.keyframe_id));
+  return TrackingEvent{TrackingState::kOk, buf};
+}
+
 std::optional<TrackingEvent> TrackingHealth::updateRejected(double stamp,
                                                             const std::string& reason) {
   recovery_gap_.reset();
@@ -86,6 +107,7 @@ std::optional<TrackingEvent> TrackingHealth::updateRejected(double stamp,
   ++stats_.rejected_scans;
   if (stats_.scans == 1) stats_.first_stamp = stamp;
   stats_.last_stamp = std::max(stats_.last_stamp, stamp);
+  latest_stamp_ = std::max(latest_stamp_, stamp);
   return checkGap(stamp, reason);
 }
 

@@ -276,12 +276,20 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   kf.map_pose = prev.map_pose * delta;
   s.graph.addVertexSE3(vid, kf.map_pose);
   Matrix6d info = odometryInformation(in.odom_fitness, params_.odometry, delta.translation());
+  const bool jumped_back = in.stamp < prev.stamp;
+  if (jumped_back)  // kept: the ids order the keyframes, the stamps may loop
+    logger_->warn("keyframe " + std::to_string(in.id) + " is stamped " +
+                  std::to_string(prev.stamp - in.stamp) + " s before keyframe " +
+                  std::to_string(prev.id) + " (the time jumped back: a looped bag?); kept after " +
+                  "it" + (in.reanchored ? " with a weak odometry edge" : "") +
+                  ", the map so far is kept");
   if (in.reanchored) {
     info.setZero();
     info.diagonal().head<3>().setConstant(1.0 / std::pow(params_.reanchor_std_xyz, 2));
     info.diagonal().tail<3>().setConstant(1.0 / std::pow(params_.reanchor_std_rot, 2));
-    logger_->info("keyframe " + std::to_string(in.id) +
-                  " was re-anchored after a lost track: weak odometry edge");
+    if (!jumped_back)
+      logger_->info("keyframe " + std::to_string(in.id) +
+                    " was re-anchored after a lost track: weak odometry edge");
   }
   s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta, info, EdgeOptions{0, {}});
   // Levels >= 1 (the joint phase) see the odometry joint_odometry_weight times stiffer: the
@@ -460,7 +468,10 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   s.last_floor_keyframe = kf.id;
   if (!params_.floor_edges || !prev_id) return;
   const KeyframeState& prev = s.keyframes.at(*prev_id);
-  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance) {
+  // Far apart along the path, or stamped before the previous one (the time jumped back: a looped
+  // bag starts elsewhere): not the same stretch of ground.
+  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance ||
+      kf.stamp < prev.stamp) {
     ++report.floor_gaps;
     return;
   }

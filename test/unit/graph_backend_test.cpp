@@ -2,6 +2,7 @@
 // the real wall/segment extraction, drifting odometry and perturbed OSM priors.
 #include <gtest/gtest.h>
 
+#include "backend_test_utils.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
@@ -538,6 +539,42 @@ TEST(GraphBackend, BadInputIsReportedAndKept) {
   backend.addBuildings(drive().truth, Eigen::Vector2d::Zero(), 1000.0);
   r = backend.update();
   EXPECT_GT(r.building_edges, 10u);
+}
+
+TEST(GraphBackend, AKeyframeStampedBeforeThePreviousIsKeptAndItsFloorNotTied) {
+  // A looped bag: the tracker restarted at keyframe 5, stamped back at the drive's start, on the
+  // last pose and flagged re-anchored; its floor is the start's, unrelated to keyframe 4's.
+  std::vector<std::string> warnings;
+  auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
+    if (level == LogLevel::kWarn) warnings.push_back(msg);
+  });
+  GraphBackend backend(noOsmKnownHeading(), logger);
+  const Eigen::Vector4d level(0.0, 0.0, 1.0, 0.93);
+  for (uint64_t i = 0; i < 5; ++i) {
+    KeyframeInput kf = straightKeyframe(i);
+    kf.floor = level;
+    backend.addKeyframe(kf);
+  }
+  EXPECT_EQ(backend.update(true).floor_edges, 4u);
+  const std::vector<KeyframeState> before = backend.keyframes();
+
+  KeyframeInput restart = straightKeyframe(4);
+  restart.id = 5;
+  restart.stamp = straightKeyframe(0).stamp;
+  restart.reanchored = true;
+  restart.floor = Eigen::Vector4d(0.0, 0.0, 1.0, 2.5);  // 1.6 m lower ground
+  backend.addKeyframe(restart);
+  const BackendUpdateReport r = backend.update(true);
+  EXPECT_EQ(r.keyframes_added, 1u);
+  EXPECT_EQ(r.floor_edges, 0u);
+  EXPECT_EQ(r.floor_gaps, 1u);
+  ASSERT_EQ(backend.numKeyframes(), 6u);
+  const std::vector<KeyframeState> after = backend.keyframes();
+  for (size_t i = 0; i < before.size(); ++i)
+    EXPECT_LT((after[i].map_pose.translation() - before[i].map_pose.translation()).norm(), 1e-6)
+        << "keyframe " << i << " moved";
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("the time jumped back"), std::string::npos) << warnings[0];
 }
 
 namespace {

@@ -7,6 +7,7 @@
 
 #include "frontend_test_utils.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/odometry/tracking_health.h"
 #include "test_data.h"
 
 namespace osm_graph_slam {
@@ -161,6 +162,66 @@ TEST(KeyframeTrackerTest, RejectsOutOfOrderStampsAndBadCloudsWithoutStateChange)
   EXPECT_TRUE(r.pose.matrix().allFinite());
   EXPECT_LT(r.pose.translation().norm(), 1e-9);
   EXPECT_EQ(tracker.keyframeCount(), 1u);
+}
+
+TEST(KeyframeTrackerTest, JumpBackInTimeRestartsTrackingSmallStepsBackAreRejected) {
+  OGS_REQUIRE_SHARED_FILE(patchworkScan(5));
+  const auto scans = loadPatchwork();
+  KeyframeTrackerParams params;
+  params.restart_after_jump_back = 5.0;
+  KeyframeTracker tracker(params);
+  TrackingHealth health(params.lost_track_after);
+  for (int i = 0; i < 6; ++i) {
+    const TrackResult r = tracker.track(110.0 + 0.1 * i, scans[i]);
+    health.update(110.0 + 0.1 * i, r);
+    ASSERT_FALSE(r.failed()) << r.message;
+  }
+  const Eigen::Isometry3d before = tracker.pose();
+  const uint64_t last_id = tracker.keyframe().id;
+  const double accum = tracker.keyframe().accum_distance;
+  // A duplicated stamp and one 4 s back (below the limit): each rejected, nothing changed.
+  for (const double stamp : {110.5, 106.5}) {
+    const TrackResult r = tracker.track(stamp, scans[5]);
+    EXPECT_FALSE(health.update(stamp, r));
+    EXPECT_EQ(r.status, TrackStatus::kRejectedStamp) << stamp;
+    EXPECT_EQ(tracker.keyframe().id, last_id);
+  }
+  // The time 10.5 s back (a bag looped to its start): one restart, ids and pose continue.
+  const TrackResult restart = tracker.track(100.0, scans[0]);
+  ASSERT_EQ(restart.status, TrackStatus::kRestarted) << restart.message;
+  EXPECT_TRUE(restart.new_keyframe);
+  EXPECT_TRUE(restart.reanchored);  // the back-end links it weakly
+  EXPECT_EQ(restart.keyframe_id, last_id + 1);
+  EXPECT_NE(restart.message.find("time jumped back"), std::string::npos) << restart.message;
+  EXPECT_LT(translationError(restart.pose, before), 1e-9);
+  EXPECT_GE(tracker.keyframe().accum_distance, accum);
+  const auto event = health.update(100.0, restart);
+  ASSERT_TRUE(event);
+  EXPECT_NE(event->message.find("restart"), std::string::npos) << event->message;
+  EXPECT_EQ(health.stats().restarts, 1u);
+  // The second pass tracks again from there, with the same motion as the first.
+  for (int i = 1; i < 6; ++i) {
+    const TrackResult r = tracker.track(100.0 + 0.1 * i, scans[i]);
+    EXPECT_FALSE(health.update(100.0 + 0.1 * i, r));
+    ASSERT_EQ(r.status, TrackStatus::kMatched) << "scan " << i << ": " << r.message;
+  }
+  EXPECT_NEAR((before.inverse() * tracker.pose()).translation().norm(), before.translation().norm(),
+              0.1);
+  EXPECT_EQ(health.stats().restarts, 1u);
+  EXPECT_EQ(health.stats().rejected_scans, 2u);
+  // The time since a keyframe runs from the restart, the drive's last stamp stays the latest.
+  EXPECT_LT(health.timeSinceKeyframe(), 1.0);
+  EXPECT_DOUBLE_EQ(health.stats().last_stamp, 110.5);
+}
+
+TEST(KeyframeTrackerTest, RestartAfterJumpBackCanBeDisabled) {
+  OGS_REQUIRE_SHARED_FILE(patchworkScan(1));
+  const auto scans = loadPatchwork();
+  KeyframeTrackerParams params;
+  params.restart_after_jump_back = 0.0;
+  KeyframeTracker tracker(params);
+  ASSERT_EQ(tracker.track(100.0, scans[0]).status, TrackStatus::kFirstKeyframe);
+  EXPECT_EQ(tracker.track(10.0, scans[1]).status, TrackStatus::kRejectedStamp);
 }
 
 }  // namespace

@@ -22,6 +22,12 @@ class ImuOrientationBuffer {
 
   std::optional<Eigen::Quaterniond> orientationAt(double stamp) const;
   size_t size() const { return samples_.size(); }
+  /// [s] a stamp farther than this from the samples around it has no orientation.
+  double maxGap() const { return max_gap_; }
+  /// [s] of the newest sample (0 when empty).
+  double newestStamp() const { return samples_.empty() ? 0.0 : samples_.back().stamp; }
+  /// Forgets every sample (the time jumped back: later samples would be refused as out of order).
+  void clear();
 
  private:
   struct Sample {

@@ -46,6 +46,11 @@ struct KeyframeTrackerParams {
   /// extrapolated this far). Was 5 scan periods: after a 2.1 s dropout in a turn the guess stayed
   /// 10 m short and the match locked 31 deg off (stress matrix, city burst20: 18 m ATE).
   double max_prediction_gap = 3.0;
+  /// [s] a scan stamped this much before the last one means the time jumped back (a looped bag,
+  /// a restarted recording): tracking restarts there instead of rejecting every later scan. The
+  /// keyframe ids and the odom pose continue; smaller steps back are rejected scan by scan.
+  /// 0 disables (every stamp not after the last one is rejected).
+  double restart_after_jump_back = 5.0;
   /// Initial guess of each match: constant_velocity (the previous motion extrapolated),
   /// pre_tracker (scan-to-previous-scan registration, PreTracker; timed separately), imu (the
   /// rotation since the previous scan from the IMU orientation, translation from constant
@@ -72,6 +77,7 @@ enum class TrackStatus {
   kRejectedStamp,  ///< stamp not after the last one: ignored, state unchanged
   kRejectedCloud,  ///< empty/too small cloud: ignored, state unchanged
   kReanchored,     ///< matches kept failing: a new keyframe at the best guess (a weak link)
+  kRestarted,      ///< the time jumped back: tracking restarted, a new keyframe (a weak link)
 };
 
 const char* toString(TrackStatus status);
@@ -148,6 +154,10 @@ class KeyframeTracker {
                    std::string* reason) const;
   bool needsKeyframe(const Eigen::Isometry3d& relative, double stamp) const;
   void makeKeyframe(double stamp, const PointCloudConstPtr& cloud);
+  bool jumpedBack(double stamp) const;
+  /// Restarts the motion model at stamp and makes the scan a keyframe at the last pose.
+  TrackResult restart(double stamp, const PointCloudConstPtr& cloud,
+                      const std::optional<Eigen::Quaterniond>& imu_orientation);
 
   KeyframeTrackerParams params_;
   std::unique_ptr<Registration> registration_;

@@ -21,6 +21,7 @@ struct TrackingStats {
   size_t rejected_scans = 0;  ///< empty/too small clouds and out-of-order stamps
   size_t keyframes = 0;
   size_t reanchors = 0;         ///< keyframes re-anchored on a guess after failed matches
+  size_t restarts = 0;          ///< tracking restarts after the time jumped back (looped bag)
   size_t lost_events = 0;       ///< times the track was declared lost
   size_t scans_while_lost = 0;  ///< scans that arrived while the track was lost
   double first_stamp = 0.0, last_stamp = 0.0;  ///< [s] of the scans offered (0 before any)
@@ -53,11 +54,15 @@ class TrackingHealth {
 
  private:
   std::optional<TrackingEvent> checkGap(double stamp, const std::string& reason);
+  /// The tracker restarted after the time jumped back: one event to log, counted.
+  std::optional<TrackingEvent> restarted(double stamp, const TrackResult& result);
 
   double lost_after_;
   TrackingStats stats_;
   TrackingState state_ = TrackingState::kOk;
   std::optional<double> last_keyframe_stamp_;
+  /// [s] the latest scan stamp since the last restart (the time since a keyframe runs from it).
+  double latest_stamp_ = 0.0;
   size_t failures_in_row_ = 0;
   std::optional<double> recovery_gap_;
 };

@@ -77,7 +77,7 @@ struct BackendUpdateReport {
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
   size_t shared_walls = 0;  ///< building pairs tied by a shared wall in this update
   /// Floor plane-pair edges added; consecutive floors not tied because the slope changed or
-  /// they lie too far apart.
+  /// they lie too far apart (along the path, or in time: stamped before the previous one).
   size_t floor_edges = 0, floor_slope_changes = 0, floor_gaps = 0;
   bool heading_initialized_now = false;
   /// When the heading was just found by global matching (no IMU heading): the keyframe, the pose
