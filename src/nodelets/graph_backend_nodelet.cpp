@@ -404,9 +404,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   uint64_t map_to_odom_version_ = 0;
   /// One optimisation or one save at a time: the files of a save come from one state of the graph
   /// (the backend locks each accessor, not the sequence of them a save makes).
-  std::mutex graph_mutex_;  ///< counts optimisations that set map_to_odom_
-  ros::Time last_tf_stamp_;           ///< stamp of the last map -> odom broadcast
-  uint64_t tf_version_ = 0;           ///< map_to_odom_version_ of that broadcast
+  std::mutex graph_mutex_;   ///< counts optimisations that set map_to_odom_
+  ros::Time last_tf_stamp_;  ///< stamp of the last map -> odom broadcast
+  uint64_t tf_version_ = 0;  ///< map_to_odom_version_ of that broadcast
   std::thread worker_;
   std::mutex wake_mutex_;
   std::condition_variable wake_;

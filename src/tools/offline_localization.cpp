@@ -84,9 +84,10 @@ void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocaliz
           Eigen::AngleAxisd(truth->linear().transpose() * c.pose.linear()).angle() * 180 / M_PI;
     }
     log << stamp << ' ' << (g.success ? "success" : "failure") << ' ' << c.keyframe_id << ' '
-        << c.source << ' ' << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' ' << c.overlap << ' '
-        << c.structure_overlap << ' ' << c.pose.translation().x() << ' ' << c.pose.translation().y()
-        << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error << '\n';
+        << c.source << ' ' << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' '
+        << c.overlap << ' ' << c.structure_overlap << ' ' << c.pose.translation().x() << ' '
+        << c.pose.translation().y() << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error
+        << '\n';
   }
 }
 
