@@ -100,33 +100,6 @@ struct Inbox {
   }
 };
 
-/// Unpacks scans 0..kScans-1 of kitti_raw_0005/velodyne.tar.xz into dir; empty on failure.
-std::vector<std::string> unpackScans(const fs::path& dir, std::string* why) {
-  const std::string archive = test::sharedDataPath("kitti_raw_0005/velodyne.tar.xz");
-  fs::create_directories(dir);
-  std::vector<std::string> files;
-  std::string members;
-  for (int i = 0; i < kScans; ++i) {
-    char name[64];
-    std::snprintf(name, sizeof(name), "velodyne/%010d.bin", i);
-    members += std::string(" '") + name + "'";
-    files.push_back((dir / name).string());
-  }
-  const std::string log = (dir / "tar.log").string();
-  const std::string command = "tar xJf '" + archive + "' -C '" + dir.string() + "' --occurrence=1" +
-                              members + " > '" + log + "' 2>&1";
-  if (std::system(command.c_str()) != 0) {
-    *why = "cannot unpack " + archive + " (see " + log + ")";
-    return {};
-  }
-  for (const auto& f : files)
-    if (!fs::exists(f)) {
-      *why = f + " missing after unpacking " + archive;
-      return {};
-    }
-  return files;
-}
-
 /// A saved graph.g2o: keyframe positions by id (VERTEX_SE3:QUAT) and the SE3 edges' vertex pairs.
 struct SavedGraph {
   std::map<uint64_t, Eigen::Vector3d> vertices;
@@ -292,7 +265,7 @@ TEST_F(FaultInjection, EveryFaultIsReportedOnceAndTheMapIsKept) {
   spinner.start();
   clock(kStart);
   std::string error;
-  files_ = unpackScans(dir_ / "kitti_raw_0005", &error);
+  files_ = test::unpackKitti0005Scans(dir_ / "kitti_raw_0005", 0, kScans, &error);
   ASSERT_EQ(files_.size(), size_t(kScans)) << error;
 
   // The KITTI mounting: base_link is the OXTS unit (as kitti2bag). No TF for kGhostFrame.

@@ -133,35 +133,6 @@ class FrontEnd {
   ros::Publisher pub_;
 };
 
-/// Unpacks the window's scans of kitti_raw_0005/velodyne.tar.xz into dir (only those members:
-/// tar still reads the whole 287 MB archive, ~7 s); empty on failure, with the reason.
-std::vector<std::string> unpackScans(const fs::path& dir, std::string* why) {
-  const std::string archive = test::sharedDataPath("kitti_raw_0005/velodyne.tar.xz");
-  fs::create_directories(dir);
-  std::vector<std::string> files;
-  std::string members;
-  for (int i = kFirstScan; i < kFirstScan + kScans; ++i) {
-    char name[64];
-    std::snprintf(name, sizeof(name), "velodyne/%010d.bin", i);
-    members += std::string(" '") + name + "'";
-    files.push_back((dir / name).string());
-  }
-  const std::string log = (dir / "tar.log").string();
-  const std::string command = "tar xJf '" + archive + "' -C '" + dir.string() + "' --occurrence=1" +
-                              members + " > '" + log + "' 2>&1";
-  if (std::system(command.c_str()) != 0) {
-    *why = "cannot unpack " + archive + " (see " + log + ")";
-    return {};
-  }
-  for (const auto& f : files) {
-    if (!fs::exists(f)) {
-      *why = f + " missing after unpacking " + archive;
-      return {};
-    }
-  }
-  return files;
-}
-
 /// Writes the window as a bag on /velodyne_points: scan k at start + 0.1 k s, in velo_link.
 void writeBag(const std::string& path, const std::vector<std::string>& scans,
               const ros::Time& start) {
@@ -260,7 +231,8 @@ TEST_F(FrontendDropout, KeyframesAndOdometryContinueThroughTheGap) {
   ros::AsyncSpinner spinner(2);
   spinner.start();
 
-  const std::vector<std::string> scans = unpackScans(dir_ / "kitti_raw_0005", &error);
+  const std::vector<std::string> scans =
+      test::unpackKitti0005Scans(dir_ / "kitti_raw_0005", kFirstScan, kScans, &error);
   ASSERT_EQ(scans.size(), size_t(kScans)) << error;
   const std::string bag_path = (dir_ / "kitti_raw_0005.bag").string();
   const ros::Time start = ros::Time::now();
