@@ -2,6 +2,8 @@
 
 #include <pcl/io/pcd_io.h>
 
+#include <type_traits>
+
 #include "osm_graph_slam/io/trajectory_io.h"
 
 namespace osm_graph_slam {
@@ -10,6 +12,8 @@ namespace {
 /// The binary PCD layout PCL's reader expects: its own header, then the registered fields of each
 /// point packed in order (x y z intensity, no padding).
 std::string binaryPcd(const PointCloud& cloud) {
+  static_assert(std::is_same_v<PointT, pcl::PointXYZI>,
+                "binaryPcd writes x y z intensity: change it with the point type");
   std::string bytes = pcl::PCDWriter::generateHeader(cloud) + "DATA binary\n";
   bytes.reserve(bytes.size() + cloud.size() * 4 * sizeof(float));
   for (const auto& p : cloud.points) {
