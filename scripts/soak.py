@@ -24,6 +24,7 @@ Writes OUT/soak.csv (samples), OUT/soak.json (verdict) and OUT/logs/.
 import argparse
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -326,6 +327,8 @@ def main():
                  "message": (reply.stdout + reply.stderr).strip()[-500:]}
         saved["keyframes_made"] = c.keyframes_made  # by the scan matcher, every loop
         saved["keyframes_saved"] = 0
+        missing = re.search(r"(\d+) keyframes missing", saved["message"])
+        saved["keyframes_missing_reported"] = int(missing.group(1)) if missing else 0
         if saved["success"]:
             with open(os.path.join(args.out, "map", "trajectory_tum.txt")) as f:
                 saved["keyframes_saved"] = sum(1 for line in f if not line.startswith("#"))
@@ -340,6 +343,9 @@ def main():
     v["checks"]["save_map"] = saved["success"]
     # Every keyframe the scan matcher made is in the saved graph.
     v["checks"]["every_keyframe_saved"] = saved["keyframes_saved"] >= saved["keyframes_made"] > 0
+    # A keyframe lost anyway is never silent: save_map counts it.
+    v["checks"]["every_loss_reported"] = (saved["keyframes_made"] - saved["keyframes_saved"]
+                                          <= saved["keyframes_missing_reported"])
     if samples:
         v["final"] = samples[-1]
         v["cpu_percent_mean"] = sum(s["cpu_percent"] for s in samples) / len(samples)

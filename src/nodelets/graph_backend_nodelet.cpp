@@ -5,6 +5,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Path.h>
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
@@ -19,6 +20,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "osm_graph_slam/DumpGraph.h"
@@ -27,6 +29,7 @@
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
+#include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_logging.h"
@@ -43,6 +46,7 @@ namespace osm_graph_slam {
 class GraphBackendNodelet : public nodelet::Nodelet {
  public:
   ~GraphBackendNodelet() override {
+    if (input_spinner_) input_spinner_->stop();  // no input callback runs from here on
     {
       std::lock_guard<std::mutex> lock(wake_mutex_);
       stop_ = true;
@@ -70,20 +74,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     buildings_pub_ = nh.advertise<BuildingArray>("slam/buildings", 1, true);
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("slam/markers", 1, true);
     map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("slam/map_points", 1, true);
-    keyframe_sub_ = nh.subscribe("keyframe", 100, &GraphBackendNodelet::onKeyframe, this);
-    segments_sub_ = nh.subscribe("line_segments", 100, &GraphBackendNodelet::onSegments, this);
-    buildings_sub_ = nh.subscribe("osm/buildings", 10, &GraphBackendNodelet::onBuildings, this);
-    loops_sub_ = nh.subscribe("loop_closures", 100, &GraphBackendNodelet::onLoop, this);
-    floor_sub_ = nh.subscribe("floor_coeffs", 100, &GraphBackendNodelet::onFloor, this);
-    origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
-    if (params.inputs.use_imu)
-      imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
-    fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
+    subscribeInputs(nh, params.inputs.use_imu);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
-    if (node_params_.tf_publish_rate > 0.0)
-      tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / node_params_.tf_publish_rate),
-                                     &GraphBackendNodelet::publishTf, this);
     worker_ = std::thread(&GraphBackendNodelet::optimizationLoop, this);
     NODELET_INFO(
         "graph back-end: OSM %s (mode %s), optimisation every %.1f s, frames %s -> %s -> %s",
@@ -92,7 +85,30 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         node_params_.base_link_frame.c_str());
   }
 
-  // --- inputs (subscriber threads: convert and queue only) --------------------------------------
+  /// Inputs and TF on a queue and thread of their own. On the manager's shared worker threads a
+  /// saturated manager starved the keyframe subscription until its queue overflowed: a 35-minute
+  /// soak lost 22 % of the keyframes silently (doc/reliability.md). The callbacks below only
+  /// convert and queue, so one thread keeps up; the back-end's own queue is unbounded.
+  void subscribeInputs(const ros::NodeHandle& shared_nh, bool use_imu) {
+    ros::NodeHandle nh(shared_nh);
+    nh.setCallbackQueue(&input_queue_);
+    const uint32_t q = static_cast<uint32_t>(std::max(1, node_params_.input_queue_size));
+    keyframe_sub_ = nh.subscribe("keyframe", q, &GraphBackendNodelet::onKeyframe, this);
+    segments_sub_ = nh.subscribe("line_segments", q, &GraphBackendNodelet::onSegments, this);
+    buildings_sub_ = nh.subscribe("osm/buildings", 10, &GraphBackendNodelet::onBuildings, this);
+    loops_sub_ = nh.subscribe("loop_closures", q, &GraphBackendNodelet::onLoop, this);
+    floor_sub_ = nh.subscribe("floor_coeffs", q, &GraphBackendNodelet::onFloor, this);
+    origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
+    if (use_imu) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
+    fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
+    if (node_params_.tf_publish_rate > 0.0)
+      tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / node_params_.tf_publish_rate),
+                                     &GraphBackendNodelet::publishTf, this);
+    input_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &input_queue_);
+    input_spinner_->start();
+  }
+
+  // --- inputs (input thread: convert and queue only, never wait for the optimisation) ----------
   void onKeyframe(const KeyFrameConstPtr& msg) {
     KeyframeInput kf;
     kf.id = msg->id;
@@ -232,9 +248,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       return;
     }
     // The message carries ENU outlines only: the prior's lat/lon (dump_graph's
-    // buildings_prior.geojson, which evaluate_map and replay_backend read) come from the origin.
-    const std::optional<EnuConverter> origin = backend_->origin();
-    backend_->addBuildings(buildingsFromMsg(*msg, origin ? &*origin : nullptr),
+    // buildings_prior.geojson, which evaluate_map and replay_backend read) come from the origin
+    // (the nodelet's copy: asking the back-end would wait for a running optimisation).
+    backend_->addBuildings(buildingsFromMsg(*msg, origin_ ? &*origin_ : nullptr),
                            Eigen::Vector2d(msg->query_center.x, msg->query_center.y),
                            msg->query_radius);
   }
@@ -257,7 +273,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   void onOrigin(const sensor_msgs::NavSatFixConstPtr& fix) {
     if (!std::isfinite(fix->latitude) || !std::isfinite(fix->longitude)) return;
-    if (backend_->hasOrigin()) return;
+    if (origin_) return;
+    origin_.emplace(fix->latitude, fix->longitude,
+                    std::isfinite(fix->altitude) ? fix->altitude : 0.0);
     backend_->setOrigin(fix->latitude, fix->longitude,
                         std::isfinite(fix->altitude) ? fix->altitude : 0.0);
     inputs_->setOrigin(fix->latitude, fix->longitude, fix->altitude);
@@ -273,6 +291,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       lock.unlock();
       std::unique_lock<std::mutex> graph_lock(graph_mutex_);
       const BackendUpdateReport report = backend_->update();
+      reportBacklog(report);
       if (report.optimized) {
         {
           std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
@@ -290,6 +309,23 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       graph_lock.unlock();
       lock.lock();
     }
+  }
+
+  /// Lost keyframes and updates slower than the period are worth a warning (throttled); the
+  /// back-end logs the first gap once with its reason, save_map and dump_graph count them.
+  void reportBacklog(const BackendUpdateReport& report) {
+    if (report.keyframes_missing > 0)
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "%zu keyframes missing so far (never received by the back-end)",
+                            backend_->missingKeyframes());
+    if (report.total_ms > 1000.0 * node_params_.optimization_period)
+      NODELET_WARN_THROTTLE(
+          node_params_.warn_throttle_period,
+          "graph update took %.1f s (optimisation_period %.1f s) with %zu keyframes: phase 1 "
+          "%.0f ms (%d iterations), phase 2 %.0f ms, joint %.0f ms; inputs wait in the queue",
+          report.total_ms / 1000.0, node_params_.optimization_period, backend_->numKeyframes(),
+          report.phase1.time_ms, report.phase1.iterations, report.phase2.time_ms,
+          report.joint.time_ms);
   }
 
   Eigen::Isometry3d cachedMapToOdom() {
@@ -416,10 +452,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
   std::unique_ptr<SensorInputs> inputs_;  ///< imu/data and gps/fix by time
   std::atomic<bool> first_keyframe_seen_{false};
+  /// Subscriptions and the TF timer (subscribeInputs); outlives them (they unregister from it).
+  ros::CallbackQueue input_queue_;
   ros::Subscriber imu_sub_, fix_sub_;
   ros::Subscriber keyframe_sub_, segments_sub_, buildings_sub_, loops_sub_, origin_sub_, floor_sub_;
   ros::ServiceServer save_srv_, dump_srv_;
   ros::WallTimer tf_timer_;
+  std::unique_ptr<ros::AsyncSpinner> input_spinner_;  ///< stopped first (destructor)
+  std::optional<EnuConverter> origin_;                ///< the map origin, on the input thread only
 };
 
 }  // namespace osm_graph_slam

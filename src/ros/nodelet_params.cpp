@@ -44,6 +44,7 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("tf_publish_rate", p.tf_publish_rate);
   r.param("map_cloud_resolution", p.map_cloud_resolution);
   r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("input_queue_size", p.input_queue_size);
 }
 
 void readParams(const ParamReader& r, LocalizationNodeletParams& p) {

@@ -62,6 +62,7 @@ struct BackendState {
   std::vector<LoopClosureInput> loops;
   bool dirty = false;
   double latest_stamp = 0.0;
+  size_t keyframes_missing = 0;  ///< ids skipped between accepted keyframes
 
   /// An unobserved building stays at its prior (unobserved_buildings_fixed).
   static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {

@@ -164,6 +164,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
             [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
   for (auto& in : incoming) {
     if (!acceptable(in)) continue;
+    countMissing(in.id, report);
     insertKeyframe(in);
     ++report.keyframes_added;
     state_->dirty = true;
@@ -201,6 +202,21 @@ bool GraphBackend::acceptable(const KeyframeInput& in) const {
     return false;
   }
   return true;
+}
+
+void GraphBackend::countMissing(uint64_t id, BackendUpdateReport& report) {
+  BackendState& s = *state_;
+  if (s.keyframes.empty()) return;
+  const uint64_t last = s.keyframes.rbegin()->first;
+  if (id <= last + 1) return;
+  const uint64_t gap = id - last - 1;
+  report.keyframes_missing += gap;
+  s.keyframes_missing += gap;
+  logger_->warnOnce("kf_missing",
+                    "keyframes " + std::to_string(last + 1) + ".." + std::to_string(id - 1) +
+                        " never reached the back-end (an input queue overflowed or they were "
+                        "dropped upstream); odometry bridges the gap. Counted in every report "
+                        "from now on; logged once");
 }
 
 void GraphBackend::insertKeyframe(const KeyframeInput& in) {
@@ -574,6 +590,11 @@ std::vector<KeyframeState> GraphBackend::keyframes() const {
   out.reserve(state_->keyframes.size());
   for (const auto& [id, kf] : state_->keyframes) out.push_back(kf);
   return out;
+}
+
+size_t GraphBackend::missingKeyframes() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->keyframes_missing;
 }
 
 size_t GraphBackend::numKeyframes() const {

@@ -76,6 +76,12 @@ std::string poseRow(const Eigen::Isometry3d& pose) {
   return os.str();
 }
 
+/// A save must say when the map lacks keyframes the tracker made (an overflowed input queue).
+std::string missingText(size_t missing) {
+  return missing == 0 ? std::string()
+                      : ", " + std::to_string(missing) + " keyframes missing (never received)";
+}
+
 }  // namespace
 
 PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double resolution) {
@@ -201,7 +207,8 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
     result.message = "wrote " + std::to_string(result.files.size()) + " files (" +
                      std::to_string(map->size()) + " map points, " +
                      std::to_string(buildings.size()) + " buildings, " +
-                     std::to_string(keyframes.size()) + " keyframes)";
+                     std::to_string(keyframes.size()) + " keyframes" +
+                     missingText(backend.missingKeyframes()) + ")";
   return result;
 }
 
@@ -274,7 +281,8 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
 
   result.success = write.finish();
   if (result.success)
-    result.message = "dumped " + std::to_string(keyframes.size()) + " keyframes in " +
+    result.message = "dumped " + std::to_string(keyframes.size()) + " keyframes" +
+                     missingText(backend.missingKeyframes()) + " in " +
                      std::to_string(result.files.size()) + " files";
   return result;
 }

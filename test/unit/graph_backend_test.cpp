@@ -1,5 +1,7 @@
 // GraphBackend on synthetic drives with known truth: a street of buildings, a simulated LiDAR,
 // the real wall/segment extraction, drifting odometry and perturbed OSM priors.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "backend_test_utils.h"
@@ -539,6 +541,47 @@ TEST(GraphBackend, BadInputIsReportedAndKept) {
   backend.addBuildings(drive().truth, Eigen::Vector2d::Zero(), 1000.0);
   r = backend.update();
   EXPECT_GT(r.building_edges, 10u);
+}
+
+TEST(GraphBackend, KeyframesThatNeverArriveAreCountedAndWarnedOnceAndOdometryBridgesThem) {
+  // The 35-minute soak lost keyframes in an overflowed subscription queue without a word.
+  std::vector<std::string> warnings;
+  auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
+    if (level == LogLevel::kWarn) warnings.push_back(msg);
+  });
+  GraphBackend backend(baseParams(OsmMode::kPrior), logger);
+  const auto odom = drive().odometry(0.0, 1.0);
+  auto add = [&](size_t k) {
+    KeyframeInput kf;
+    kf.id = k;
+    kf.stamp = 0.1 * k;
+    kf.odom_pose = odom[k];
+    backend.addKeyframe(kf);
+  };
+  for (size_t k : {0, 1, 2, 6, 7}) add(k);  // 3..5 lost
+  BackendUpdateReport r = backend.update();
+  EXPECT_EQ(r.keyframes_missing, 3u);
+  for (size_t k : {8, 9, 12}) add(k);  // 10, 11 lost
+  r = backend.update();
+  EXPECT_EQ(r.keyframes_missing, 2u);
+  EXPECT_EQ(backend.missingKeyframes(), 5u);
+  EXPECT_EQ(backend.numKeyframes(), 8u);
+  size_t gap_warnings = 0;
+  for (const auto& w : warnings)
+    if (w.find("never reached the back-end") != std::string::npos) {
+      ++gap_warnings;
+      EXPECT_NE(w.find("keyframes 3..5"), std::string::npos) << w;
+    }
+  EXPECT_EQ(gap_warnings, 1u);  // once, with the first gap
+  // Odometry across the gap: the graph keeps the odometry's relative pose 2 -> 6.
+  const auto kfs = backend.keyframes();
+  const auto at = [&](uint64_t id) {
+    return std::find_if(kfs.begin(), kfs.end(), [&](const auto& k) { return k.id == id; })
+        ->map_pose;
+  };
+  const Eigen::Isometry3d rel = at(2).inverse() * at(6);
+  const Eigen::Isometry3d expected = odom[2].inverse() * odom[6];
+  EXPECT_LT((rel.translation() - expected.translation()).norm(), 1e-3);
 }
 
 TEST(GraphBackend, AKeyframeStampedBeforeThePreviousIsKeptAndItsFloorNotTied) {

@@ -54,6 +54,7 @@ struct GraphBackendNodeletParams {
   double tf_publish_rate = 20.0;      ///< [Hz]
   double map_cloud_resolution = 0.5;  ///< [m]
   double warn_throttle_period = 5.0;  ///< [s]
+  int input_queue_size = 1000;        ///< messages per input topic (keyframes: ~5 min of driving)
 };
 
 struct LocalizationNodeletParams {

@@ -68,6 +68,9 @@ struct LoopClosureInput {
 /// What one update() did (for logs, status topics and tests).
 struct BackendUpdateReport {
   size_t keyframes_added = 0, loops_added = 0, loops_rejected = 0;
+  /// Ids skipped between this update's keyframes and the previous ones: keyframes the tracker
+  /// made that never arrived (an input queue overflowed); odometry bridges the gap.
+  size_t keyframes_missing = 0;
   size_t global_priors = 0, global_rejected = 0;
   size_t building_edges = 0, buildings_added = 0;
   /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
@@ -168,6 +171,8 @@ class GraphBackend {
   // --- outputs: thread-safe snapshots --------------------------------------------------------
   std::vector<KeyframeState> keyframes() const;
   size_t numKeyframes() const;
+  /// Keyframe ids skipped so far (made by the tracker, never received); see BackendUpdateReport.
+  size_t missingKeyframes() const;
   std::optional<KeyframeState> latestKeyframe() const;
   /// map -> odom, so that map_pose(latest) = mapToOdom * odom_pose(latest).
   Eigen::Isometry3d mapToOdom() const;
@@ -204,6 +209,7 @@ class GraphBackend {
   void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
   void insertKeyframe(const KeyframeInput& in);
+  void countMissing(uint64_t id, BackendUpdateReport& report);  ///< ids skipped before `id`
   void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
   void linkToPrevious(const KeyframeInput& in, KeyframeState& kf);
   void addKeyframePriors(const KeyframeInput& in, KeyframeState& kf);  ///< GNSS, gravity
