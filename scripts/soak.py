@@ -229,6 +229,19 @@ def main():
     env["ROS_HOME"] = os.path.join(args.out, "ros_home")
     os.environ.update(env)
     procs = Processes(logs)
+    stop = threading.Event()
+
+    def on_signal(signum, _frame):
+        # Ctrl-C or SIGTERM: end the drive early, still save and judge, and stop every process
+        # this script started (they run in sessions of their own and would outlive it).
+        if stop.is_set():
+            raise SystemExit("soak: second signal, stopping now")
+        print("[soak] signal %d: stopping early, then save_map and the verdict" % signum,
+              flush=True)
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     try:
         procs.start("roscore", ["roscore", "-p", env["ROS_MASTER_URI"].rsplit(":", 1)[1]], env)
         port_file = os.path.join(args.out, ".overpass_port")
@@ -287,8 +300,9 @@ def main():
         csv.write("t_s,rss_mb,cpu_percent,scans,failed,keyframes,overpass_mode\n")
         last_cpu, last_t = cpu0, 0.0
         mode = "normal"
-        while time.monotonic() - t0 < 60.0 * args.minutes:
-            time.sleep(args.sample_s)
+        while time.monotonic() - t0 < 60.0 * args.minutes and not stop.is_set():
+            if stop.wait(args.sample_s):
+                break
             t = time.monotonic() - t0
             if launch.poll() is not None or not os.path.exists("/proc/%d" % manager):
                 print("[soak] the nodelet manager is gone at %.0f s" % t, flush=True)
@@ -337,6 +351,8 @@ def main():
         procs.stop_all()
 
     v = verdict(samples, args)
+    v["stopped_early"] = stop.is_set()
+    v["checks"]["ran_to_the_end"] = not stop.is_set()
     v["manager_alive"] = manager_alive
     v["save_map"] = saved
     v["checks"]["manager_alive"] = manager_alive

@@ -38,6 +38,7 @@
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
+#include "osm_graph_slam/slam/optimization_schedule.h"
 #include "osm_graph_slam/slam/params_io.h"
 #include "osm_graph_slam/slam/sensor_inputs.h"
 
@@ -285,13 +286,16 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   // --- optimisation thread ----------------------------------------------------------------------
   void optimizationLoop() {
     std::unique_lock<std::mutex> lock(wake_mutex_);
+    double wait_s = node_params_.optimization_period;
     while (!stop_) {
-      wake_.wait_for(lock, std::chrono::duration<double>(node_params_.optimization_period));
+      wake_.wait_for(lock, std::chrono::duration<double>(wait_s));
       if (stop_) break;
       lock.unlock();
       std::unique_lock<std::mutex> graph_lock(graph_mutex_);
       const BackendUpdateReport report = backend_->update();
-      reportBacklog(report);
+      wait_s = optimizationWait(node_params_.optimization_period, report.total_ms / 1000.0,
+                                node_params_.optimization_max_duty_cycle);
+      reportBacklog(report, wait_s);
       if (report.optimized) {
         {
           std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
@@ -313,7 +317,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   /// Lost keyframes and updates slower than the period are worth a warning (throttled); the
   /// back-end logs the first gap once with its reason, save_map and dump_graph count them.
-  void reportBacklog(const BackendUpdateReport& report) {
+  void reportBacklog(const BackendUpdateReport& report, double next_wait_s) {
     if (report.keyframes_missing > 0)
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "%zu keyframes missing so far (never received by the back-end)",
@@ -321,11 +325,12 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (report.total_ms > 1000.0 * node_params_.optimization_period)
       NODELET_WARN_THROTTLE(
           node_params_.warn_throttle_period,
-          "graph update took %.1f s (optimisation_period %.1f s) with %zu keyframes: phase 1 "
-          "%.0f ms (%d iterations), phase 2 %.0f ms, joint %.0f ms; inputs wait in the queue",
+          "graph update took %.1f s (optimization_period %.1f s) with %zu keyframes: phase 1 "
+          "%.0f ms (%d iterations), phase 2 %.0f ms, joint %.0f ms; next in %.1f s "
+          "(optimization_max_duty_cycle %.2f), inputs wait in the queue",
           report.total_ms / 1000.0, node_params_.optimization_period, backend_->numKeyframes(),
           report.phase1.time_ms, report.phase1.iterations, report.phase2.time_ms,
-          report.joint.time_ms);
+          report.joint.time_ms, next_wait_s, node_params_.optimization_max_duty_cycle);
   }
 
   Eigen::Isometry3d cachedMapToOdom() {

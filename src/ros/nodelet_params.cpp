@@ -41,6 +41,7 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("odom_frame", p.odom_frame);
   r.param("base_link_frame", p.base_link_frame);
   r.param("optimization_period", p.optimization_period);
+  r.param("optimization_max_duty_cycle", p.optimization_max_duty_cycle);
   r.param("tf_publish_rate", p.tf_publish_rate);
   r.param("map_cloud_resolution", p.map_cloud_resolution);
   r.param("warn_throttle_period", p.warn_throttle_period);

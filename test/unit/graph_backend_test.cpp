@@ -11,6 +11,7 @@
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/information.h"
+#include "osm_graph_slam/slam/optimization_schedule.h"
 #include "street_drive.h"
 
 using namespace osm_graph_slam;
@@ -582,6 +583,14 @@ TEST(GraphBackend, KeyframesThatNeverArriveAreCountedAndWarnedOnceAndOdometryBri
   const Eigen::Isometry3d rel = at(2).inverse() * at(6);
   const Eigen::Isometry3d expected = odom[2].inverse() * odom[6];
   EXPECT_LT((rel.translation() - expected.translation()).norm(), 1e-3);
+}
+
+TEST(OptimizationSchedule, ASlowUpdateStretchesTheWaitToTheDutyCycle) {
+  EXPECT_DOUBLE_EQ(optimizationWait(3.0, 0.2, 0.5), 3.0);    // small graph: the period
+  EXPECT_DOUBLE_EQ(optimizationWait(3.0, 5.0, 0.5), 5.0);    // idle as long as it worked
+  EXPECT_DOUBLE_EQ(optimizationWait(3.0, 5.0, 0.25), 15.0);  // a quarter of a core
+  EXPECT_DOUBLE_EQ(optimizationWait(3.0, 50.0, 1.0), 3.0);   // no limit
+  EXPECT_DOUBLE_EQ(optimizationWait(3.0, 50.0, 0.0), 3.0);   // no limit either
 }
 
 TEST(GraphBackend, AKeyframeStampedBeforeThePreviousIsKeptAndItsFloorNotTied) {

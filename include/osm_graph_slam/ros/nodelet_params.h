@@ -50,11 +50,12 @@ struct GraphBackendNodeletParams {
   std::string map_frame = "map";
   std::string odom_frame = "odom";
   std::string base_link_frame = "base_link";
-  double optimization_period = 3.0;   ///< [s]
-  double tf_publish_rate = 20.0;      ///< [Hz]
-  double map_cloud_resolution = 0.5;  ///< [m]
-  double warn_throttle_period = 5.0;  ///< [s]
-  int input_queue_size = 1000;        ///< messages per input topic (keyframes: ~5 min of driving)
+  double optimization_period = 3.0;          ///< [s]
+  double optimization_max_duty_cycle = 0.5;  ///< share of a core (optimization_schedule.h)
+  double tf_publish_rate = 20.0;             ///< [Hz]
+  double map_cloud_resolution = 0.5;         ///< [m]
+  double warn_throttle_period = 5.0;         ///< [s]
+  int input_queue_size = 1000;  ///< messages per input topic (keyframes: ~5 min of driving)
 };
 
 struct LocalizationNodeletParams {
