@@ -9,6 +9,7 @@
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/cloud/floor_detector.h"
 #include "osm_graph_slam/cloud/params_io.h"
+#include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 
@@ -37,6 +38,11 @@ class FloorDetectionNodelet : public nodelet::Nodelet {
 
  private:
   void onKeyFrame(const KeyFrame::ConstPtr& kf) {
+    if (keyframe_ids_.observe(kf->id) > 0)
+      NODELET_WARN_THROTTLE(10.0,
+                            "keyframes (%s) never reached floor_detection (%lu so far): "
+                            "its queue overflowed; the back-end gets no floor for them",
+                            keyframe_ids_.lastGap().c_str(), keyframe_ids_.missing());
     PointCloud cloud;
     std::string error;
     FloorDetection floor;
@@ -63,6 +69,7 @@ class FloorDetectionNodelet : public nodelet::Nodelet {
   std::unique_ptr<FloorDetector> detector_;
   std::unique_ptr<FloorHealth> health_;
   ros::Subscriber keyframe_sub_;
+  SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue
   ros::Publisher floor_pub_;
 };
 

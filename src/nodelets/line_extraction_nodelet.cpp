@@ -13,6 +13,7 @@
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/lines/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
@@ -41,7 +42,7 @@ class LineExtractionNodelet : public nodelet::Nodelet {
     segments_ = std::make_unique<LineSegmentExtractor>(lp);
     segments_pub_ = nh.advertise<LineSegmentArray>("line_segments", 10);
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("line_markers", 2);
-    keyframe_sub_ = nh.subscribe("keyframe", 10, &LineExtractionNodelet::onKeyFrame, this);
+    keyframe_sub_ = nh.subscribe("keyframe", 100, &LineExtractionNodelet::onKeyFrame, this);
     NODELET_INFO(
         "line_extraction: horizon %.2f m, voxel %.2f m, k %d, normal angle %.1f deg; "
         "RANSAC threshold %.2f m, min cluster %d, min length %.1f m",
@@ -51,6 +52,11 @@ class LineExtractionNodelet : public nodelet::Nodelet {
 
  private:
   void onKeyFrame(const KeyFrame::ConstPtr& kf) {
+    if (keyframe_ids_.observe(kf->id) > 0)
+      NODELET_WARN_THROTTLE(10.0,
+                            "keyframes (%s) never reached line_extraction (%lu so far): "
+                            "its queue overflowed; the back-end gets no segments for them",
+                            keyframe_ids_.lastGap().c_str(), keyframe_ids_.missing());
     PointCloud cloud;
     std::string error;
     if (!fromPointCloud2(kf->cloud, cloud, &error)) {
@@ -117,6 +123,7 @@ class LineExtractionNodelet : public nodelet::Nodelet {
   std::unique_ptr<WallPointExtractor> walls_;
   std::unique_ptr<LineSegmentExtractor> segments_;
   ros::Subscriber keyframe_sub_;
+  SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue
   ros::Publisher segments_pub_, markers_pub_;
   std::string base_frame_;
   double marker_z_{};  // onInit()

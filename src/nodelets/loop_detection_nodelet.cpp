@@ -12,6 +12,7 @@
 
 #include "osm_graph_slam/ros/nodelet_logging.h"
 
+#include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/ros/conversions.h"
@@ -75,6 +76,11 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   }
 
   void onKeyframe(const osm_graph_slam::KeyFrameConstPtr& msg) {
+    if (keyframe_ids_.observe(msg->id) > 0)
+      NODELET_WARN_THROTTLE(10.0,
+                            "keyframes (%s) never reached loop_detection (%lu so far): "
+                            "its queue overflowed; no loop is searched from them",
+                            keyframe_ids_.lastGap().c_str(), keyframe_ids_.missing());
     LoopKeyframe kf;
     kf.id = msg->id;
     kf.odom_pose = searchPose(fromPoseMsg(msg->odom_pose));
@@ -139,6 +145,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   std::unique_ptr<LoopDetector> detector_;
   ros::Publisher publisher_;
   ros::Subscriber subscriber_;
+  SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue
 };
 
 }  // namespace osm_graph_slam

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
@@ -62,7 +63,7 @@ struct BackendState {
   std::vector<LoopClosureInput> loops;
   bool dirty = false;
   double latest_stamp = 0.0;
-  size_t keyframes_missing = 0;  ///< ids skipped between accepted keyframes
+  SequenceGaps keyframe_ids;  ///< ids of accepted keyframes: those skipped were never received
 
   /// An unobserved building stays at its prior (unobserved_buildings_fixed).
   static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {

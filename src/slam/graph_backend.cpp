@@ -205,16 +205,12 @@ bool GraphBackend::acceptable(const KeyframeInput& in) const {
 }
 
 void GraphBackend::countMissing(uint64_t id, BackendUpdateReport& report) {
-  BackendState& s = *state_;
-  if (s.keyframes.empty()) return;
-  const uint64_t last = s.keyframes.rbegin()->first;
-  if (id <= last + 1) return;
-  const uint64_t gap = id - last - 1;
+  const uint64_t gap = state_->keyframe_ids.observe(id);
+  if (gap == 0) return;
   report.keyframes_missing += gap;
-  s.keyframes_missing += gap;
   logger_->warnOnce("kf_missing",
-                    "keyframes " + std::to_string(last + 1) + ".." + std::to_string(id - 1) +
-                        " never reached the back-end (an input queue overflowed or they were "
+                    "keyframes (" + state_->keyframe_ids.lastGap() +
+                        ") never reached the back-end (an input queue overflowed or they were "
                         "dropped upstream); odometry bridges the gap. Counted in every report "
                         "from now on; logged once");
 }
@@ -594,7 +590,7 @@ std::vector<KeyframeState> GraphBackend::keyframes() const {
 
 size_t GraphBackend::missingKeyframes() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
-  return state_->keyframes_missing;
+  return state_->keyframe_ids.missing();
 }
 
 size_t GraphBackend::numKeyframes() const {

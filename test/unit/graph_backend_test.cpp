@@ -6,6 +6,7 @@
 
 #include "backend_test_utils.h"
 #include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/lines/line_geometry.h"
@@ -571,7 +572,7 @@ TEST(GraphBackend, KeyframesThatNeverArriveAreCountedAndWarnedOnceAndOdometryBri
   for (const auto& w : warnings)
     if (w.find("never reached the back-end") != std::string::npos) {
       ++gap_warnings;
-      EXPECT_NE(w.find("keyframes 3..5"), std::string::npos) << w;
+      EXPECT_NE(w.find("ids 3..5"), std::string::npos) << w;
     }
   EXPECT_EQ(gap_warnings, 1u);  // once, with the first gap
   // Odometry across the gap: the graph keeps the odometry's relative pose 2 -> 6.
@@ -583,6 +584,19 @@ TEST(GraphBackend, KeyframesThatNeverArriveAreCountedAndWarnedOnceAndOdometryBri
   const Eigen::Isometry3d rel = at(2).inverse() * at(6);
   const Eigen::Isometry3d expected = odom[2].inverse() * odom[6];
   EXPECT_LT((rel.translation() - expected.translation()).norm(), 1e-3);
+}
+
+TEST(SequenceGaps, CountsSkippedIdsNotDuplicatesOrLateOnes) {
+  SequenceGaps gaps;
+  EXPECT_EQ(gaps.observe(7), 0u);  // the first id may be anything (a nodelet started late)
+  EXPECT_EQ(gaps.observe(8), 0u);
+  EXPECT_EQ(gaps.observe(12), 3u);
+  EXPECT_EQ(gaps.lastGap(), "ids 9..11");
+  EXPECT_EQ(gaps.observe(12), 0u);  // duplicate
+  EXPECT_EQ(gaps.observe(10), 0u);  // late: already counted, the last id stays 12
+  EXPECT_EQ(gaps.observe(13), 0u);
+  EXPECT_EQ(gaps.observe(15), 1u);
+  EXPECT_EQ(gaps.missing(), 4u);
 }
 
 TEST(OptimizationSchedule, ASlowUpdateStretchesTheWaitToTheDutyCycle) {
