@@ -93,12 +93,17 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       return;
     }
     kf.cloud = cloud;
+    noteRestart(*msg);
     std::optional<DetectedLoop> loop;
-    if (mode_ == "odometry") {
+    if (mode_ == "odometry" && global_searches_left_ == 0) {
       loop = detector_->process(kf);
     } else {
-      loop = detector_->relocalize(kf);
+      const bool after_restart = global_searches_left_ > 0;
+      LoopKeyframe query = kf;
+      if (after_restart) query.accum_distance = -1.0;  // path length across a restart: meaningless
+      loop = detector_->relocalize(query);
       detector_->addKeyframe(kf);
+      if (after_restart) global_searches_left_ = loop ? 0 : global_searches_left_ - 1;
     }
     const LoopQueryStats& stats = detector_->lastStats();
     NODELET_DEBUG(
@@ -121,6 +126,21 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
                  static_cast<unsigned long>(out->from_id), static_cast<unsigned long>(out->to_id),
                  out->fitness, out->descriptor_distance);
     publisher_.publish(osm_graph_slam::LoopClosureConstPtr(out));
+  }
+
+  /// After a tracking restart (the stamp went back: a looped bag, a restarted recording) the
+  /// odometry pose is where the old pass ended, not where the vehicle is: odometry-mode search
+  /// would look in the wrong place and the new pass would hang there (fault_injection.test: 19.8
+  /// m off). The next keyframes search every stored one instead.
+  void noteRestart(const osm_graph_slam::KeyFrame& msg) {
+    const bool went_back = !last_stamp_.isZero() && msg.header.stamp < last_stamp_;
+    last_stamp_ = msg.header.stamp;
+    if (!went_back || !msg.tracking_recovered || node_params_.relocalize_after_restart <= 0) return;
+    global_searches_left_ = node_params_.relocalize_after_restart;
+    NODELET_INFO(
+        "loop_detection: keyframe %lu follows a tracking restart: up to %d keyframes search all "
+        "%zu stored keyframes until a loop places the new pass",
+        static_cast<unsigned long>(msg.id), global_searches_left_, detector_->size());
   }
 
   /// The keyframe in the map (search_frame: map) by the newest map -> odom, else as it came.
@@ -146,6 +166,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   ros::Publisher publisher_;
   ros::Subscriber subscriber_;
   SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue
+  ros::Time last_stamp_;       ///< of the previous keyframe (noteRestart)
+  int global_searches_left_ = 0;
 };
 
 }  // namespace osm_graph_slam

@@ -26,6 +26,7 @@ void readParams(const ParamReader& r, LoopDetectionNodeletParams& p) {
   r.param("mode", p.mode);
   r.param("map_frame", p.map_frame);
   r.param("odom_frame", p.odom_frame);
+  r.param("relocalize_after_restart", p.relocalize_after_restart);
 }
 
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p) {

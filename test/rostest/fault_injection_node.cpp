@@ -434,6 +434,16 @@ TEST_F(FaultInjection, EveryFaultIsReportedOnceAndTheMapIsKept) {
       "[fault_injection] first-pass keyframes moved at most %.3f m from slam/path before "
       "the jump to the saved map; %zu loop edges\n",
       moved, loops);
+  // The restart keyframe is scan 0 again, really at the start. loop_detection searches every
+  // keyframe after a restart (relocalize_after_restart) and its loop places the new pass there;
+  // before, it hung where the first pass ended (19.8 m off).
+  const auto v_start = graph.vertices.find(first_pass.front().id);
+  const auto v_restart = graph.vertices.find(restart_kf.id);
+  ASSERT_TRUE(v_start != graph.vertices.end() && v_restart != graph.vertices.end());
+  const double restart_offset = (v_restart->second - v_start->second).norm();
+  std::printf("[fault_injection] the restart keyframe is %.2f m from the first keyframe\n",
+              restart_offset);
+  EXPECT_LT(restart_offset, 1.0) << "the pass after the jump back was not placed by a loop";
   // map -> odom goes on at the new (earlier) times after the clock jumped back.
   const size_t tf_after_jump =
       std::count_if(in_.map_to_odom_stamps.begin() + tf_before_jump, in_.map_to_odom_stamps.end(),

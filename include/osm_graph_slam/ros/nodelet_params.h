@@ -36,6 +36,9 @@ struct LoopDetectionNodeletParams {
   /// With search_frame: map, keyframes are moved into the map by TF map_frame -> odom_frame.
   std::string map_frame = "map";
   std::string odom_frame = "odom";
+  /// Odometry mode: after a tracking restart (the time jumped back) this many keyframes search
+  /// every stored keyframe, as place_recognition does, until one finds a loop (0: never).
+  int relocalize_after_restart = 10;
 };
 
 struct OsmBufferNodeletParams {
