@@ -371,7 +371,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   void publishTf(const ros::WallTimerEvent&) {
-    if (backend_->numKeyframes() == 0) return;
+    // Not backend_->numKeyframes(): it waits for a running optimisation, and at 20 Hz that wait
+    // held a worker thread of the manager for the whole optimisation (the soak's starvation).
+    if (!first_keyframe_seen_) return;
     // Stamped with the current time, as map -> odom corrects odometry from now on; the latest
     // keyframe's stamp republished at 20 Hz made tf2 warn TF_REPEATED_DATA thousands of times.
     // A clock standing still (paused or finished bag) publishes nothing new, unless an
