@@ -64,6 +64,14 @@ struct BackendState {
   bool dirty = false;
   double latest_stamp = 0.0;
   SequenceGaps keyframe_ids;  ///< ids of accepted keyframes: those skipped were never received
+  /// After the time jumped back (a looped bag), the new pass hangs from the old pass's end by
+  /// placeholder odometry edges until its first loop to the old pass places it there
+  /// (GraphBackend::placeAfterRestart).
+  struct UnplacedPass {
+    uint64_t first_id = 0;
+    std::vector<int> link_edges;  ///< the placeholder edges (each optimisation level)
+  };
+  std::optional<UnplacedPass> unplaced;
 
   /// An unobserved building stays at its prior (unobserved_buildings_fixed).
   static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {

@@ -210,6 +210,9 @@ class GraphBackend {
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
   void insertKeyframe(const KeyframeInput& in);
   void countMissing(uint64_t id, BackendUpdateReport& report);  ///< ids skipped before `id`
+  /// The first loop from the pass after a jump back in time to an earlier pass moves that pass
+  /// to where the loop says (its placeholder odometry link follows).
+  void placeAfterRestart(const LoopClosureInput& loop);
   void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
   void linkToPrevious(const KeyframeInput& in, KeyframeState& kf);
   void addKeyframePriors(const KeyframeInput& in, KeyframeState& kf);  ///< GNSS, gravity
