@@ -275,10 +275,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void onOrigin(const sensor_msgs::NavSatFixConstPtr& fix) {
     if (!std::isfinite(fix->latitude) || !std::isfinite(fix->longitude)) return;
     if (origin_) return;
-    origin_.emplace(fix->latitude, fix->longitude,
-                    std::isfinite(fix->altitude) ? fix->altitude : 0.0);
-    backend_->setOrigin(fix->latitude, fix->longitude,
-                        std::isfinite(fix->altitude) ? fix->altitude : 0.0);
+    const double altitude = std::isfinite(fix->altitude) ? fix->altitude : 0.0;
+    origin_.emplace(fix->latitude, fix->longitude, altitude);
+    backend_->setOrigin(fix->latitude, fix->longitude, altitude);
     inputs_->setOrigin(fix->latitude, fix->longitude, fix->altitude);
     NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
   }

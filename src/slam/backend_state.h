@@ -65,11 +65,11 @@ struct BackendState {
   double latest_stamp = 0.0;
   SequenceGaps keyframe_ids;  ///< ids of accepted keyframes: those skipped were never received
   /// After the time jumped back (a looped bag), the new pass hangs from the old pass's end by
-  /// placeholder odometry edges until its first loop to the old pass places it there
+  /// provisional odometry edges until its first loop to the old pass places it there
   /// (GraphBackend::placeAfterRestart).
   struct UnplacedPass {
     uint64_t first_id = 0;
-    std::vector<int> link_edges;  ///< the placeholder edges (each optimisation level)
+    std::vector<int> link_edges;  ///< the provisional edges (each optimisation level)
   };
   std::optional<UnplacedPass> unplaced;
 

@@ -327,7 +327,7 @@ void GraphBackend::placeAfterRestart(const LoopClosureInput& loop) {
     it->second.map_pose = correction * it->second.map_pose;
     s.graph.setVertexSE3(static_cast<int>(it->first), it->second.map_pose);
   }
-  // The placeholder link now holds where the new pass starts relative to the old one's end: a
+  // The provisional link now holds where the new pass starts relative to the old one's end: a
   // robust loop kernel would otherwise lose against it (fault_injection.test: 20.9 m off).
   const auto first_kf = s.keyframes.find(first);
   const KeyframeState& prev = std::prev(first_kf)->second;

@@ -646,7 +646,7 @@ TEST(GraphBackend, AKeyframeStampedBeforeThePreviousIsKeptAndItsFloorNotTied) {
 TEST(GraphBackend, TheFirstLoopAfterAJumpBackPlacesTheNewPassWithoutMovingTheOldOne) {
   // A looped bag: keyframes 5..7 are the start again (x = 0, 2, 4 m), but the tracker restarted
   // on its last pose (x = 8 m) and went on from there. Loop 5 -> 0 says where they are; the robust
-  // loop kernel alone lost against the restart's placeholder link (fault_injection.test: 20.9 m).
+  // loop kernel alone lost against the restart's provisional link (fault_injection.test: 20.9 m).
   std::vector<std::string> infos;
   auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
     if (level == LogLevel::kInfo) infos.push_back(msg);

@@ -211,7 +211,7 @@ class GraphBackend {
   void insertKeyframe(const KeyframeInput& in);
   void countMissing(uint64_t id, BackendUpdateReport& report);  ///< ids skipped before `id`
   /// The first loop from the pass after a jump back in time to an earlier pass moves that pass
-  /// to where the loop says (its placeholder odometry link follows).
+  /// to where the loop says (its provisional odometry link follows).
   void placeAfterRestart(const LoopClosureInput& loop);
   void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
   void linkToPrevious(const KeyframeInput& in, KeyframeState& kf);
