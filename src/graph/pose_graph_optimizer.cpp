@@ -42,8 +42,15 @@ struct GraphProblem {
   int num_fixed = 0;
 };
 
+bool allFixed(const PoseGraph::Edge& edge, const std::map<int, PoseGraph::Vertex>& vertices) {
+  for (int k = 0; k < edge.num_vertices; ++k)
+    if (!vertices.at(edge.vertices[k]).fixed) return false;
+  return true;
+}
+
 GraphProblem buildProblem(const std::map<int, PoseGraph::Edge>& edges,
-                          std::map<int, PoseGraph::Vertex>& vertices, int level, bool analytic) {
+                          std::map<int, PoseGraph::Vertex>& vertices, int level, bool analytic,
+                          bool skip_constant = false) {
   GraphProblem gp;
   ceres::Problem::Options options;
   options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;  // shared static manifolds
@@ -51,6 +58,7 @@ GraphProblem buildProblem(const std::map<int, PoseGraph::Edge>& edges,
   gp.problem = std::make_unique<ceres::Problem>(options);
   for (const auto& [id, edge] : edges) {
     if (edge.level > level) continue;
+    if (skip_constant && allFixed(edge, vertices)) continue;
     ActiveResidual r;
     for (int k = 0; k < edge.num_vertices; ++k) {
       r.blocks[k] = vertices.at(edge.vertices[k]).x.data();
@@ -106,7 +114,8 @@ double PoseGraph::chi2(int level) const {
 OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   OptimizationResult result;
-  GraphProblem gp = buildProblem(edges_, vertices_, level, options.analytic_jacobians);
+  GraphProblem gp = buildProblem(edges_, vertices_, level, options.analytic_jacobians,
+                                 options.skip_constant_edges);
   result.num_edges = static_cast<int>(gp.residuals.size());
   result.num_vertices = static_cast<int>(gp.vertex_ids.size());
   result.num_fixed_vertices = gp.num_fixed;

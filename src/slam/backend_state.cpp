@@ -1,9 +1,11 @@
 #include "backend_state.h"
+
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 namespace osm_graph_slam {
 
@@ -89,6 +91,31 @@ std::vector<int> BackendState::fixRobots() {
     }
   }
   return fixed_now;
+}
+
+std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start) {
+  std::vector<int> fixed_now;
+  auto hold = [&](int vid) {
+    if (graph.isFixed(vid)) return;
+    graph.setFixed(vid, true);
+    fixed_now.push_back(vid);
+  };
+  for (auto it = keyframes.begin(); it != keyframes.end() && it->first < window_start; ++it)
+    hold(static_cast<int>(it->first));
+  std::set<int64_t> seen_from_window;
+  for (const auto& e : building_edges)
+    if (e.keyframe >= window_start) seen_from_window.insert(e.building);
+  for (const auto& [bid, b] : buildings)
+    if (b.vertex_id >= 0 && !seen_from_window.count(bid)) hold(b.vertex_id);
+  return fixed_now;
+}
+
+void BackendState::release(const std::vector<int>& held, const GraphBackendParams& p) {
+  std::set<int> stay;
+  for (const auto& [bid, b] : buildings)
+    if (b.vertex_id >= 0 && heldAtPrior(b, p)) stay.insert(b.vertex_id);
+  for (int vid : held)
+    if (!stay.count(vid)) graph.setFixed(vid, false);
 }
 
 void BackendState::readRobotPoses() {

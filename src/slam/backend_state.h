@@ -61,6 +61,7 @@ struct BackendState {
   std::map<double, std::pair<uint64_t, double>> ins_headings;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
+  size_t loops_checked_by_window = 0;  ///< loops[0..n) were checked after a windowed update
   bool dirty = false;
   double latest_stamp = 0.0;
   SequenceGaps keyframe_ids;  ///< ids of accepted keyframes: those skipped were never received
@@ -92,6 +93,12 @@ struct BackendState {
   bool covered(const Eigen::Vector2d& position) const;
 
   std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
+  /// Fixes the keyframes before window_start and the buildings no keyframe from window_start on
+  /// observes; returns the vertices it fixed (to free again after the update).
+  std::vector<int> holdOutsideWindow(uint64_t window_start);
+  /// Frees the vertices holdOutsideWindow() fixed, except buildings that must stay at their
+  /// prior (the gate may have removed their last observation meanwhile).
+  void release(const std::vector<int>& held, const GraphBackendParams& p);
   void readRobotPoses();
   void readBuildingPoses(const GraphBackendParams& p);
   /// Rotates every keyframe by dyaw about the first one (fixed where GNSS put it).

@@ -66,8 +66,17 @@ Building BuildingState::corrected() const {
   return b;
 }
 
+namespace {
+// Edges between held vertices (a window's old part, fixed robots in phase 2) cannot change: left
+// out, an update costs what its free part costs; the solution is the same.
+GraphBackendParams withConstantEdgesSkipped(GraphBackendParams p) {
+  p.optimizer.skip_constant_edges = true;
+  return p;
+}
+}  // namespace
+
 GraphBackend::GraphBackend(const GraphBackendParams& params, std::shared_ptr<const Logger> logger)
-    : params_(params),
+    : params_(withConstantEdgesSkipped(params)),
       logger_(logger ? std::move(logger) : std::make_shared<Logger>()),
       pending_(std::make_unique<BackendQueues>()),
       state_(std::make_unique<BackendState>()),
@@ -140,12 +149,18 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
   flushBuildings(report);
   if (params_.use_osm) osm_->process(*state_, report);
   if (state_->dirty || force_optimize) {
-    optimizePhases(report);
+    std::optional<uint64_t> window = force_optimize ? std::nullopt : windowStart();
+    optimizePhases(report, window);
+    if (window && newLoopDisagrees(*window)) {
+      report.full_batch_for_loop = true;
+      window.reset();
+      optimizePhases(report, window);
+    }
     state_->dirty = false;
     // Keyframes matched while the datum was elsewhere are matched again where it is now.
     if (params_.use_osm && osm_->reassociateAfterDatumMoved(*state_, report) > 0) {
       osm_->process(*state_, report);
-      optimizePhases(report);
+      optimizePhases(report, window);
     }
   }
   report.total_ms = msSince(t0);
@@ -554,9 +569,42 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   s.dirty = true;
 }
 
-void GraphBackend::optimizePhases(BackendUpdateReport& report) {
+std::optional<uint64_t> GraphBackend::windowStart() const {
+  const auto& keyframes = state_->keyframes;
+  if (params_.optimization_window <= 0 ||
+      keyframes.size() <= static_cast<size_t>(params_.optimization_window))
+    return std::nullopt;
+  return std::prev(keyframes.end(), params_.optimization_window)->first;
+}
+
+bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
+  BackendState& s = *state_;
+  bool disagrees = false;
+  for (size_t i = s.loops_checked_by_window; i < s.loops.size(); ++i) {
+    const LoopClosureInput& loop = s.loops[i];
+    if (std::min(loop.from_id, loop.to_id) >= window_start || params_.window_loop_chi2 <= 0.0)
+      continue;
+    // The loop edge's error (as the SE3 edge measures it) at the windowed solution.
+    const Eigen::Isometry3d estimate = s.keyframes.at(loop.to_id).map_pose.inverse() *
+                                       s.keyframes.at(loop.from_id).map_pose;
+    const Eigen::Isometry3d diff = loop.relative_pose.inverse() * estimate;
+    Eigen::Quaterniond q(diff.linear());
+    if (q.w() < 0.0) q.coeffs() *= -1.0;
+    Vector6d e;
+    e << diff.translation(), q.vec();
+    disagrees |= e.dot(loop.information * e) > params_.window_loop_chi2;
+  }
+  s.loops_checked_by_window = s.loops.size();
+  return disagrees;
+}
+
+void GraphBackend::optimizePhases(BackendUpdateReport& report,
+                                  std::optional<uint64_t> window_start) {
   BackendState& s = *state_;
   const OptimizerOptions& options = params_.optimizer;
+  report.window_start = window_start;
+  const std::vector<int> held =
+      window_start ? s.holdOutsideWindow(*window_start) : std::vector<int>{};
 
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
   report.phase1 = s.graph.optimize(0, options);
@@ -566,6 +614,7 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report) {
   bool have_buildings = false;
   for (const auto& [bid, b] : s.buildings) have_buildings |= b.vertex_id >= 0;
   if (!have_buildings || params_.mode == OsmMode::kPrior) {
+    s.release(held, params_);
     updateMapToOdom();
     return;
   }
@@ -590,6 +639,7 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report) {
   }
   if (params_.resolve_overlaps) constraints_->resolveOverlaps(s, report);
   for (int vid : unfix) s.graph.setFixed(vid, false);
+  s.release(held, params_);
   updateMapToOdom();
 }
 

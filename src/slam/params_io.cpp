@@ -98,6 +98,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("osm_datum_std_xy", p.osm_datum_std_xy);
   r.param("osm_datum_std_theta", p.osm_datum_std_theta);
   r.param("osm_datum_reassociate_distance", p.osm_datum_reassociate_distance);
+  r.param("optimization_window", p.optimization_window);
+  r.param("window_loop_chi2", p.window_loop_chi2);
   r.param("joint_optimization", p.joint_optimization);
   r.param("joint_odometry_weight", p.joint_odometry_weight);
   r.param("resolve_overlaps", p.resolve_overlaps);

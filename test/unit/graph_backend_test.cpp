@@ -738,3 +738,127 @@ TEST(GraphBackend, AMapShiftedAsAWholeMovesTheDatumNotTheTrajectory) {
   EXPECT_NEAR(datum.datum.y, 2.0, 0.3);
   EXPECT_LT(datum.buildings_after, 0.3);
 }
+
+namespace {
+
+/// Keyframe i of N around a circle of radius 20 m from the origin, the odometry turning 0.01 rad
+/// per keyframe too far (it drifts off the circle), the truth in `truth` if given.
+KeyframeInput circleKeyframe(int i, int n, Eigen::Isometry3d* truth = nullptr) {
+  auto poseAt = [&](int k, double extra_yaw) {
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+    start.linear() = Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    // The true step, applied k times, each with the odometry's yaw error.
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.translation() = Eigen::Vector3d(2.0 * 20.0 * std::sin(M_PI / n), 0.0, 0.0);
+    step.linear() =
+        Eigen::AngleAxisd(2.0 * M_PI / n + extra_yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    Eigen::Isometry3d pose = start;  // at the origin, heading north: keyframe 0 in the map
+    const Eigen::Isometry3d half_turn(
+        Eigen::AngleAxisd(M_PI / n, Eigen::Vector3d::UnitZ()).toRotationMatrix());
+    for (int j = 0; j < k; ++j) pose = pose * half_turn * step * half_turn.inverse();
+    return pose;
+  };
+  KeyframeInput kf;
+  kf.id = static_cast<uint64_t>(i);
+  kf.stamp = 1.0 + i;
+  kf.odom_pose = poseAt(i, 0.01);
+  kf.accum_distance = 2.0 * 20.0 * std::sin(M_PI / n) * i;
+  kf.odom_fitness = 0.05;
+  if (truth) *truth = poseAt(i, 0.0);
+  return kf;
+}
+
+}  // namespace
+
+TEST(GraphBackend, AWindowedUpdateHoldsTheOldKeyframesAndADisagreeingLoopCallsAFullBatch) {
+  constexpr int kN = 40, kWindow = 10;
+  GraphBackendParams params = noOsmKnownHeading();
+  params.initial_yaw = M_PI / 2.0;
+  params.loop_kernel = "none";  // the loop below is right; Cauchy would doubt a 7 m correction
+  GraphBackend full(params);    // the reference: a full batch every update
+  params.optimization_window = kWindow;
+  GraphBackend windowed(params);
+  std::vector<Eigen::Isometry3d> truth(kN);
+  for (int i = 0; i < kN; ++i) {
+    const std::vector<KeyframeState> before = windowed.keyframes();
+    const KeyframeInput kf = circleKeyframe(i, kN, &truth[i]);
+    windowed.addKeyframe(kf);
+    full.addKeyframe(kf);
+    full.update();
+    const BackendUpdateReport r = windowed.update();
+    if (i + 1 <= kWindow) {
+      EXPECT_FALSE(r.window_start) << "keyframe " << i << ": the whole graph fits the window";
+      continue;
+    }
+    ASSERT_TRUE(r.window_start);
+    EXPECT_EQ(*r.window_start, static_cast<uint64_t>(i + 1 - kWindow));
+    const std::vector<KeyframeState> after = windowed.keyframes();
+    for (uint64_t k = 0; k < *r.window_start; ++k)
+      EXPECT_TRUE(after[k].map_pose.isApprox(before[k].map_pose, 0.0)) << "held keyframe " << k;
+  }
+  // Odometry alone: the two agree.
+  const auto farSideError = [&](const GraphBackend& b) {
+    return (b.keyframes()[kN / 2].map_pose.translation() - truth[kN / 2].translation()).norm();
+  };
+  const auto endError = [&](const GraphBackend& b) {
+    return (b.keyframes()[kN - 1].map_pose.translation() - truth[kN - 1].translation()).norm();
+  };
+  const double drift = farSideError(windowed);
+  EXPECT_NEAR(drift, farSideError(full), 1e-3);
+  const double end_drift = endError(windowed);
+  EXPECT_GT(end_drift, 5.0);
+  // The odometry turned 0.4 rad too far around the circle: the loop back to the start disagrees
+  // with the held part, which only a full batch can bend.
+  LoopClosureInput loop;
+  loop.from_id = kN - 1;
+  loop.to_id = 0;
+  loop.relative_pose = truth[0].inverse() * truth[kN - 1];
+  loop.information = Matrix6d::Identity() * 1e3;
+  windowed.addLoopClosure(loop);
+  full.addLoopClosure(loop);
+  full.update();
+  BackendUpdateReport r = windowed.update();
+  EXPECT_TRUE(r.full_batch_for_loop);
+  EXPECT_FALSE(r.window_start);
+  EXPECT_NEAR(farSideError(windowed), farSideError(full), 0.01);
+  EXPECT_LT(endError(windowed), 0.1 * end_drift) << "the loop did not close";
+  // A second loop that now agrees stays in the window.
+  const std::vector<KeyframeState> closed = windowed.keyframes();
+  loop.from_id = kN - 2;
+  loop.to_id = 1;
+  loop.relative_pose = closed[1].map_pose.inverse() * closed[kN - 2].map_pose;
+  windowed.addLoopClosure(loop);
+  windowed.addKeyframe(circleKeyframe(kN, kN));
+  r = windowed.update();
+  EXPECT_FALSE(r.full_batch_for_loop);
+  EXPECT_TRUE(r.window_start);
+  // A forced update (save_map) is a full batch.
+  r = windowed.update(true);
+  EXPECT_FALSE(r.window_start);
+}
+
+TEST(PoseGraph, LeavingOutEdgesBetweenFixedVerticesGivesTheSameSolution) {
+  auto build = [] {
+    PoseGraph g;
+    for (int i = 0; i < 6; ++i) {
+      Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+      p.translation().x() = 1.1 * i;
+      g.addVertexSE3(i, p, i < 3);
+    }
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.translation().x() = 1.0;
+    for (int i = 0; i + 1 < 6; ++i) g.addEdgeSE3(i, i + 1, step, Matrix6d::Identity());
+    return g;
+  };
+  PoseGraph all = build(), skipped = build();
+  OptimizerOptions options;
+  const OptimizationResult ra = all.optimize(0, options);
+  options.skip_constant_edges = true;
+  const OptimizationResult rs = skipped.optimize(0, options);
+  EXPECT_EQ(ra.num_edges, 5);
+  EXPECT_EQ(rs.num_edges, 3);  // 0-1 and 1-2 join fixed vertices
+  for (int i = 0; i < 6; ++i)
+    EXPECT_LT((all.vertexSE3(i)->translation() - skipped.vertexSE3(i)->translation()).norm(),
+              1e-9);
+  EXPECT_NEAR(skipped.vertexSE3(5)->translation().x(), 5.2, 1e-6);
+}

@@ -180,6 +180,16 @@ struct GraphBackendParams {
   double osm_datum_reassociate_distance = 0.5;
   // --- optimisation ---
   OptimizerOptions optimizer;  ///< every optimize() call (phase 1, phase 2, overlaps)
+  /// Bounded cost while driving (doc/backend.md "Windowed updates"): > 0 frees only the newest
+  /// this many keyframes, and the buildings they observe, in a routine update; older keyframes
+  /// and other buildings are held where the last full batch left them. A forced update
+  /// (save_map, dump_graph, the end of an offline run) is always a full batch. 0 = every update
+  /// is a full batch (its cost grows with the graph).
+  int optimization_window = 0;
+  /// A loop from the window to a held keyframe that still disagrees by more than this χ² (6 dof)
+  /// after the windowed update calls for a full batch: the window cannot absorb the drift the
+  /// loop reveals. ≤ 0: never (full batches only when forced).
+  double window_loop_chi2 = 16.8;
   /// Phase 3: robots and buildings together (levels 0-1, first keyframe fixed), so that the
   /// building priors correct the trajectory's drift; false = the thesis' two phases only.
   bool joint_optimization = true;

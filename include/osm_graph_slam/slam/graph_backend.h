@@ -95,6 +95,11 @@ struct BackendUpdateReport {
   std::optional<HeadingFromMap> heading_from_map;
   OptimizationResult phase1, phase2, joint, overlap;
   bool optimized = false;
+  /// A windowed update (optimization_window): the oldest keyframe left free; nullopt = a full
+  /// batch. full_batch_for_loop: the window was followed by a full batch because a new loop to a
+  /// held keyframe still disagreed (window_loop_chi2).
+  std::optional<uint64_t> window_start;
+  bool full_batch_for_loop = false;
   double total_ms = 0.0;
 };
 
@@ -221,7 +226,14 @@ class GraphBackend {
   void flushBuildings(BackendUpdateReport& report);
   void flushFloors(BackendUpdateReport& report);
   void linkFloor(KeyframeState& kf, BackendUpdateReport& report);
-  void optimizePhases(BackendUpdateReport& report);
+  /// The three phases over every vertex, or (window_start) with the keyframes before it and the
+  /// buildings none of the free keyframes observes held fixed.
+  void optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start);
+  /// The oldest keyframe a routine update frees (optimization_window), nullopt: all of them.
+  std::optional<uint64_t> windowStart() const;
+  /// Loops added since the last check that reach from the window to a held keyframe and still
+  /// disagree by more than window_loop_chi2.
+  bool newLoopDisagrees(uint64_t window_start);
   void updateMapToOdom();
 
   GraphBackendParams params_;
