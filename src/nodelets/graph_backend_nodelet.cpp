@@ -321,14 +321,20 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "%zu keyframes missing so far (never received by the back-end)",
                             backend_->missingKeyframes());
+    if (report.full_batch_for_loop)
+      NODELET_INFO_THROTTLE(10.0,
+                            "a new loop to a keyframe outside the optimisation window still "
+                            "disagreed: full batch over %zu keyframes (%.1f s)",
+                            backend_->numKeyframes(), report.total_ms / 1000.0);
     // Once a minute: a large graph is slow at every update (soak: 3.1-3.7 s at 3,100 keyframes).
     if (report.total_ms > 1000.0 * node_params_.optimization_period)
       NODELET_WARN_THROTTLE(
           60.0,
-          "graph update took %.1f s (optimization_period %.1f s) with %zu keyframes: phase 1 "
+          "graph update took %.1f s (optimization_period %.1f s, %s) with %zu keyframes: phase 1 "
           "%.0f ms (%d iterations), phase 2 %.0f ms, joint %.0f ms; next in %.1f s "
           "(optimization_max_duty_cycle %.2f), inputs wait in the queue",
-          report.total_ms / 1000.0, node_params_.optimization_period, backend_->numKeyframes(),
+          report.total_ms / 1000.0, node_params_.optimization_period,
+          report.window_start ? "windowed" : "full batch", backend_->numKeyframes(),
           report.phase1.time_ms, report.phase1.iterations, report.phase2.time_ms,
           report.joint.time_ms, next_wait_s, node_params_.optimization_max_duty_cycle);
   }

@@ -234,6 +234,11 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.floor_edges += report.floor_edges;
   timings_.floor_slope_changes += report.floor_slope_changes;
   if (report.heading_from_map) timings_.heading_from_map = report.heading_from_map;
+  if (!report.optimized) return;
+  ++timings_.updates;
+  timings_.windowed_updates += report.window_start.has_value();
+  timings_.loop_full_batches += report.full_batch_for_loop;
+  timings_.slowest_update_ms = std::max(timings_.slowest_update_ms, report.total_ms);
 }
 
 std::string SlamPipeline::timingTable() const {
@@ -273,6 +278,11 @@ std::string SlamPipeline::timingTable() const {
                 k.matched, k.failed_matches, k.rejected_scans, k.reanchors, k.lost_events,
                 k.scans_while_lost, k.longest_no_keyframe_s, t.pre_tracker_ms,
                 k.lost_events ? "  <-- WARNING: part of the drive has no keyframe" : "");
+  char updates[256];
+  std::snprintf(updates, sizeof(updates),
+                "back-end: %zu updates (%zu windowed, %zu full batches for a loop), slowest %.0f "
+                "ms\n",
+                t.updates, t.windowed_updates, t.loop_full_batches, t.slowest_update_ms);
   char floor[256];
   std::snprintf(floor, sizeof(floor),
                 "floor: found on %zu keyframes, none on %zu; %zu plane edges, %zu slope changes\n",
@@ -292,7 +302,7 @@ std::string SlamPipeline::timingTable() const {
           ? "prefilter ran ahead on the reading thread, overlapping the stages below: "
             "the stage times add up to more than the wall time\n"
           : "";
-  return std::string(buf) + ahead + track + floor + heading;
+  return std::string(buf) + ahead + track + updates + floor + heading;
 }
 
 std::string SlamPipeline::timingJson() const {
@@ -309,6 +319,11 @@ std::string SlamPipeline::timingJson() const {
                           {"building_edges", t.building_edges},
                           {"overlap_edges", t.overlap_edges},
                           {"shared_walls", t.shared_walls}}},
+                        {"backend_updates",
+                         {{"all", t.updates},
+                          {"windowed", t.windowed_updates},
+                          {"loop_full_batches", t.loop_full_batches},
+                          {"slowest_ms", t.slowest_update_ms}}},
                         {"floor",
                          {{"found", t.floors_found},
                           {"missing", t.floors_missing},

@@ -185,7 +185,7 @@ struct GraphBackendParams {
   /// and other buildings are held where the last full batch left them. A forced update
   /// (save_map, dump_graph, the end of an offline run) is always a full batch. 0 = every update
   /// is a full batch (its cost grows with the graph).
-  int optimization_window = 0;
+  int optimization_window = 300;
   /// A loop from the window to a held keyframe that still disagrees by more than this χ² (6 dof)
   /// after the windowed update calls for a full batch: the window cannot absorb the drift the
   /// loop reveals. ≤ 0: never (full batches only when forced).

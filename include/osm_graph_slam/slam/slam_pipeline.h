@@ -60,6 +60,10 @@ struct PipelineTimings {
   double floor_ms = 0;           ///< floor detection (keyframes only)
   bool prefilter_ahead = false;  ///< prefiltered on another thread (processFiltered): overlapped
   size_t floors_found = 0, floors_missing = 0, floor_edges = 0, floor_slope_changes = 0;
+  /// Back-end updates: all, windowed (optimization_window), full batches a loop called for, and
+  /// the slowest one.
+  size_t updates = 0, windowed_updates = 0, loop_full_batches = 0;
+  double slowest_update_ms = 0;
   double wall_time_s = 0;  ///< from the first scan to finish()
   TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
   /// The first heading, when global matching against OSM found it (no IMU heading given).
