@@ -3,12 +3,17 @@
 #include <nodelet/nodelet.h>
 #include <osm_graph_slam/KeyFrame.h>
 #include <osm_graph_slam/LoopClosure.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <condition_variable>
+#include <deque>
 #include <memory>
+#include <mutex>
 #include <pluginlib/class_list_macros.hpp>
+#include <thread>
 
 #include "osm_graph_slam/ros/nodelet_logging.h"
 
@@ -38,6 +43,17 @@ geometry_msgs::Pose toMsg(const Eigen::Isometry3d& t) {
 }  // namespace
 
 class LoopDetectionNodelet : public nodelet::Nodelet {
+ public:
+  ~LoopDetectionNodelet() override {
+    if (input_spinner_) input_spinner_->stop();  // no input callback runs from here on
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      stop_ = true;
+    }
+    pending_cv_.notify_all();
+    if (worker_.joinable()) worker_.join();
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
@@ -70,30 +86,76 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       return;
     }
     publisher_ = nh.advertise<osm_graph_slam::LoopClosure>("loop_closures", 16);
-    subscriber_ = nh.subscribe("keyframe", 64, &LoopDetectionNodelet::onKeyframe, this);
+    // Keyframes arrive on a queue and thread of their own and are searched on a worker: on the
+    // manager's shared threads, behind a slow search, the subscription overflowed (the 60-minute
+    // soak of session 20 never gave 2,563 keyframes to loop_detection).
+    ros::NodeHandle input_nh(nh);
+    input_nh.setCallbackQueue(&input_queue_);
+    subscriber_ = input_nh.subscribe("keyframe", std::max(1, np.input_queue_size),
+                                     &LoopDetectionNodelet::onKeyframe, this);
+    worker_ = std::thread(&LoopDetectionNodelet::searchLoop, this);
+    input_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &input_queue_);
+    input_spinner_->start();
     NODELET_INFO("loop_detection: mode %s, registration %s, k = %d", mode_.c_str(),
                  params.registration.method.c_str(), params.num_candidates);
   }
 
+  /// Input thread: count gaps and queue; the search runs on the worker.
   void onKeyframe(const osm_graph_slam::KeyFrameConstPtr& msg) {
     if (keyframe_ids_.observe(msg->id) > 0)
       NODELET_WARN_THROTTLE(10.0,
                             "keyframes (%s) never reached loop_detection (%lu so far): "
                             "its queue overflowed; no loop is searched from them",
                             keyframe_ids_.lastGap().c_str(), keyframe_ids_.missing());
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      pending_.push_back(msg);
+    }
+    pending_cv_.notify_one();
+  }
+
+  /// Worker: every keyframe joins the database; when the search fell behind, only the newest
+  /// waiting keyframe is searched from (a loop from a stale keyframe is worth less than keeping
+  /// up), and the skipped searches are counted and said.
+  void searchLoop() {
+    for (;;) {
+      std::deque<osm_graph_slam::KeyFrameConstPtr> batch;
+      {
+        std::unique_lock<std::mutex> lock(pending_mutex_);
+        pending_cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });
+        if (stop_) return;
+        batch.swap(pending_);
+      }
+      for (size_t i = 0; i < batch.size(); ++i) handle(*batch[i], i + 1 == batch.size());
+      if (batch.size() > 1) {
+        searches_skipped_ += batch.size() - 1;
+        NODELET_WARN_THROTTLE(
+            60.0,
+            "loop_detection fell behind: %zu keyframes stored without a loop search (%zu so far); "
+            "searched from keyframe %lu, the newest",
+            batch.size() - 1, searches_skipped_, static_cast<unsigned long>(batch.back()->id));
+      }
+    }
+  }
+
+  void handle(const osm_graph_slam::KeyFrame& msg, bool search) {
     LoopKeyframe kf;
-    kf.id = msg->id;
-    kf.odom_pose = searchPose(fromPoseMsg(msg->odom_pose));
-    kf.accum_distance = msg->accum_distance;
+    kf.id = msg.id;
+    kf.odom_pose = searchPose(fromPoseMsg(msg.odom_pose));
+    kf.accum_distance = msg.accum_distance;
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
-    if (!fromPointCloud2(msg->cloud, *cloud, &error)) {
+    if (!fromPointCloud2(msg.cloud, *cloud, &error)) {
       NODELET_WARN_THROTTLE(10.0, "loop_detection: keyframe %lu cloud not convertible: %s",
-                            static_cast<unsigned long>(msg->id), error.c_str());
+                            static_cast<unsigned long>(msg.id), error.c_str());
       return;
     }
     kf.cloud = cloud;
-    noteRestart(*msg);
+    noteRestart(msg);
+    if (!search) {
+      detector_->addKeyframe(kf);
+      return;
+    }
     std::optional<DetectedLoop> loop;
     if (mode_ == "odometry" && global_searches_left_ == 0) {
       loop = detector_->process(kf);
@@ -108,12 +170,12 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     const LoopQueryStats& stats = detector_->lastStats();
     NODELET_DEBUG(
         "loop_detection: keyframe %lu: %d/%d candidates, %.1f ms%s%s",
-        static_cast<unsigned long>(msg->id), stats.phase1_candidates, stats.phase2_candidates,
+        static_cast<unsigned long>(msg.id), stats.phase1_candidates, stats.phase2_candidates,
         stats.descriptor_ms + stats.candidates_ms + stats.ranking_ms + stats.verification_ms,
         loop ? "" : ", no loop: ", loop ? "" : stats.reason.c_str());
     if (!loop) return;
     osm_graph_slam::LoopClosurePtr out(new osm_graph_slam::LoopClosure);
-    out->header = msg->header;
+    out->header = msg.header;
     out->from_id = loop->from_id;
     out->to_id = loop->to_id;
     out->relative_pose = toMsg(loop->relative_pose);
@@ -164,7 +226,16 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<LoopDetector> detector_;
   ros::Publisher publisher_;
+  /// The keyframe subscription's queue (declared before subscriber_: it must outlive it).
+  ros::CallbackQueue input_queue_;
   ros::Subscriber subscriber_;
+  std::unique_ptr<ros::AsyncSpinner> input_spinner_;
+  std::thread worker_;
+  std::mutex pending_mutex_;
+  std::condition_variable pending_cv_;
+  std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;  ///< received, not yet handled
+  bool stop_ = false;
+  size_t searches_skipped_ = 0;
   SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue
   ros::Time last_stamp_;       ///< of the previous keyframe (noteRestart)
   int global_searches_left_ = 0;

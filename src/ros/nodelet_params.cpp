@@ -27,6 +27,7 @@ void readParams(const ParamReader& r, LoopDetectionNodeletParams& p) {
   r.param("map_frame", p.map_frame);
   r.param("odom_frame", p.odom_frame);
   r.param("relocalize_after_restart", p.relocalize_after_restart);
+  r.param("input_queue_size", p.input_queue_size);
 }
 
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p) {

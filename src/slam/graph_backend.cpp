@@ -585,8 +585,8 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
     if (std::min(loop.from_id, loop.to_id) >= window_start || params_.window_loop_chi2 <= 0.0)
       continue;
     // The loop edge's error (as the SE3 edge measures it) at the windowed solution.
-    const Eigen::Isometry3d estimate = s.keyframes.at(loop.to_id).map_pose.inverse() *
-                                       s.keyframes.at(loop.from_id).map_pose;
+    const Eigen::Isometry3d estimate =
+        s.keyframes.at(loop.to_id).map_pose.inverse() * s.keyframes.at(loop.from_id).map_pose;
     const Eigen::Isometry3d diff = loop.relative_pose.inverse() * estimate;
     Eigen::Quaterniond q(diff.linear());
     if (q.w() < 0.0) q.coeffs() *= -1.0;

@@ -39,12 +39,18 @@ bool parse(int argc, char** argv, Args& a) {
     const std::string k = argv[i];
     if (i + 1 >= argc) return false;
     const int v = std::atoi(argv[++i]);
-    if (k == "--keyframes") a.keyframes = v;
-    else if (k == "--window") a.window = v;
-    else if (k == "--every") a.every = v;
-    else if (k == "--lap") a.lap = v;
-    else if (k == "--checkpoints") a.checkpoints = v;
-    else return false;
+    if (k == "--keyframes")
+      a.keyframes = v;
+    else if (k == "--window")
+      a.window = v;
+    else if (k == "--every")
+      a.every = v;
+    else if (k == "--lap")
+      a.lap = v;
+    else if (k == "--checkpoints")
+      a.checkpoints = v;
+    else
+      return false;
   }
   return a.keyframes > 0 && a.window > 0 && a.every > 0 && a.lap > 2 && a.checkpoints > 0;
 }
@@ -67,9 +73,9 @@ class Odometry {
     if (i > 0) {
       Eigen::Isometry3d step = truePose(i - 1, lap_).inverse() * truePose(i, lap_);
       step.translation() += Eigen::Vector3d(noise_(rng_), noise_(rng_), 0.0);
-      step.linear() = step.linear() * Eigen::AngleAxisd(5e-4 + 0.1 * noise_(rng_),
-                                                        Eigen::Vector3d::UnitZ())
-                                          .toRotationMatrix();
+      step.linear() =
+          step.linear() *
+          Eigen::AngleAxisd(5e-4 + 0.1 * noise_(rng_), Eigen::Vector3d::UnitZ()).toRotationMatrix();
       pose_ = pose_ * step;
     }
     return pose_;
@@ -153,8 +159,9 @@ int main(int argc, char** argv) {
   }
   windowed.update(true);
   reference.update(true);
-  std::printf("mean position error after the final full batch: windowed %.3f m, never windowed "
-              "%.3f m\n",
-              meanError(windowed, a.lap), meanError(reference, a.lap));
+  std::printf(
+      "mean position error after the final full batch: windowed %.3f m, never windowed "
+      "%.3f m\n",
+      meanError(windowed, a.lap), meanError(reference, a.lap));
   return 0;
 }

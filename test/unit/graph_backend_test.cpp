@@ -858,7 +858,6 @@ TEST(PoseGraph, LeavingOutEdgesBetweenFixedVerticesGivesTheSameSolution) {
   EXPECT_EQ(ra.num_edges, 5);
   EXPECT_EQ(rs.num_edges, 3);  // 0-1 and 1-2 join fixed vertices
   for (int i = 0; i < 6; ++i)
-    EXPECT_LT((all.vertexSE3(i)->translation() - skipped.vertexSE3(i)->translation()).norm(),
-              1e-9);
+    EXPECT_LT((all.vertexSE3(i)->translation() - skipped.vertexSE3(i)->translation()).norm(), 1e-9);
   EXPECT_NEAR(skipped.vertexSE3(5)->translation().x(), 5.2, 1e-6);
 }

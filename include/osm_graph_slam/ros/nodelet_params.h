@@ -39,6 +39,7 @@ struct LoopDetectionNodeletParams {
   /// Odometry mode: after a tracking restart (the time jumped back) this many keyframes search
   /// every stored keyframe, as place_recognition does, until one finds a loop (0: never).
   int relocalize_after_restart = 10;
+  int input_queue_size = 1000;  ///< keyframe subscription (its own thread; see the nodelet)
 };
 
 struct OsmBufferNodeletParams {
