@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <set>
 
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
@@ -108,6 +109,22 @@ OsmLocalizer::OsmLocalizer(const OsmLocalizerParams& params, std::vector<Buildin
                                    withThresholds(matcher, params))) {}
 
 OsmLocalizer::~OsmLocalizer() = default;
+
+size_t OsmLocalizer::addBuildings(std::vector<Building> buildings) {
+  std::set<int64_t> held;
+  for (const Building& b : impl_->buildings) held.insert(b.id);
+  size_t added = 0;
+  for (Building& b : buildings) {
+    if (!held.insert(b.id).second) continue;
+    impl_->buildings.push_back(std::move(b));
+    ++added;
+  }
+  return added;
+}
+
+size_t OsmLocalizer::numBuildings() const {
+  return impl_->buildings.size();
+}
 
 void OsmLocalizer::initialize(const Eigen::Vector3d& pose, double position_std, double yaw_std) {
   state_.setZero();

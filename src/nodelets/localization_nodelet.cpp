@@ -89,13 +89,13 @@ class LocalizationNodelet : public nodelet::Nodelet {
     }
 
     if (map_dir.empty()) {
-      // OSM-only localisation (issue 21 item 4) is not implemented: say so instead of faking it.
+      // OSM-only localisation is another nodelet (osm_localization): say where to find it.
       NODELET_ERROR(
           "localization: no map_dir given%s; localisation needs a map package "
           "(offline_slam --output DIR writes DIR/map_package)",
           osm_file.empty() ? ""
-                           : " (OSM-only localisation from osm_file is not "
-                             "implemented)");
+                           : " (for localisation from OSM alone use "
+                             "launch/osm_localization.launch)");
     } else {
       auto map = std::make_shared<MapPackage>();
       std::string error;
@@ -116,8 +116,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
                      params.registration.method.c_str());
         if (!osm_file.empty())
           NODELET_WARN(
-              "localization: osm_file is not used yet (the map package's corrected "
-              "buildings are in the map; OSM-only localisation is not implemented)");
+              "localization: osm_file is not used here (the map package's corrected "
+              "buildings are in the map; from OSM alone: launch/osm_localization.launch)");
         publishMapPoints();
       }
     }

@@ -64,6 +64,17 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("osm_file", p.osm_file);
 }
 
+void readParams(const ParamReader& r, OsmLocalizationNodeletParams& p) {
+  r.param("map_frame", p.map_frame);
+  r.param("odom_frame", p.odom_frame);
+  r.param("base_link_frame", p.base_link_frame);
+  r.param("publish_tf", p.publish_tf);
+  r.param("use_imu", p.use_imu);
+  r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("line_extraction_ns", p.line_extraction_ns);
+  r.param("line_matcher_ns", p.line_matcher_ns);
+}
+
 bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string* error) {
   r.param("radar_odom_frame", p.radar_odom_frame);
   r.param("radar_map_frame", p.radar_map_frame);

@@ -20,7 +20,6 @@
 #include <nodelet/NodeletLoad.h>
 #include <nodelet/NodeletUnload.h>
 #include <ros/ros.h>
-#include <signal.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -240,23 +239,10 @@ class LocalizationRostest : public ::testing::Test {
 
     tf2_ros::Buffer tf_buffer;
     tf2_ros::TransformListener tf_listener(tf_buffer);
-    // rosbag play --clock as a child process.
-    const std::string log = (R->dir / "rosbag_play.log").string();
-    const double rate = param("play_rate", 1.0);
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      std::freopen(log.c_str(), "w", stdout);
-      std::freopen(log.c_str(), "a", stderr);
-      const std::string r = std::to_string(rate);
-      ::execl("/usr/bin/rosbag", "rosbag", "play", "--clock", "-q", "-d", "1", "-r", r.c_str(),
-              R->bag.c_str(), static_cast<char*>(nullptr));
-      ::_exit(127);
-    }
-    if (pid < 0) return "fork failed";
     const double kidnap_at = param("kidnap_at", 9.0);
     const double kidnap_distance = param("kidnap_distance", 40.0);
-    int status = 0;
-    const bool done = waitFor(
+    error = playBag(
+        R->bag, param("play_rate", 1.0), (R->dir / "rosbag_play.log").string(),
         [&] {
           double first = -1, last = -1, kidnapped = -1;
           {
@@ -267,16 +253,9 @@ class LocalizationRostest : public ::testing::Test {
           }
           if (kidnapped < 0 && first > 0 && last - first >= kidnap_at)
             kidnap(last, kidnap_distance, initial);
-          return ::waitpid(pid, &status, WNOHANG) == pid;
         },
         param("replay_timeout", 120.0));
-    if (!done) {
-      ::kill(pid, SIGINT);
-      ::waitpid(pid, &status, 0);
-      return "rosbag play did not finish in time";
-    }
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-      return "rosbag play failed:\n" + readText(log);
+    if (!error.empty()) return error;
     ros::WallDuration(1.0).sleep();  // the last scans through the nodelets
     // TF map -> base_link (map -> odom -> base_link) agrees with the last odom message.
     std::lock_guard<std::mutex> lock(R->mutex);

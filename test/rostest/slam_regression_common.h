@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -407,6 +408,38 @@ inline size_t expectSaveMapOutputsParse(const fs::path& out, bool with_buildings
       "%d vertices / %d edges\n",
       out.string().c_str(), map.size(), keyframes, buildings, g2o.num_vertices, g2o.num_edges);
   return keyframes;
+}
+
+/// Plays a bag with its clock (`rosbag play --clock -q -d 1 -r rate`) in a child process, its
+/// output in log; calls tick() while it plays. "" when it finished, else why not (a timeout stops
+/// it with SIGINT).
+inline std::string playBag(const std::string& bag, double rate, const std::string& log,
+                           const std::function<void()>& tick, double timeout_s) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::freopen(log.c_str(), "w", stdout);
+    std::freopen(log.c_str(), "a", stderr);
+    const std::string r = std::to_string(rate);
+    ::execl("/usr/bin/rosbag", "rosbag", "play", "--clock", "-q", "-d", "1", "-r", r.c_str(),
+            bag.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  if (pid < 0) return "fork failed";
+  int status = 0;
+  const bool done = waitFor(
+      [&] {
+        tick();
+        return ::waitpid(pid, &status, WNOHANG) == pid;
+      },
+      timeout_s);
+  if (!done) {
+    ::kill(pid, SIGINT);
+    ::waitpid(pid, &status, 0);
+    return "rosbag play did not finish in time";
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    return "rosbag play failed:\n" + readText(log);
+  return "";
 }
 
 }  // namespace osm_graph_slam::regression

@@ -169,6 +169,8 @@ std::vector<StageConfig> stages() {
        [](const ParamReader& r) {
          OsmLocalizerParams p;
          readParams(r, p);
+         OsmLocalizationNodeletParams n;
+         readParams(r, n);
        },
        {}},
       {"radar",

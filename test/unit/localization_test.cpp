@@ -330,8 +330,11 @@ struct OsmDriveResult {
   OsmLocalizationStats stats;
 };
 
+/// buildings_later: the localiser starts without buildings and gets them as the osm_localization
+/// nodelet gives them (osm_buffer answers that overlap: the second holds the first again).
 OsmDriveResult driveThroughStreet(OsmLocalizerParams params, const Eigen::Vector2d& map_offset,
-                                  double gnss_noise, const Eigen::Vector2d& gnss_bias) {
+                                  double gnss_noise, const Eigen::Vector2d& gnss_bias,
+                                  bool buildings_later = false) {
   const std::vector<SimBuilding> scene = makeStreetScene(16, 7);
   std::vector<Building> osm;
   for (size_t i = 0; i < scene.size(); ++i) {
@@ -341,7 +344,12 @@ OsmDriveResult driveThroughStreet(OsmLocalizerParams params, const Eigen::Vector
     b.segments = polygonSegments(b.outline_enu);
     osm.push_back(std::move(b));
   }
-  OsmLocalizer localizer(params, osm);
+  OsmLocalizer localizer(params, buildings_later ? std::vector<Building>{} : osm);
+  if (buildings_later) {
+    EXPECT_EQ(localizer.addBuildings({osm.begin(), osm.begin() + 10}), 10u);
+    EXPECT_EQ(localizer.addBuildings(osm), osm.size() - 10);  // the first ten are held
+  }
+  EXPECT_EQ(localizer.numBuildings(), osm.size());
   localizer.initialize({-45.0, 0.0, 0.0}, 0.5, 0.02);
   std::mt19937 rng(11);
   std::normal_distribution<double> noise(0.0, gnss_noise);
@@ -391,6 +399,15 @@ TEST(OsmLocalizer, WallsHoldTheDriveWhereOdometryDrifts) {
   std::printf("walls: mean %.3f max %.3f final %.3f accepted %zu; dead reckoning final %.3f\n",
               with_walls.mean_error, with_walls.max_error, with_walls.final_error,
               with_walls.stats.osm_accepted, dead_reckoning.final_error);
+}
+
+TEST(OsmLocalizer, BuildingsAddedLaterLocaliseAsThoseGivenAtTheStart) {
+  OsmLocalizerParams p;
+  const OsmDriveResult at_start = driveThroughStreet(p, {1.0, 0.5}, 1.0, {0, 0});
+  const OsmDriveResult later = driveThroughStreet(p, {1.0, 0.5}, 1.0, {0, 0}, true);
+  EXPECT_EQ(later.stats.osm_accepted, at_start.stats.osm_accepted);
+  EXPECT_GT(later.stats.osm_accepted, 30u);
+  EXPECT_NEAR(later.mean_error, at_start.mean_error, 1e-9);
 }
 
 TEST(OsmLocalizer, MapShiftedAsAWholeIsEstimatedAsTheDatum) {

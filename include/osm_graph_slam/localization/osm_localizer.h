@@ -90,6 +90,11 @@ class OsmLocalizer {
                const LineMatcherParams& matcher = {});
   ~OsmLocalizer();
 
+  /// More buildings (the osm_buffer nodelet's answers as the vehicle moves); ids already held are
+  /// skipped. Returns how many were added.
+  size_t addBuildings(std::vector<Building> buildings);
+  size_t numBuildings() const;
+
   /// Starts at a known planar pose (x, y, yaw in the GNSS frame) with these deviations.
   void initialize(const Eigen::Vector3d& pose, double position_std, double yaw_std);
 

@@ -76,6 +76,19 @@ struct LocalizationNodeletParams {
   std::string osm_file;
 };
 
+struct OsmLocalizationNodeletParams {
+  std::string map_frame = "map";  ///< ENU at the origin (osm_buffer's first fix)
+  std::string odom_frame = "odom";
+  std::string base_link_frame = "base_link";
+  bool publish_tf = true;  ///< TF map -> odom from the localised pose and the tracker's
+  bool use_imu = true;     ///< the IMU heading at the start (else the walls' global match)
+  double warn_throttle_period = 5.0;  ///< [s]
+  /// Where the SLAM pipeline's wall/segment and line-matcher parameters were loaded
+  /// (launch/osm_localization.launch loads config/line_extraction.yaml and graph_backend.yaml).
+  std::string line_extraction_ns = "/line_extraction";
+  std::string line_matcher_ns = "/graph_backend/line_matcher";
+};
+
 struct RadarOdometryNodeletParams {
   std::string radar_odom_frame = "radar_odom";  ///< parent of radar/odom and of the TF
   /// Loop-corrected map frame (loop/enabled): TF radar_map_frame -> radar_odom_frame.
@@ -96,6 +109,7 @@ void readParams(const ParamReader& r, LoopDetectionNodeletParams& p);
 void readParams(const ParamReader& r, OsmBufferNodeletParams& p);
 void readParams(const ParamReader& r, GraphBackendNodeletParams& p);
 void readParams(const ParamReader& r, LocalizationNodeletParams& p);
+void readParams(const ParamReader& r, OsmLocalizationNodeletParams& p);
 /// False with the reason for an empty frame name, a non-positive throttle period or queue size.
 bool readParams(const ParamReader& r, RadarOdometryNodeletParams& p, std::string* error);
 
