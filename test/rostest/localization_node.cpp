@@ -17,8 +17,6 @@
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <gtest/gtest.h>
 #include <nav_msgs/Odometry.h>
-#include <nodelet/NodeletLoad.h>
-#include <nodelet/NodeletUnload.h>
 #include <ros/ros.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -130,35 +128,6 @@ std::string prepareFixture(Fixture& r) {
   return "";
 }
 
-/// Swaps the launch file's localization nodelet (no map) for one with the fixture's map.
-std::string loadLocalization(const std::string& map_dir) {
-  std::string manager = "/localization_manager";
-  ros::NodeHandle("~").param("manager", manager, manager);
-  if (!ros::service::waitForService(manager + "/load_nodelet", ros::Duration(60.0)))
-    return "no nodelet manager " + manager;
-  XmlRpc::XmlRpcValue params;
-  if (!waitFor([&] { return ros::param::get("/localization", params); }, 30.0) ||
-      params.getType() != XmlRpc::XmlRpcValue::TypeStruct)
-    return "no /localization parameters (was launch/localization.launch included?)";
-  params["map_dir"] = map_dir;
-  ros::param::set("/localization_test", params);
-  nodelet::NodeletUnload unload;
-  unload.request.name = "/localization";
-  if (!waitFor(
-          [&] {
-            return ros::service::call(manager + "/unload_nodelet", unload) &&
-                   unload.response.success;
-          },
-          60.0))
-    return "could not unload the launch file's /localization";
-  nodelet::NodeletLoad load;
-  load.request.name = "/localization_test";
-  load.request.type = "osm_graph_slam/LocalizationNodelet";
-  if (!ros::service::call(manager + "/load_nodelet", load) || !load.response.success)
-    return "loading /localization_test failed";
-  return "";
-}
-
 /// The truth of the localised drive in the map frame at stamp.
 std::optional<Eigen::Isometry3d> truthAt(double stamp) {
   const auto t = R->truth->groundTruthAt(std::llround(stamp * 1e9), 0.02);
@@ -221,7 +190,11 @@ class LocalizationRostest : public ::testing::Test {
     R->drive_to_map =
         enuToEnu(EnuConverter(fix->lat, fix->lon, fix->alt),
                  EnuConverter(R->map->origin_lat, R->map->origin_lon, R->map->origin_alt));
-    error = loadLocalization(R->map_dir);
+    std::string manager = "/localization_manager";
+    ros::NodeHandle("~").param("manager", manager, manager);
+    // The launch file's localization nodelet has no map: one with the fixture's map instead.
+    error = swapNodelet(manager, "/localization", "osm_graph_slam/LocalizationNodelet", "map_dir",
+                        R->map_dir);
     if (!error.empty()) return error;
     ros::NodeHandle nh;
     ros::Subscriber status_sub = nh.subscribe("localization/status", 100, onStatus);
@@ -349,12 +322,5 @@ TEST_F(LocalizationRostest, LocalisesTheBagAndRecoversFromTheKidnap) {
 }  // namespace osm_graph_slam
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "localization_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  const int rc = RUN_ALL_TESTS();
-  spinner.stop();
-  ros::shutdown();
-  return rc;
+  return osm_graph_slam::regression::rostestMain(argc, argv, "localization_test");
 }

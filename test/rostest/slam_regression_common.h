@@ -27,9 +27,12 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nodelet/NodeletLoad.h>
+#include <nodelet/NodeletUnload.h>
 #include <pcl/io/pcd_io.h>
 #include <ros/init.h>
 #include <ros/node_handle.h>
+#include <ros/ros.h>
 #include <ros/time.h>
 
 #include "osm_graph_slam/eval/slam_evaluation.h"
@@ -440,6 +443,54 @@ inline std::string playBag(const std::string& bag, double rate, const std::strin
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     return "rosbag play failed:\n" + readText(log);
   return "";
+}
+
+/// Replaces the launch file's nodelet `name` (e.g. "/localization") in `manager` by one of `type`
+/// named name + "_test" with name's parameters and one of them set (`key` = `value`: a path only
+/// known at test time), remapped as given (the launch file's remaps are not carried over).
+inline std::string swapNodelet(
+    const std::string& manager, const std::string& name, const std::string& type,
+    const std::string& key, const std::string& value,
+    const std::vector<std::pair<std::string, std::string>>& remaps = {}) {
+  if (!ros::service::waitForService(manager + "/load_nodelet", ros::Duration(60.0)))
+    return "no nodelet manager " + manager;
+  XmlRpc::XmlRpcValue params;
+  if (!waitFor([&] { return ros::param::get(name, params); }, 30.0) ||
+      params.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+    return "no " + name + " parameters (was the launch file included?)";
+  params[key] = value;
+  ros::param::set(name + "_test", params);
+  nodelet::NodeletUnload unload;
+  unload.request.name = name;
+  if (!waitFor(
+          [&] {
+            return ros::service::call(manager + "/unload_nodelet", unload) &&
+                   unload.response.success;
+          },
+          60.0))
+    return "could not unload the launch file's " + name;
+  nodelet::NodeletLoad load;
+  load.request.name = name + "_test";
+  load.request.type = type;
+  for (const auto& [from, to] : remaps) {
+    load.request.remap_source_args.push_back(from);
+    load.request.remap_target_args.push_back(to);
+  }
+  if (!ros::service::call(manager + "/load_nodelet", load) || !load.response.success)
+    return "loading " + name + "_test failed";
+  return "";
+}
+
+/// main() of a rostest node: gtest, ros::init as `node_name`, two spinner threads.
+inline int rostestMain(int argc, char** argv, const char* node_name) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, node_name);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  const int rc = RUN_ALL_TESTS();
+  spinner.stop();
+  ros::shutdown();
+  return rc;
 }
 
 }  // namespace osm_graph_slam::regression
