@@ -12,18 +12,22 @@
 //     drive scans' descriptors in the same run.
 // Usage: landmark_benchmark [--seeds 1,2,3] [--densities sparse,intermediate,dense]
 //                           [--length M] [--spacing M] [--gap M] [--scale-keyframes N]
-//                           [--scale-queries N] [--no-drives] [--no-scale]
+//                           [--scale-queries N] [--no-drives] [--no-scale] [--scans DIR]
+//  3. --scans DIR (KITTI .bin scans, e.g. the real drive 0005 unpacked; sensor frame): landmark
+//     extraction per scan against Scan Context's descriptor of the same scan, in the same run.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <map>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/landmarks/landmark_extraction.h"
 #include "osm_graph_slam/landmarks/landmark_place_recognizer.h"
 #include "osm_graph_slam/loop/scan_context.h"
@@ -51,6 +55,7 @@ struct Options {
   double gh_translation_tolerance = 1.0, gh_yaw_tolerance_deg = 3.0;
   int scale_keyframes = 5000, scale_queries = 200;
   bool drives = true, scale = true;
+  std::string scans_dir;  ///< --scans: extraction timing on real scans
 };
 
 struct Planar {
@@ -339,6 +344,41 @@ std::vector<std::string> splitList(const std::string& s) {
 
 }  // namespace
 
+/// Extraction on every .bin scan of dir, Scan Context's descriptor of the same scan as the
+/// reference: ms per scan and their ratio (the two see the same clouds in the same run).
+int timeRealScans(const std::string& dir) {
+  std::vector<std::string> files;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.path().extension() == ".bin") files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  const LandmarkExtractionParams ext;
+  const ScanContextParams scp;
+  double extract_ms = 0.0, sc_ms = 0.0;
+  size_t scans = 0, landmarks = 0;
+  for (const auto& f : files) {
+    PointCloud cloud;
+    if (!readKittiBin(f, cloud)) continue;
+    auto t0 = Clock::now();
+    landmarks += extractLandmarks(cloud, ext).size();
+    extract_ms += msSince(t0);
+    t0 = Clock::now();
+    (void)computeScanContext(cloud, scp);
+    sc_ms += msSince(t0);
+    ++scans;
+  }
+  if (scans == 0) {
+    std::fprintf(stderr, "landmark_benchmark: no readable .bin scan in %s\n", dir.c_str());
+    return 1;
+  }
+  std::printf(
+      "| scans | landmarks/scan | extract ms/scan | SC descriptor ms/scan | ratio |\n"
+      "|---|---|---|---|---|\n| %zu | %.1f | %.2f | %.2f | %.2f |\n",
+      scans, double(landmarks) / scans, extract_ms / scans, sc_ms / scans,
+      extract_ms / std::max(1e-9, sc_ms));
+  return 0;
+}
+
 int main(int argc, char** argv) {
   Options opt;
   for (int i = 1; i < argc; ++i) {
@@ -377,14 +417,18 @@ int main(int argc, char** argv) {
       opt.drives = false;
     else if (a == "--no-scale")
       opt.scale = false;
+    else if (a == "--scans")
+      opt.scans_dir = next();
     else {
       std::fprintf(stderr,
                    "usage: landmark_benchmark [--seeds 1,2,3] [--densities "
                    "sparse,intermediate,dense] [--length M] [--spacing M] [--gap M] "
-                   "[--scale-keyframes N] [--scale-queries N] [--no-drives] [--no-scale]\n");
+                   "[--scale-keyframes N] [--scale-queries N] [--no-drives] [--no-scale] "
+                   "[--scans DIR]\n");
       return 2;
     }
   }
+  if (!opt.scans_dir.empty()) return timeRealScans(opt.scans_dir);
   std::vector<ScanContext> sc_pool;
   double sc_descriptor_ms = 0.0;  // mean over the drives' keyframes
   if (opt.drives) {
