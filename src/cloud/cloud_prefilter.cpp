@@ -29,7 +29,7 @@ bool isFinitePoint(const PointT& p) {
 }
 
 PointCloudPtr emptyLike(const PointCloud& header_source) {
-  PointCloudPtr cloud(new PointCloud);
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
   cloud->header = header_source.header;
   cloud->is_dense = true;
   return cloud;
@@ -45,7 +45,7 @@ float medianOf(std::vector<float> values) {
 /// One octant: its own points first (filtered), then support points of neighbouring octants
 /// that lie within the margin of its borders (only used as neighbours).
 struct Octant {
-  PointCloudPtr cloud{new PointCloud};
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
   size_t core_size = 0;
 };
 
@@ -136,7 +136,7 @@ PointCloudPtr CloudPrefilter::voxelize(const PointCloudConstPtr& cloud) const {
 
 PointCloudPtr CloudPrefilter::removeOutliers(const PointCloudConstPtr& cloud,
                                              bool parallel_octants) const {
-  if (!cloud || cloud->empty()) return cloud ? emptyLike(*cloud) : PointCloudPtr(new PointCloud);
+  if (!cloud || cloud->empty()) return cloud ? emptyLike(*cloud) : std::make_shared<PointCloud>();
   if (params_.outlier_method != "statistical" && params_.radius_backend == "grid")
     return removeOutliersGrid(cloud, parallel_octants);
   return parallel_octants ? removeOutliersOctants(cloud) : removeOutliersWhole(cloud);
@@ -169,7 +169,7 @@ void filterCore(const CloudPrefilterParams& params, const PointCloudConstPtr& cl
 }  // namespace
 
 PointCloudPtr CloudPrefilter::removeOutliersWhole(const PointCloudConstPtr& cloud) const {
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   filterCore(params_, cloud, cloud->size(), *out);
   out->header = cloud->header;
   return out;
@@ -201,7 +201,7 @@ PointCloudPtr CloudPrefilter::removeOutliersGrid(const PointCloudConstPtr& cloud
                                                  bool octant_order) const {
   const std::vector<uint8_t> keep = radiusInlierMask(
       *cloud, params_.radius_search, params_.radius_min_neighbors, params_.num_threads);
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   out->header = cloud->header;
   out->is_dense = true;
   out->reserve(cloud->size());
@@ -262,7 +262,7 @@ PointCloudPtr CloudPrefilter::removeOutliersOctants(const PointCloudConstPtr& cl
   } else {
     run();
   }
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   for (const auto& part : filtered) *out += part;
   out->header = cloud->header;
   out->is_dense = true;

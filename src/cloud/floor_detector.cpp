@@ -69,7 +69,7 @@ FloorDetection FloorDetector::detect(const PointCloud& cloud) const {
     return out;
   }
   // 1. Clip: a height band around the expected floor, a ring around the vehicle.
-  PointCloudPtr band(new PointCloud);
+  PointCloudPtr band = std::make_shared<PointCloud>();
   band->reserve(cloud.size() / 4);
   const double r2_min = p.min_range * p.min_range, r2_max = p.max_range * p.max_range;
   for (const PointT& pt : cloud.points) {
@@ -92,7 +92,7 @@ FloorDetection FloorDetector::detect(const PointCloud& cloud) const {
   pcl::PointCloud<pcl::Normal> normals;
   ne.compute(normals);
   const double min_cos = std::cos(p.max_normal_tilt_deg * kDegToRad);
-  PointCloudPtr candidates(new PointCloud);
+  PointCloudPtr candidates = std::make_shared<PointCloud>();
   candidates->reserve(band->size());
   for (size_t i = 0; i < band->size(); ++i) {
     const pcl::Normal& n = normals.points[i];

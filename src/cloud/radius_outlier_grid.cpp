@@ -115,7 +115,7 @@ std::vector<uint8_t> radiusInlierMask(const PointCloud& cloud, double radius, in
 PointCloudPtr radiusOutlierRemovalGrid(const PointCloud& cloud, double radius, int min_neighbors,
                                        int num_threads) {
   const std::vector<uint8_t> keep = radiusInlierMask(cloud, radius, min_neighbors, num_threads);
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   out->header = cloud.header;
   out->reserve(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i)

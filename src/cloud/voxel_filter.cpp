@@ -6,7 +6,7 @@
 namespace osm_graph_slam {
 
 PointCloudPtr voxelDownsample(const PointCloudConstPtr& cloud, double leaf, bool exact) {
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   const float l = static_cast<float>(leaf);
   if (exact) {
     pcl::VoxelGrid<PointT> grid;

@@ -14,7 +14,7 @@ namespace {
 
 PointCloudPtr accumulate(const std::vector<PosedCloud>& keyframes, double voxel, double min_z,
                          double max_z) {
-  PointCloudPtr all(new PointCloud);
+  PointCloudPtr all = std::make_shared<PointCloud>();
   for (const auto& [pose, cloud] : keyframes) {
     if (!cloud) continue;
     const Eigen::Isometry3f T = pose.cast<float>();

@@ -6,6 +6,8 @@
 #include <random>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/cell_key.h"
+
 namespace osm_graph_slam {
 
 namespace {
@@ -43,7 +45,7 @@ class PointGrid {
     return Eigen::Vector2i(int(std::floor(p.x() / cell_)), int(std::floor(p.y() / cell_)));
   }
   static int64_t key(const Eigen::Vector2i& c) {
-    return (int64_t(c.x()) << 32) ^ (int64_t(c.y()) & 0xffffffffLL);
+    return packCellKey(c.x(), c.y());
   }
   const std::vector<Eigen::Vector2d>& points_;
   double cell_;

@@ -12,6 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
@@ -61,7 +62,7 @@ class MapGrid {
 
  private:
   int64_t cellOf(double v) const { return static_cast<int64_t>(std::floor(v / cell_)); }
-  static int64_t key(int64_t x, int64_t y) { return (x << 32) ^ (y & 0xffffffffLL); }
+  static int64_t key(int64_t x, int64_t y) { return packCellKey(x, y); }
   PointCloudConstPtr cloud_;
   double cell_;
   std::unordered_map<int64_t, std::vector<int>> cells_;

@@ -5,6 +5,8 @@
 #include <limits>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/cell_key.h"
+
 namespace osm_graph_slam {
 namespace {
 
@@ -15,7 +17,7 @@ bool isStructure(const PointT& p, const BevCorrelationParams& params) {
 }
 
 int64_t cellKey(int ix, int iy) {
-  return (static_cast<int64_t>(ix) << 32) ^ static_cast<int64_t>(static_cast<uint32_t>(iy));
+  return packCellKey(ix, iy);
 }
 
 }  // namespace

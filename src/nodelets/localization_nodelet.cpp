@@ -182,7 +182,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
                              "localization: no map loaded, scans ignored");
       return;
     }
-    PointCloudPtr cloud(new PointCloud);
+    PointCloudPtr cloud = std::make_shared<PointCloud>();
     std::string error;
     if (!fromPointCloud2(*msg, *cloud, &error)) {
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());

@@ -92,7 +92,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   }
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
-    PointCloudPtr cloud(new PointCloud);
+    PointCloudPtr cloud = std::make_shared<PointCloud>();
     std::string error;
     if (!fromPointCloud2(*msg, *cloud, &error)) {
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());

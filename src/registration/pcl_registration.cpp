@@ -20,7 +20,7 @@ class IterationAccess : public Base {
 };
 
 PointCloudPtr finitePoints(const PointCloudConstPtr& cloud) {
-  PointCloudPtr out(new PointCloud);
+  PointCloudPtr out = std::make_shared<PointCloud>();
   if (!cloud) return out;
   out->reserve(cloud->size());
   for (const auto& p : cloud->points) {

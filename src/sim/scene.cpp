@@ -1,5 +1,6 @@
 #include "osm_graph_slam/sim/scene.h"
 
+#include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/sim/forest_world.h"
 
 #include <algorithm>
@@ -52,7 +53,7 @@ class SegmentHash {
 
  private:
   long long key(double v) const { return static_cast<long long>(std::floor(v / cell_)); }
-  static long long pack(long long x, long long y) { return (x << 32) ^ (y & 0xffffffffLL); }
+  static long long pack(long long x, long long y) { return packCellKey(x, y); }
   double cell_;
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> segs_;
   std::unordered_map<long long, std::vector<int>> cells_;

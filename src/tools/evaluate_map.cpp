@@ -51,7 +51,7 @@ bool loadRun(const std::string& dir, Run& run, std::string* error) {
     const auto it = pose_by_ms.find(std::llround(kf.stamp * 1000.0));
     char name[32];
     std::snprintf(name, sizeof(name), "%06lu.pcd", static_cast<unsigned long>(kf.id));
-    PointCloudPtr cloud(new PointCloud);
+    PointCloudPtr cloud = std::make_shared<PointCloud>();
     if (it == pose_by_ms.end() ||
         pcl::io::loadPCDFile((dump / "keyframes" / name).string(), *cloud) != 0)
       continue;  // a keyframe without a cloud or pose adds no point

@@ -145,7 +145,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  PointCloudPtr raw_a(new PointCloud), raw_b(new PointCloud);
+  PointCloudPtr raw_a = std::make_shared<PointCloud>(), raw_b = std::make_shared<PointCloud>();
   Eigen::Isometry3d truth;
   std::string error;
   if (!readKittiBin(data + "/000094.bin", *raw_a, &error) ||

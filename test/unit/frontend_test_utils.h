@@ -25,7 +25,7 @@ inline TrackResult trackResult(TrackStatus status, bool new_keyframe, uint64_t k
 }
 
 inline PointCloudPtr loadScan(const std::string& path) {
-  PointCloudPtr cloud(new PointCloud);
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
   std::string error;
   if (!readKittiBin(path, *cloud, &error)) ADD_FAILURE() << error;
   return cloud;
@@ -70,7 +70,7 @@ inline double rotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry
 inline PointCloudPtr syntheticScene(int points_per_surface = 1500, unsigned seed = 7) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  PointCloudPtr cloud(new PointCloud);
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
   auto add = [&](const Eigen::Vector3f& p) {
     PointT q;
     q.getVector3fMap() = p;
@@ -101,7 +101,7 @@ inline PointCloudPtr syntheticScene(int points_per_surface = 1500, unsigned seed
 }
 
 inline PointCloudPtr transformed(const PointCloud& cloud, const Eigen::Isometry3d& t) {
-  PointCloudPtr out(new PointCloud(cloud));
+  PointCloudPtr out = std::make_shared<PointCloud>(cloud);
   for (auto& p : out->points)
     p.getVector3fMap() = (t * p.getVector3fMap().cast<double>()).cast<float>();
   return out;

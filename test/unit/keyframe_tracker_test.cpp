@@ -90,7 +90,7 @@ TEST(KeyframeTrackerTest, FailedMatchKeepsConstantVelocityPrediction) {
   }
   // Scan 3 sees something unmatchable (a far-away blob): the match must fail and the pose must be
   // the constant-velocity prediction.
-  PointCloudPtr garbage(new PointCloud);
+  PointCloudPtr garbage = std::make_shared<PointCloud>();
   for (int i = 0; i < 200; ++i) {
     PointT p;
     p.x = 500.0f + 0.01f * i;
@@ -134,14 +134,14 @@ TEST(KeyframeTrackerTest, RejectsOutOfOrderStampsAndBadCloudsWithoutStateChange)
   const auto scene = test::syntheticScene(600);
   KeyframeTracker tracker;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  PointCloudPtr nan_only(new PointCloud);
+  PointCloudPtr nan_only = std::make_shared<PointCloud>();
   PointT bad;
   bad.x = bad.y = bad.z = nan;
   for (int i = 0; i < 100; ++i) nan_only->push_back(bad);
-  PointCloudPtr single(new PointCloud);
+  PointCloudPtr single = std::make_shared<PointCloud>();
   single->push_back(scene->points[0]);
   // Bad clouds before the first keyframe: nothing initialised.
-  for (const auto& cloud : {PointCloudPtr(new PointCloud), single, PointCloudPtr()}) {
+  for (const auto& cloud : {std::make_shared<PointCloud>(), single, PointCloudPtr()}) {
     TrackResult r;
     ASSERT_NO_THROW(r = tracker.track(1.0, cloud));
     EXPECT_EQ(r.status, TrackStatus::kRejectedCloud);

@@ -23,7 +23,7 @@ Building square(int64_t id, const Eigen::Vector2d& corner, double size) {
 PointCloudPtr wallPoints(double x0, double x1, double y0, double sigma, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> n(0.0f, static_cast<float>(sigma));
-  PointCloudPtr c(new PointCloud);
+  PointCloudPtr c = std::make_shared<PointCloud>();
   for (double x = x0; x <= x1; x += 0.05)
     for (double z = 1.5; z <= 4.5; z += 0.1) {
       PointT p;

@@ -108,7 +108,7 @@ TEST(RegistrationTest, RecoversKnownSyntheticTransformExactly) {
 }
 
 PointCloudPtr cloudOf(std::initializer_list<Eigen::Vector3f> points) {
-  PointCloudPtr cloud(new PointCloud);
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
   for (const auto& p : points) {
     PointT q;
     q.getVector3fMap() = p;
@@ -120,7 +120,7 @@ PointCloudPtr cloudOf(std::initializer_list<Eigen::Vector3f> points) {
 TEST(RegistrationTest, BadInputFailsCleanlyForEveryMethod) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const auto good = test::syntheticScene(300);
-  const PointCloudPtr empty(new PointCloud);
+  const PointCloudPtr empty = std::make_shared<PointCloud>();
   const auto nan_only = cloudOf({{nan, nan, nan}, {nan, 1, 2}, {3, nan, 1}});
   const auto single = cloudOf({{1, 2, 3}});
   Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();

@@ -380,8 +380,8 @@ TEST(UrbanSim, FrontEndRegistrationRecoversTheTrueMotion) {
   auto downsample = [](const PointCloud& in) {
     pcl::VoxelGrid<PointT> grid;
     grid.setLeafSize(0.2f, 0.2f, 0.2f);
-    grid.setInputCloud(PointCloud::Ptr(new PointCloud(in)));
-    PointCloudPtr out(new PointCloud);
+    grid.setInputCloud(std::make_shared<PointCloud>(in));
+    PointCloudPtr out = std::make_shared<PointCloud>();
     grid.filter(*out);
     return out;
   };
