@@ -267,8 +267,14 @@ TEST_F(OsmBufferServerTest, QueriesDoNotWaitForARefillAgainst2000MsLatency) {
             << " queries while a refill was in flight, worst " << worst_in_flight_ms
             << " ms (worst overall " << worst_ms << " ms)\n";
   EXPECT_GE(in_flight_queries, 20u);  // 2 s of latency spans ~40 keyframes of 40 ms
-  // Behavioural bound of the design (the 10 ms); generous against machine noise.
+  // Behavioural bound of the design (the 10 ms); generous against machine noise. A
+  // query that waited for the refill would take the server's 2,000 ms: under AddressSanitizer
+  // (several times slower) 50 ms still tells the two apart.
+#if defined(__SANITIZE_ADDRESS__)
+  EXPECT_LT(worst_in_flight_ms, 50.0);
+#else
   EXPECT_LT(worst_in_flight_ms, 10.0);
+#endif
   ASSERT_TRUE(buffer.waitForIdle(30.0));
   EXPECT_EQ(buffer.stats().generation, 2u);
   EXPECT_GT(buffer.stats().centre.x(), 60.0);
