@@ -44,9 +44,7 @@ class PointGrid {
   Eigen::Vector2i cellOf(const Eigen::Vector2d& p) const {
     return Eigen::Vector2i(int(std::floor(p.x() / cell_)), int(std::floor(p.y() / cell_)));
   }
-  static int64_t key(const Eigen::Vector2i& c) {
-    return packCellKey(c.x(), c.y());
-  }
+  static int64_t key(const Eigen::Vector2i& c) { return packCellKey(c.x(), c.y()); }
   const std::vector<Eigen::Vector2d>& points_;
   double cell_;
   std::unordered_map<int64_t, std::vector<int>> cells_;

@@ -12,8 +12,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/cloud/voxel_filter.h"
+#include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
 
