@@ -33,9 +33,9 @@ fi
 echo "[sanitize] building ${#TESTS[@]} gtests with ASan + UBSan in $WS (-j$JOBS)"
 build_status=0
 : > "$WS/sanitize_build.log"
-# The libraries first, then the tools gtests run (real_drive_test: offline_slam, instrumented
-# too), then each test on its own so that a lock is never held for long.
-for target in osm_graph_slam_core osm_graph_slam_ros offline_slam "${TESTS[@]}"; do
+# The libraries first, then the tools gtests run (real_drive_test: offline_slam and
+# evaluate_map, instrumented too), then each test on its own so that a lock is never held long.
+for target in osm_graph_slam_core osm_graph_slam_ros offline_slam evaluate_map "${TESTS[@]}"; do
   if ! locked make -C "$WS/build" -j"$JOBS" "$target" >> "$WS/sanitize_build.log" 2>&1; then
     echo "[sanitize] build of $target FAILED (log $WS/sanitize_build.log)"
     grep -E "error:|Error [0-9]" "$WS/sanitize_build.log" | tail -10
