@@ -2,9 +2,10 @@
 # Builds the libFuzzer targets of fuzz/ (clang, -fsanitize=fuzzer,address,undefined) in a build
 # directory of their own and runs them one after the other.
 #
-#   scripts/fuzz.sh [--seconds N] [--target T]... [--build-only] [--jobs J]
+#   scripts/fuzz.sh [--seconds N] [--runs R] [--target T]... [--build-only] [--jobs J]
 #
 #   --seconds N   run time per target (default 60)
+#   --runs R      stop a target earlier, after R executions (issue 22: 10^6 or 30 min)
 #   --target T    only this target (repeatable): osm_xml osm_file overpass g2o kitti mulran
 #                 yaml_params graph_dump
 #   --build-only  build, do not run
@@ -24,16 +25,18 @@ DATA="${OGS_SHARED_DATA:-$ROOT/../shared/data}"
 LOCK="${OGS_BUILD_LOCK:-/tmp/ogs_build.lock}"
 ALL_TARGETS=(osm_xml osm_file overpass g2o kitti mulran yaml_params graph_dump)
 SECONDS_PER_TARGET=60
+RUNS=-1
 JOBS=2
 BUILD_ONLY=0
 TARGETS=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) SECONDS_PER_TARGET="$2"; shift 2 ;;
+    --runs) RUNS="$2"; shift 2 ;;
     --target) TARGETS+=("$2"); shift 2 ;;
     --jobs) JOBS="$2"; shift 2 ;;
     --build-only) BUILD_ONLY=1; shift ;;
-    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -76,8 +79,9 @@ if [ -d "$DATA" ]; then
     [ -f "$f" ] || continue
     b=$(basename "$f" .osm)
     # The first 16 kB (nodes, a few ways): an execution of the OSM targets costs ~ its size.
-    head -c 16000 "$f" > "$SHARED_SEEDS/osm_xml/$b.osm" 2>/dev/null || true
-    head -c 16000 "$f" > "$SHARED_SEEDS/overpass/$b.osm" 2>/dev/null || true
+    for t in osm_xml overpass; do
+      [ -d "$SHARED_SEEDS/$t" ] && head -c 16000 "$f" > "$SHARED_SEEDS/$t/$b.osm"
+    done
     prefixed 01 "$f" "$SHARED_SEEDS/osm_file/$b.xml" -c 16000 2>/dev/null || true
   done
   if [ -d "$SHARED_SEEDS/osm_file" ] && [ -f "$DATA/osm/2011_09_26_drive_0005_sync_buildings.osm" ]; then
@@ -115,7 +119,7 @@ for t in "${TARGETS[@]}"; do
   crashes="$BUILD/crashes/$t"
   log="$BUILD/logs/$t.log"
   mkdir -p "$corpus" "$crashes" "$(dirname "$log")"
-  args=(-max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=2560
+  args=(-max_total_time="$SECONDS_PER_TARGET" -runs="$RUNS" -timeout=20 -rss_limit_mb=2560
         -max_len="${MAX_LEN[$t]:-65536}"
         -print_final_stats=1 -artifact_prefix="$crashes/")
   [ -n "${DICT[$t]:-}" ] && args+=(-dict="$ROOT/fuzz/dicts/${DICT[$t]}")
