@@ -12,6 +12,10 @@
 #include <fstream>
 #include <functional>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <osmium/area/assembler.hpp>
 #include <osmium/io/any_input.hpp>
 #include <osmium/memory/buffer.hpp>
@@ -505,6 +509,58 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 OsmData salvageXmlFile(const std::string& path, const OsmReadOptions& options, OsmData data);
 
+/// A read-only mapping of a whole file. libosmium 2.19's Reader leaks the file descriptor of every
+/// file whose parsing fails (PBF, gzip, bzip2; one per failed pass: a process reading bad files
+/// runs out of descriptors, found by fuzzing). Parsing from the mapping gives libosmium no
+/// descriptor at all, and the reader's three passes share one mapping.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      error_ = std::strerror(errno);
+      return;
+    }
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) {
+      error_ = std::strerror(errno);
+    } else if (st.st_size == 0) {
+      error_ = "the file is empty";
+    } else {
+      void* data = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+      if (data == MAP_FAILED) {
+        error_ = std::strerror(errno);
+      } else {
+        data_ = static_cast<const char*>(data);
+        size_ = static_cast<size_t>(st.st_size);
+      }
+    }
+    ::close(fd);  // the mapping stays valid without it
+  }
+  ~MappedFile() {
+    if (data_) ::munmap(const_cast<char*>(data_), size_);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+
+  const char* data() const { return data_; }
+  size_t size() const { return size_; }
+  const std::string& error() const { return error_; }
+
+ private:
+  const char* data_ = nullptr;
+  size_t size_ = 0;
+  std::string error_;
+};
+
+/// libosmium's format string for a buffer holding a file with this (known) suffix.
+std::string bufferFormat(const std::string& path) {
+  if (endsWith(path, ".pbf")) return "pbf";
+  if (endsWith(path, ".osm.gz")) return "osm.gz";
+  if (endsWith(path, ".osm.bz2")) return "osm.bz2";
+  return "osm";  // .osm, .xml
+}
+
 }  // namespace
 
 OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
@@ -526,7 +582,6 @@ OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
     return data;
   }
   std::fclose(probe);
-  const std::string format = endsWith(path, ".xml") ? "osm" : "";
   if (endsWith(path, ".pbf")) {
     const std::string pbf_error = checkPbfBlobHeaders(path);
     if (!pbf_error.empty()) {
@@ -583,10 +638,16 @@ OsmData readOsmFile(const std::string& path, const OsmReadOptions& options) {
       return data;
     }
   }
+  const MappedFile mapped(path);
+  if (!mapped.data()) {
+    OsmData data;
+    data.error = "cannot read OSM file " + path + ": " + mapped.error();
+    return data;
+  }
   XmlErrorPosition position;
   OsmData data = readWithCollector(
       [&] {
-        return osmium::io::File{path, format};
+        return osmium::io::File{mapped.data(), mapped.size(), bufferFormat(path)};
       },
       options, &position);
   if (!data.ok && position.valid && !endsWith(path, ".gz") && !endsWith(path, ".bz2")) {
