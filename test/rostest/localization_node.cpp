@@ -66,9 +66,8 @@ Fixture* R = nullptr;
 /// the commands and tools are unchanged.
 std::string prepareFixture(Fixture& r) {
   ros::NodeHandle pnh("~");
-  r.dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/localization_test_data");
+  r.dir = cacheDir(pnh, "localization_test_data");
   std::error_code ec;
-  fs::create_directories(r.dir, ec);
   FileLock lock(r.dir / "lock");
   if (!lock.ok()) return "cannot lock " + (r.dir / "lock").string();
   const std::string osm =

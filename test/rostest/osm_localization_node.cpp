@@ -46,9 +46,8 @@ Fixture* R = nullptr;
 
 std::string prepareFixture(Fixture& r) {
   ros::NodeHandle pnh("~");
-  r.dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/osm_localization_test_data");
+  r.dir = cacheDir(pnh, "osm_localization_test_data");
   std::error_code ec;
-  fs::create_directories(r.dir, ec);
   FileLock lock(r.dir / "lock");
   if (!lock.ok()) return "cannot lock " + (r.dir / "lock").string();
   const std::string osm = test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm");

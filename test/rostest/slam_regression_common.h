@@ -124,13 +124,22 @@ class FileLock {
   int fd_;
 };
 
+/// The test node's cache folder (private parameter cache_dir, default OGS_BINARY_DIR/name),
+/// created; the caller locks it (FileLock on dir/"lock") while it fills it.
+inline fs::path cacheDir(const ros::NodeHandle& pnh, const std::string& name) {
+  const fs::path dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/" + name);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  return dir;
+}
+
 /// The drive both regression tests share, from the test node's private parameters.
 inline DriveOptions driveOptionsFromParams(const ros::NodeHandle& pnh) {
   DriveOptions o;
   o.scans = pnh.param("scans", o.scans);
   o.length = pnh.param("route_length", o.length);
   o.osm = pnh.param("osm", test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
-  o.cache_dir = pnh.param("cache_dir", std::string(OGS_BINARY_DIR) + "/slam_regression_data");
+  o.cache_dir = cacheDir(pnh, "slam_regression_data");
   return o;
 }
 
@@ -141,7 +150,6 @@ inline Drive prepareDrive(const DriveOptions& o) {
   Drive d;
   d.dir = o.cache_dir;
   std::error_code ec;
-  fs::create_directories(d.dir, ec);
   FileLock lock(d.dir / "lock");
   if (!lock.ok()) {
     d.error = "cannot lock " + (d.dir / "lock").string();
