@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <tuple>
 #include <unordered_map>
 #include <vector>
 
@@ -146,9 +147,20 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
     else
       impl_->ring_keys.col(i).setConstant(1e3f);
   }
+  learnOverlapLimit();  // needs the ring keys
 }
 
 Localizer::~Localizer() = default;
+
+namespace {
+/// The q-quantile (0..1) of the values (nearest rank; moves them).
+double quantile(std::vector<double>& values, double q) {
+  const size_t k =
+      std::min(values.size() - 1, static_cast<size_t>(std::max(0.0, q) * double(values.size())));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+}  // namespace
 
 void Localizer::learnDescriptorLimit() {
   // Distances between descriptors of different places of this map: what a wrong candidate
@@ -169,13 +181,76 @@ void Localizer::learnDescriptorLimit() {
   stats_.global_impostor_pairs = impostor.size();
   // Too few pairs (a map of one small place): the fixed limit alone.
   if (impostor.size() >= 100 && params_.global_false_match_rate > 0.0) {
-    const size_t k =
-        std::min(impostor.size() - 1, static_cast<size_t>(params_.global_false_match_rate *
-                                                          static_cast<double>(impostor.size())));
-    std::nth_element(impostor.begin(), impostor.begin() + k, impostor.end());
-    descriptor_limit_ = std::min(descriptor_limit_, impostor[k]);
+    descriptor_limit_ =
+        std::min(descriptor_limit_, quantile(impostor, params_.global_false_match_rate));
   }
   stats_.global_descriptor_limit = descriptor_limit_;
+}
+
+OverlapLimit learnOverlapLimitFrom(std::vector<double> own, std::vector<double> impostor,
+                                   double min_overlap, double rate) {
+  OverlapLimit out;
+  out.limit = min_overlap;
+  if (!own.empty()) out.own_low = quantile(own, rate);
+  if (!impostor.empty()) out.impostor_high = quantile(impostor, 1.0 - rate);
+  // The impostors' overlap is the limit where it lies below what the own places reach. Where
+  // impostors overlap as much as the own places (repeated buildings), the overlap cannot tell
+  // places apart: the fixed limit, and the ambiguity test and the confirmation decide. Too few
+  // own places to say what a right answer looks like: the fixed limit too.
+  out.separable = own.size() >= 10 && !impostor.empty() && out.impostor_high < out.own_low;
+  if (out.separable) out.limit = std::max(min_overlap, out.impostor_high);
+  return out;
+}
+
+void Localizer::learnOverlapLimit() {
+  // What the overlap of a registered scan looks like at its own place and at the other places
+  // that Scan Context would propose for it, in this map with this sensor.
+  const auto t0 = Clock::now();
+  overlap_limit_ = params_.global_min_overlap;
+  const size_t n = map_->keyframes.size();
+  const size_t samples =
+      std::min(n, static_cast<size_t>(std::max(0, params_.global_overlap_samples)));
+  std::vector<double> own, impostor;
+  const double radius = std::min(params_.local_map_radius, 50.0);
+  for (size_t s = 0; s < samples; ++s) {
+    const size_t index = (2 * s + 1) * n / (2 * samples);  // evenly spread over the drive
+    const MapKeyframe& kf = map_->keyframes[index];
+    if (!kf.cloud || kf.cloud->size() < static_cast<size_t>(params_.min_points)) continue;
+    const Eigen::Vector2d centre = impl_->keyframe_xy[index];
+    // Its own place, seen without its own points (another pass sees the place from elsewhere).
+    // The map was built at the keyframe poses: no registration needed to put it in place.
+    std::vector<KeyframeState> others;
+    for (size_t j = 0; j < n; ++j) {
+      if (j == index || !map_->keyframes[j].cloud) continue;
+      if ((impl_->keyframe_xy[j] - centre).norm() > radius + 30.0) continue;
+      KeyframeState& o = others.emplace_back();
+      o.map_pose = map_->keyframes[j].pose;
+      o.cloud = map_->keyframes[j].cloud;
+    }
+    const PointCloudPtr own_map = buildMapCloud(others, params_.map_voxel_size);
+    const PointCloudPtr target = MapGrid(own_map, 10.0).crop(centre, radius);
+    if (target->size() >= static_cast<size_t>(params_.min_points))
+      own.push_back(overlapAt(*kf.cloud, kf.pose, target, centre, radius).first);
+    // The other places Scan Context proposes for it.
+    const PointCloudPtr coarse_source = voxelize(kf.cloud, params_.global_voxel_size);
+    const std::vector<Place> places =
+        distinctPlaces(scanContextPlaces(kf.descriptor, &centre, params_.global_impostor_distance),
+                       params_.global_overlap_impostor_places);
+    for (const Place& place : places) {
+      GlobalCandidate record;
+      if (registerAtPlace(kf.cloud, coarse_source, place, record))
+        impostor.push_back(record.overlap);
+    }
+  }
+  stats_.global_overlap_own = own.size();
+  stats_.global_overlap_impostors = impostor.size();
+  const OverlapLimit limit = learnOverlapLimitFrom(own, impostor, params_.global_min_overlap,
+                                                   params_.global_false_match_rate);
+  overlap_limit_ = limit.limit;
+  stats_.global_overlap_own_low = limit.own_low;
+  stats_.global_overlap_impostor_high = limit.impostor_high;
+  stats_.global_overlap_limit = overlap_limit_;
+  stats_.global_overlap_learn_ms = msSince(t0);
 }
 
 double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
@@ -239,67 +314,21 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
   double best_score = std::numeric_limits<double>::infinity();
   for (const Place& c : places) {
     ++result.candidates_tried;
-    const MapKeyframe& kf = map_->keyframes[c.index];
-    const Eigen::Isometry3d& guess = c.guess;
-    const Eigen::Vector2d centre = kf.pose.translation().head<2>();
-    const double radius = std::min(params_.local_map_radius, 50.0);
-    impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
     GlobalCandidate& record = result.candidates.emplace_back();
-    record.keyframe_id = kf.id;
-    record.source = c.source;
-    record.descriptor_distance = c.descriptor_distance;
-    record.outcome = "coarse_failed";
-    const RegistrationResult coarse = impl_->coarse->align(coarse_source, guess);
-    if (!coarse.converged) continue;
-    const PointCloudPtr target = impl_->grid->crop(centre, radius);
-    impl_->fine->setTarget(target);
-    const RegistrationResult fine = impl_->fine->align(cloud, coarse.transform);
-    record.pose = fine.transform;
-    record.fitness = fine.fitness;
-    record.outcome = fine.converged ? "fitness" : "fine_failed";
-    if (!fine.converged || fine.fitness > params_.global_max_fitness) continue;
-    // Overlap: scan points with a map point near them at the solution.
-    pcl::KdTreeFLANN<PointT> tree;
-    tree.setInputCloud(target);
-    PointCloud aligned;
-    pcl::transformPointCloud(*cloud, aligned, fine.transform.matrix().cast<float>());
-    size_t inliers = 0;
-    std::vector<int> idx(1);
-    std::vector<float> d2(1);
-    const float max_d2 =
-        static_cast<float>(params_.global_overlap_distance * params_.global_overlap_distance);
-    // Only points inside the cropped map region can have a map point near them.
-    const double inside2 = std::pow(std::max(0.0, radius - 1.0), 2);
-    size_t considered = 0, structure = 0, structure_inliers = 0;
-    const double structure_z = params_.global_structure_height - map_->scan_context.sensor_height;
-    for (size_t i = 0; i < aligned.size(); ++i) {
-      const auto& p = aligned[i];
-      if (std::pow(p.x - centre.x(), 2) + std::pow(p.y - centre.y(), 2) > inside2) continue;
-      ++considered;
-      const bool is_structure = (*cloud)[i].z > structure_z;  // base_link: above the ground
-      structure += is_structure ? 1 : 0;
-      if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) {
-        ++inliers;
-        structure_inliers += is_structure ? 1 : 0;
-      }
-    }
-    const double overlap = considered == 0 ? 0.0 : double(inliers) / double(considered);
-    record.overlap = overlap;
-    record.structure_overlap = structure == 0 ? 0.0 : double(structure_inliers) / double(structure);
-    record.outcome = "overlap";
-    if (overlap < params_.global_min_overlap) continue;
+    if (!registerAtPlace(cloud, coarse_source, c, record) || record.overlap < overlap_limit_)
+      continue;
     record.outcome = "passed";
-    const double score = fine.fitness / overlap;
-    passed.push_back({fine.transform, score});
+    const double score = record.fitness / record.overlap;
+    passed.push_back({record.pose, score});
     if (score < best_score) {
       best_score = score;
       result.success = true;
-      result.pose = fine.transform;
-      result.keyframe_id = kf.id;
+      result.pose = record.pose;
+      result.keyframe_id = record.keyframe_id;
       result.source = c.source;
       result.descriptor_distance = c.descriptor_distance;
-      result.fitness = fine.fitness;
-      result.overlap = overlap;
+      result.fitness = record.fitness;
+      result.overlap = record.overlap;
     }
   }
   // Perceptual aliasing (a street of identical facades): another place that fits almost as well
@@ -329,6 +358,63 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
   return result;
 }
 
+bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
+                                const PointCloudConstPtr& coarse_source, const Place& place,
+                                GlobalCandidate& record) const {
+  const MapKeyframe& kf = map_->keyframes[place.index];
+  const Eigen::Vector2d centre = kf.pose.translation().head<2>();
+  const double radius = std::min(params_.local_map_radius, 50.0);
+  record.keyframe_id = kf.id;
+  record.source = place.source;
+  record.descriptor_distance = place.descriptor_distance;
+  record.outcome = "coarse_failed";
+  impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
+  const RegistrationResult coarse = impl_->coarse->align(coarse_source, place.guess);
+  if (!coarse.converged) return false;
+  const PointCloudPtr target = impl_->grid->crop(centre, radius);
+  impl_->fine->setTarget(target);
+  const RegistrationResult fine = impl_->fine->align(cloud, coarse.transform);
+  record.pose = fine.transform;
+  record.fitness = fine.fitness;
+  record.outcome = fine.converged ? "fitness" : "fine_failed";
+  if (!fine.converged || fine.fitness > params_.global_max_fitness) return false;
+  std::tie(record.overlap, record.structure_overlap) =
+      overlapAt(*cloud, fine.transform, target, centre, radius);
+  record.outcome = "overlap";
+  return true;
+}
+
+std::pair<double, double> Localizer::overlapAt(const PointCloud& cloud,
+                                               const Eigen::Isometry3d& pose,
+                                               const PointCloudConstPtr& target,
+                                               const Eigen::Vector2d& centre, double radius) const {
+  pcl::KdTreeFLANN<PointT> tree;
+  tree.setInputCloud(target);
+  PointCloud aligned;
+  pcl::transformPointCloud(cloud, aligned, pose.matrix().cast<float>());
+  std::vector<int> idx(1);
+  std::vector<float> d2(1);
+  const float max_d2 =
+      static_cast<float>(params_.global_overlap_distance * params_.global_overlap_distance);
+  // Only points inside the cropped map region can have a map point near them.
+  const double inside2 = std::pow(std::max(0.0, radius - 1.0), 2);
+  size_t considered = 0, inliers = 0, structure = 0, structure_inliers = 0;
+  const double structure_z = params_.global_structure_height - map_->scan_context.sensor_height;
+  for (size_t i = 0; i < aligned.size(); ++i) {
+    const auto& p = aligned[i];
+    if (std::pow(p.x - centre.x(), 2) + std::pow(p.y - centre.y(), 2) > inside2) continue;
+    ++considered;
+    const bool is_structure = cloud[i].z > structure_z;  // base_link: above the ground
+    structure += is_structure ? 1 : 0;
+    if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) {
+      ++inliers;
+      structure_inliers += is_structure ? 1 : 0;
+    }
+  }
+  return {considered == 0 ? 0.0 : double(inliers) / double(considered),
+          structure == 0 ? 0.0 : double(structure_inliers) / double(structure)};
+}
+
 std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPtr& cloud) {
   std::vector<Place> places;
   if (impl_->landmarks) {  // first: its guess holds the translation too
@@ -342,27 +428,40 @@ std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPt
   }
   if (params_.global_method != "geometric_hierarchy") addScanContextPlaces(cloud, places);
   // Close keyframes give the same answer: keep places 5 m apart, at most global_candidates.
+  return distinctPlaces(places, params_.global_candidates);
+}
+
+std::vector<Localizer::Place> Localizer::distinctPlaces(const std::vector<Place>& places,
+                                                        int max_places) const {
   std::vector<Place> distinct;
   for (const Place& c : places) {
+    if (static_cast<int>(distinct.size()) >= max_places) break;
     bool near = false;
     for (const Place& d : distinct)
       near = near || (impl_->keyframe_xy[c.index] - impl_->keyframe_xy[d.index]).norm() < 5.0;
     if (!near) distinct.push_back(c);
-    if (static_cast<int>(distinct.size()) >= params_.global_candidates) break;
   }
   return distinct;
 }
 
 void Localizer::addScanContextPlaces(const PointCloudConstPtr& cloud,
                                      std::vector<Place>& places) const {
-  const ScanContext query = computeScanContext(*cloud, map_->scan_context);
+  const std::vector<Place> found =
+      scanContextPlaces(computeScanContext(*cloud, map_->scan_context), nullptr, 0.0);
+  places.insert(places.end(), found.begin(), found.end());
+}
+
+std::vector<Localizer::Place> Localizer::scanContextPlaces(const ScanContext& query,
+                                                           const Eigen::Vector2d* away_from,
+                                                           double away_distance) const {
   // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
   const int n = static_cast<int>(map_->keyframes.size());
   std::vector<std::pair<float, int>> by_ring;
   by_ring.reserve(n);
   if (query.ring_key.size() == impl_->ring_keys.rows())
     for (int i = 0; i < n; ++i)
-      by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
+      if (!away_from || (impl_->keyframe_xy[i] - *away_from).norm() >= away_distance)
+        by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
   const int k = std::min<int>(params_.global_ring_key_candidates, by_ring.size());
   std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());
   std::vector<Place> by_descriptor;
@@ -381,7 +480,7 @@ void Localizer::addScanContextPlaces(const PointCloudConstPtr& cloud,
   std::sort(by_descriptor.begin(), by_descriptor.end(), [](const Place& a, const Place& b) {
     return a.descriptor_distance < b.descriptor_distance;
   });
-  places.insert(places.end(), by_descriptor.begin(), by_descriptor.end());
+  return by_descriptor;
 }
 
 LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cloud,

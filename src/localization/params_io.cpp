@@ -52,6 +52,8 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_max_fitness", p.global_max_fitness);
   r.param("global_min_overlap", p.global_min_overlap);
   r.param("global_overlap_distance", p.global_overlap_distance);
+  r.param("global_overlap_samples", p.global_overlap_samples);
+  r.param("global_overlap_impostor_places", p.global_overlap_impostor_places);
   r.param("global_structure_height", p.global_structure_height);
   r.param("global_coarse_max_correspondence", p.global_coarse_max_correspondence);
   r.param("global_voxel_size", p.global_voxel_size);

@@ -25,6 +25,10 @@ constexpr double kGravity = 9.81;
 /// the OXTS unit, axes aligned.
 const Eigen::Vector3d kVeloInImu(0.81, -0.32, 0.80);
 
+uint64_t worldSeed(const SimulationParams& p) {
+  return p.world_seed != 0 ? p.world_seed : p.seed;
+}
+
 bool fail(std::string* error, const std::string& msg) {
   if (error) *error = msg;
   return false;
@@ -134,7 +138,7 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
       lon0 = 0.5 * (lo0 + lo1);
     }
     enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
-    scene_ = sceneFromOsm(osm, *enu_, params.seed, ground);
+    scene_ = sceneFromOsm(osm, *enu_, worldSeed(params), ground);
   } else {
     if (std::isnan(lat0) || std::isnan(lon0)) {
       lat0 = 49.0110;
@@ -142,7 +146,7 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
     }
     enu_ = std::make_unique<EnuConverter>(lat0, lon0, params.origin_alt);
     CityParams city = params.city;
-    city.seed = params.seed;
+    city.seed = worldSeed(params);
     scene_ = proceduralCity(city, ground);
   }
   const RoadGraph roads = RoadGraph::fromPolylines(scene_.roads);
@@ -420,7 +424,9 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
 
   // sim_info.json: parameters and statistics (no timings: same seed, same bytes).
   std::ostringstream info;
-  info << "{\n  \"seed\": " << params_.seed << ",\n  \"world\": \""
+  info << "{\n  \"seed\": " << params_.seed << ",\n";
+  if (params_.world_seed != 0) info << "  \"world_seed\": " << params_.world_seed << ",\n";
+  info << "  \"world\": \""
        << (params_.osm_path.empty() ? std::string("procedural") : params_.osm_path) << "\",\n"
        << "  \"enu_origin\": {\"lat\": " << fmt("%.9f", enu_->originLat())
        << ", \"lon\": " << fmt("%.9f", enu_->originLon())

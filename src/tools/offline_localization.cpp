@@ -422,6 +422,12 @@ int main(int argc, char** argv) {
     << ", \"global_failures\": " << s.global_failures
     << ", \"global_descriptor_limit\": " << s.global_descriptor_limit
     << ", \"global_impostor_pairs\": " << s.global_impostor_pairs
+    << ", \"global_overlap_limit\": " << s.global_overlap_limit
+    << ", \"global_overlap_learning\": {\"own_places\": " << s.global_overlap_own
+    << ", \"impostors_passing_fitness\": " << s.global_overlap_impostors
+    << ", \"own_low\": " << s.global_overlap_own_low
+    << ", \"impostor_high\": " << s.global_overlap_impostor_high
+    << ", \"ms\": " << s.global_overlap_learn_ms << "}"
     << ", \"first_localized_scan\": " << (localized_once ? long(first_localized) : -1L)
     << ", \"wrong_relocalizations\": " << wrong_relocalizations;
   if (kidnap_at >= 0)
@@ -460,7 +466,10 @@ int main(int argc, char** argv) {
         << "  global localisation: " << s.global_attempts << " attempts, " << s.global_failures
         << " failed, " << (s.global_attempts ? s.global_ms / s.global_attempts : 0.0)
         << " ms each; Scan Context limit " << s.global_descriptor_limit << " (from "
-        << s.global_impostor_pairs << " pairs of different places)\n"
+        << s.global_impostor_pairs << " pairs of different places); overlap limit "
+        << s.global_overlap_limit << " (own places " << s.global_overlap_own_low << " over "
+        << s.global_overlap_own << ", impostors " << s.global_overlap_impostor_high << " over "
+        << s.global_overlap_impostors << ", learnt in " << s.global_overlap_learn_ms << " ms)\n"
         << "  map: " << map->keyframes.size() << " keyframes, " << map->map_cloud->size()
         << " points (loaded in " << load_ms << " ms, localizer ready in " << init_ms << " ms)\n";
   if (kidnap_at >= 0)

@@ -20,6 +20,8 @@ void usage() {
                "usage: simulate_urban --out DIR [options]\n"
                "  --osm FILE              OSM extract (.osm/.osm.pbf); default: procedural city\n"
                "  --seed N                (default 1)\n"
+               "  --world-seed N          the world's layout and heights (default: the seed);\n"
+               "                          another --seed drives other roads of the same world\n"
                "  --length M              route length [m] (default 1500)\n"
                "  --speed V               cruise speed [m/s] (default 8)\n"
                "  --scans N               stop after N scans (default: whole route)\n"
@@ -96,6 +98,8 @@ int main(int argc, char** argv) {
       p.osm_path = next();
     else if (a == "--seed")
       p.seed = std::strtoull(next().c_str(), nullptr, 10);
+    else if (a == "--world-seed")
+      p.world_seed = std::strtoull(next().c_str(), nullptr, 10);
     else if (a == "--length")
       p.route.length = std::atof(next().c_str());
     else if (a == "--speed")

@@ -57,8 +57,8 @@ fs::path tempDir(const std::string& name) {
 }  // namespace
 
 TEST(So3, ExpLogRoundTrip) {
-  for (const Eigen::Vector3d v : {Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector3d(0, 0, 3.0),
-                                  Eigen::Vector3d(1e-9, 0, 0), Eigen::Vector3d(-2.0, 1.0, 0.5)}) {
+  for (const Eigen::Vector3d& v : {Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector3d(0, 0, 3.0),
+                                   Eigen::Vector3d(1e-9, 0, 0), Eigen::Vector3d(-2.0, 1.0, 0.5)}) {
     EXPECT_LT((so3Log(so3Exp(v)) - v).norm(), 1e-9) << v.transpose();
   }
 }
@@ -171,8 +171,8 @@ MapPackage smallPackage() {
   Building b;
   b.id = 42;
   b.tags["building"] = "yes";
-  for (const Eigen::Vector2d v : {Eigen::Vector2d(10, 10), Eigen::Vector2d(20, 10),
-                                  Eigen::Vector2d(20, 18), Eigen::Vector2d(10, 18)})
+  for (const Eigen::Vector2d& v : {Eigen::Vector2d(10, 10), Eigen::Vector2d(20, 10),
+                                   Eigen::Vector2d(20, 18), Eigen::Vector2d(10, 18)})
     b.outline_geo.push_back(enu.toGeoPoint(v));
   enu.project(b);
   p.buildings.push_back(b);
@@ -319,6 +319,13 @@ LocalizationParams defaultParams() {
   return params;
 }
 
+/// For tests of tracking alone: no global search, so the overlap limit is not learnt (seconds).
+LocalizationParams trackingParams() {
+  LocalizationParams params = defaultParams();
+  params.global_overlap_samples = 0;
+  return params;
+}
+
 // --- Localisation from OSM alone (OsmLocalizer) ---------------------------------------------
 
 /// A street of 16 buildings (makeStreetScene), its OSM map shifted by `map_offset`, and a drive
@@ -436,7 +443,7 @@ TEST(OsmLocalizer, MapShiftedAsAWholeIsEstimatedAsTheDatum) {
 // jumps there by more than a car can, which is not what this test is about.)
 TEST(Localizer, TracksADriveBesideTheMappedOne) {
   const TownMap& town = townMap();
-  Localizer localizer(defaultParams(), town.package);
+  Localizer localizer(trackingParams(), town.package);
   const auto route = loopTownRoute(160.0, 100.0, 0.0, 0.8, 0.4, 0.7);
   ASSERT_GT(route.size(), 300u);
   const Eigen::Vector3d& p0 = route.front();
@@ -525,6 +532,7 @@ TEST(Localizer, GlobalLocalizationFromKeyframes) {
 TEST(Localizer, LearntDescriptorLimit) {
   const TownMap& town = townMap();
   LocalizationParams params = defaultParams();
+  params.global_overlap_samples = 0;  // not about the overlap
   Localizer learnt(params, town.package);
   const double limit = learnt.stats().global_descriptor_limit;
   EXPECT_EQ(learnt.stats().global_impostor_pairs, size_t(params.global_impostor_pairs));
@@ -549,6 +557,74 @@ TEST(Localizer, LearntDescriptorLimit) {
     }
   }
   EXPECT_GT(tried, 0u);
+}
+
+// The rule of the learnt overlap limit: the impostors' high quantile where it separates them
+// from the own places' low quantile, the fixed floor where it does not.
+TEST(Localizer, OverlapLimitRule) {
+  std::vector<double> own(40), impostor(60);
+  for (size_t i = 0; i < own.size(); ++i) own[i] = 0.95 + 0.001 * double(i);  // 0.95 .. 0.989
+  for (size_t i = 0; i < impostor.size(); ++i) impostor[i] = 0.70 + 0.003 * double(i);  // .. 0.877
+  OverlapLimit l = learnOverlapLimitFrom(own, impostor, 0.6, 0.01);
+  EXPECT_TRUE(l.separable);
+  EXPECT_DOUBLE_EQ(l.own_low, 0.95);
+  EXPECT_NEAR(l.impostor_high, 0.877, 1e-12);
+  EXPECT_NEAR(l.limit, 0.877, 1e-12);
+  // A 5 % rate lets the highest impostors through: a lower limit.
+  EXPECT_LT(learnOverlapLimitFrom(own, impostor, 0.6, 0.05).limit, l.limit);
+  // Impostors below the floor: the floor.
+  EXPECT_DOUBLE_EQ(learnOverlapLimitFrom(own, {0.3, 0.5}, 0.6, 0.01).limit, 0.6);
+  // One impostor as good as the own places: not separable, the floor.
+  impostor.push_back(0.97);
+  l = learnOverlapLimitFrom(own, impostor, 0.6, 0.01);
+  EXPECT_FALSE(l.separable);
+  EXPECT_DOUBLE_EQ(l.limit, 0.6);
+  // Too few own places or no impostor: the floor.
+  EXPECT_DOUBLE_EQ(learnOverlapLimitFrom({0.99, 0.98}, {0.5}, 0.6, 0.01).limit, 0.6);
+  EXPECT_DOUBLE_EQ(learnOverlapLimitFrom(own, {}, 0.6, 0.01).limit, 0.6);
+}
+
+// The overlap limit is learnt from the map's own places (registered without their own points)
+// and the other places Scan Context proposes for them: between the fixed floor and what the own
+// places reach, and the search applies it to every candidate.
+TEST(Localizer, LearntOverlapLimit) {
+  const TownMap& town = townMap();
+  LocalizationParams params = defaultParams();
+  Localizer learnt(params, town.package);
+  const LocalizationStats& st = learnt.stats();
+  std::cout << "overlap limit " << st.global_overlap_limit << ": own places "
+            << st.global_overlap_own << " (low " << st.global_overlap_own_low
+            << "), impostors passing the fitness test " << st.global_overlap_impostors << " (high "
+            << st.global_overlap_impostor_high << "), " << st.global_overlap_learn_ms << " ms\n";
+  EXPECT_EQ(st.global_overlap_own,
+            std::min(town.package->keyframes.size(), size_t(params.global_overlap_samples)))
+      << "every sampled keyframe fits its own place without its own points";
+  EXPECT_GT(st.global_overlap_own_low, 0.8) << "a scan overlaps the map of its own place";
+  EXPECT_GT(st.global_overlap_impostors, 0u) << "the town repeats its buildings";
+  // The town repeats its buildings: impostors overlap as much as the own places, the overlap
+  // cannot separate them and the fixed limit stays.
+  EXPECT_GE(st.global_overlap_impostor_high, st.global_overlap_own_low);
+  EXPECT_DOUBLE_EQ(st.global_overlap_limit, params.global_min_overlap);
+  params.global_overlap_samples = 0;
+  Localizer fixed(params, town.package);
+  EXPECT_DOUBLE_EQ(fixed.stats().global_overlap_limit, params.global_min_overlap);
+  EXPECT_EQ(fixed.stats().global_overlap_own, 0u);
+  // The search refuses candidates under the learnt limit and passes those above it.
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 13.7, 1.1, 1.5);
+  size_t checked = 0;
+  for (size_t i = 0; i < route.size(); i += 4) {
+    const Eigen::Vector3d& p = route[i];
+    const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 700 + i);
+    for (const GlobalCandidate& c : learnt.globalLocalize(cloud).candidates) {
+      if (c.outcome == "passed") {
+        EXPECT_GE(c.overlap, st.global_overlap_limit);
+      } else if (c.outcome == "overlap") {
+        EXPECT_LT(c.overlap, st.global_overlap_limit);
+      }
+      checked += c.outcome == "passed" || c.outcome == "overlap" ? 1 : 0;
+    }
+  }
+  EXPECT_GT(checked, 0u);
 }
 
 // A kidnap (the prediction is put 30 m away) is detected as a divergence and re-localised.
@@ -590,7 +666,7 @@ TEST(Localizer, RecoversFromAKidnap) {
 // Far from every keyframe a scan is flagged off the map, not corrected.
 TEST(Localizer, FlagsScansOffTheMap) {
   const TownMap& town = townMap();
-  Localizer localizer(defaultParams(), town.package);
+  Localizer localizer(trackingParams(), town.package);
   localizer.setInitialPose(planar(80.0, 50.0, 1.73, 0.0), 0.0);  // the middle of the block
   const auto cloud =
       simulateSyntheticScan(town.world, Eigen::Vector2d(80.0, 50.0), 0.0, town.lidar, 5);

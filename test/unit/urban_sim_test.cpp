@@ -107,6 +107,27 @@ TEST(UrbanSim, SameSeedSameBytesDifferentSeedDifferentWorld) {
             same.scene().world.buildings.front().outline.front());
 }
 
+// A second drive through the same world: the world seed fixes the city (every building, its
+// height), the seed the route, its clutter and noise.
+TEST(UrbanSim, WorldSeedKeepsTheCityAndTheSeedChangesTheRoute) {
+  SimulationParams map_drive = smallCity(7), other_drive = smallCity(8);
+  other_drive.world_seed = 7;
+  UrbanSimulator a, b;
+  ASSERT_TRUE(a.build(map_drive));
+  ASSERT_TRUE(b.build(other_drive));
+  const auto& wa = a.scene().world.buildings;
+  const auto& wb = b.scene().world.buildings;
+  ASSERT_EQ(wa.size(), wb.size());
+  for (size_t i = 0; i < wa.size(); ++i) {
+    EXPECT_EQ(wa[i].outline, wb[i].outline) << "building " << i;
+    EXPECT_EQ(wa[i].height, wb[i].height) << "building " << i;
+  }
+  const auto& ra = a.route().waypoints;
+  const auto& rb = b.route().waypoints;
+  EXPECT_TRUE(ra.size() != rb.size() || !std::equal(ra.begin(), ra.end(), rb.begin()))
+      << "another seed drives another route";
+}
+
 TEST(UrbanSim, ProceduralCityHasVariedShapesAndARouteWithRevisit) {
   const UrbanSimulator& sim = defaultSim();
   std::map<std::string, int> shapes;

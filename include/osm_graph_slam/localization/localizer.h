@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
@@ -65,6 +66,16 @@ struct LocalizationParams {
   /// the map (points beyond the region cannot be explained and do not count)
   double global_min_overlap = 0.6;
   double global_overlap_distance = 0.6;  ///< [m]
+  /// The overlap limit is learnt at load from this many map keyframes (evenly spread): each is
+  /// registered at its own place (its own points left out of the map) and at up to
+  /// global_overlap_impostor_places other places (>= global_impostor_distance away) that Scan
+  /// Context proposes for it. The limit is the overlap that impostors passing the fitness test
+  /// exceed at global_false_match_rate (at least global_min_overlap), if that lies below what the
+  /// own places reach at that rate; otherwise the overlap cannot separate places in this map
+  /// and global_min_overlap stays (the ambiguity test and the confirmation carry). 0:
+  /// global_min_overlap alone.
+  int global_overlap_samples = 30;
+  int global_overlap_impostor_places = 2;
   /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
   /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
   double global_structure_height = 0.5;
@@ -136,7 +147,24 @@ struct LocalizationStats {
   double global_descriptor_limit = 0.0;  ///< the learnt Scan Context limit (see params)
   size_t global_impostor_pairs = 0;      ///< the pairs it was learnt from
   size_t global_by_hierarchy = 0;        ///< global answers whose place the hierarchy proposed
+  double global_overlap_limit = 0.0;     ///< the learnt overlap limit (see params)
+  size_t global_overlap_own = 0;         ///< own places it was learnt from
+  size_t global_overlap_impostors = 0;   ///< impostor places that passed the fitness test
+  double global_overlap_own_low = 0.0;   ///< the own places' overlap at global_false_match_rate
+  double global_overlap_impostor_high = 0.0;  ///< the impostors' at 1 - global_false_match_rate
+  double global_overlap_learn_ms = 0.0;
 };
+
+/// The overlap limit from the overlaps of map keyframes at their own places and at impostor
+/// places (see LocalizationParams::global_overlap_samples).
+struct OverlapLimit {
+  double limit = 0.0;
+  double own_low = 0.0;        ///< the own places' overlap at the rate
+  double impostor_high = 0.0;  ///< the impostors' at 1 - rate
+  bool separable = false;      ///< impostor_high < own_low, from >= 10 own places
+};
+OverlapLimit learnOverlapLimitFrom(std::vector<double> own, std::vector<double> impostor,
+                                   double min_overlap, double rate);
 
 class Localizer {
  public:
@@ -172,8 +200,26 @@ class Localizer {
   /// The places worth registering, best first, 5 m apart (global_method decides the sources).
   std::vector<Place> candidatePlaces(const PointCloudConstPtr& cloud);
   void addScanContextPlaces(const PointCloudConstPtr& cloud, std::vector<Place>& places) const;
+  /// The keyframes whose Scan Context is under the limit, nearest first (only those at least
+  /// away_distance from away_from, when given).
+  std::vector<Place> scanContextPlaces(const ScanContext& query, const Eigen::Vector2d* away_from,
+                                       double away_distance) const;
+  /// The first places of the list 5 m apart from each other, at most max_places.
+  std::vector<Place> distinctPlaces(const std::vector<Place>& places, int max_places) const;
   void learnDescriptorLimit();
+  void learnOverlapLimit();
+  /// Coarse, then fine registration of the cloud at the place; fills the record's pose, fitness,
+  /// overlap and outcome (up to "overlap": the limit is the caller's). True: it passed the
+  /// fitness test.
+  bool registerAtPlace(const PointCloudConstPtr& cloud, const PointCloudConstPtr& coarse_source,
+                       const Place& place, GlobalCandidate& record) const;
+  /// Of the cloud's points at pose inside the map region (centre, radius): the fraction within
+  /// global_overlap_distance of target, and the same of the structure points.
+  std::pair<double, double> overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& pose,
+                                      const PointCloudConstPtr& target,
+                                      const Eigen::Vector2d& centre, double radius) const;
   double descriptor_limit_ = 0.6;  ///< learnt at construction
+  double overlap_limit_ = 0.6;     ///< learnt at construction
   LocalizationParams params_;
   std::shared_ptr<const MapPackage> map_;
   std::unique_ptr<Impl> impl_;

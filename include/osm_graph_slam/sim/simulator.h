@@ -33,6 +33,10 @@ struct ScanDropParams {
 
 struct SimulationParams {
   uint64_t seed = 1;
+  /// The world's own seed (the procedural city's layout, every building's height); 0: seed.
+  /// Two drives with the same world_seed and different seeds take other routes through the same
+  /// world (a map drive and a drive to localise on it), each with its own clutter and noise.
+  uint64_t world_seed = 0;
   std::string osm_path;  ///< empty: procedural city
   /// ENU origin. NaN: for an OSM extract the centre of its buildings' bounding box (a point of
   /// the extract), for the procedural city Karlsruhe (49.0110, 8.4170).
