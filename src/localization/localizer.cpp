@@ -217,12 +217,19 @@ void Localizer::learnOverlapLimit() {
     const MapKeyframe& kf = map_->keyframes[index];
     if (!kf.cloud || kf.cloud->size() < static_cast<size_t>(params_.min_points)) continue;
     const Eigen::Vector2d centre = impl_->keyframe_xy[index];
-    // Its own place, seen without its own points (another pass sees the place from elsewhere).
-    // The map was built at the keyframe poses: no registration needed to put it in place.
+    // Its own place, seen without its own points (another pass sees the place from elsewhere),
+    // mapped by keyframes thinned to kOwnSpacing (a map of every keyframe per sample costs
+    // seconds on a city map). The map was built at the keyframe poses: no registration needed.
+    constexpr double kOwnSpacing = 5.0;  // [m]
     std::vector<KeyframeState> others;
+    std::vector<Eigen::Vector2d> picked{centre};
     for (size_t j = 0; j < n; ++j) {
-      if (j == index || !map_->keyframes[j].cloud) continue;
-      if ((impl_->keyframe_xy[j] - centre).norm() > radius + 30.0) continue;
+      const Eigen::Vector2d& xy = impl_->keyframe_xy[j];
+      if (j == index || !map_->keyframes[j].cloud || (xy - centre).norm() > radius) continue;
+      bool near = false;
+      for (const auto& q : picked) near = near || (xy - q).norm() < kOwnSpacing;
+      if (near) continue;
+      picked.push_back(xy);
       KeyframeState& o = others.emplace_back();
       o.map_pose = map_->keyframes[j].pose;
       o.cloud = map_->keyframes[j].cloud;
