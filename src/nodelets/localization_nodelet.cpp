@@ -114,6 +114,16 @@ class LocalizationNodelet : public nodelet::Nodelet {
         NODELET_INFO("localization: map %s, %zu keyframes, %zu points (ready in %.1f s), %s",
                      map_dir.c_str(), map->keyframes.size(), map->map_cloud->size(), s,
                      params.registration.method.c_str());
+        if (localizer_) {
+          const LocalizationStats& st = localizer_->stats();
+          NODELET_INFO(
+              "localization: global search limits learnt from the map: Scan Context %.3f, "
+              "overlap %.3f (own places %.3f over %zu, impostors %.3f over %zu%s; %.1f s)",
+              st.global_descriptor_limit, st.global_overlap_limit, st.global_overlap_own_low,
+              st.global_overlap_own, st.global_overlap_impostor_high, st.global_overlap_impostors,
+              st.global_overlap_limit > params.global_min_overlap ? "" : "; the floor stays",
+              st.global_overlap_learn_ms / 1000.0);
+        }
         if (!osm_file.empty())
           NODELET_WARN(
               "localization: osm_file is not used here (the map package's corrected "
