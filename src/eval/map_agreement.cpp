@@ -43,6 +43,14 @@ double maxVertexShift(const Building& a, const Building& b) {
   return shift;
 }
 
+/// The building moved by the planar transform (x, y, yaw).
+Building transformed(const Building& b, const Eigen::Vector3d& xyyaw) {
+  Building out = b;
+  const Eigen::Rotation2Dd r(xyyaw.z());
+  for (auto& v : out.outline_enu) v = r * v + xyyaw.head<2>();
+  return out;
+}
+
 }  // namespace
 
 WallAgreement evaluateWallAgreement(const std::vector<PosedCloud>& keyframes,
@@ -80,6 +88,10 @@ WallAgreement evaluateWallAgreement(const std::vector<PosedCloud>& keyframes,
       ++out.unobserved;
       if (shift > out.max_unobserved_shift)
         out.max_unobserved_shift = shift, out.max_unobserved_shift_id = pairs[i].first->id;
+      if (o.datum)
+        out.max_unobserved_shift_after_datum =
+            std::max(out.max_unobserved_shift_after_datum,
+                     maxVertexShift(transformed(*pairs[i].first, *o.datum), *pairs[i].second));
       continue;
     }
     BuildingAgreement a;

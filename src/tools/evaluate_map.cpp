@@ -9,15 +9,19 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
 #include <string>
 
 #include "osm_graph_slam/eval/map_agreement.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/graph_dump.h"
 
 using namespace osm_graph_slam;
@@ -71,6 +75,22 @@ bool loadRun(const std::string& dir, Run& run, std::string* error) {
   return true;
 }
 
+/// The OSM datum vertex of the run's graph.g2o (the extract's common offset the back-end
+/// estimated), if the run had one.
+std::optional<Eigen::Vector3d> readDatum(const std::string& dir) {
+  std::ifstream in(fs::path(dir) / "graph.g2o");
+  std::string line, tag;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    long long id = 0;
+    Eigen::Vector3d v;
+    if (ls >> tag >> id >> v.x() >> v.y() >> v.z() && tag == "VERTEX_SE2" &&
+        id == GraphBackend::kOsmDatumVertex)
+      return v;
+  }
+  return std::nullopt;
+}
+
 int usage(const std::string& why) {
   std::cerr << "evaluate_map: " << why << "\n"
             << "usage: evaluate_map --run DIR [--baseline DIR] [--min-z Z] [--max-z Z] [--json]\n"
@@ -112,6 +132,7 @@ int main(int argc, char** argv) {
   const MapSharpness sharp = evaluateMapSharpness(run.keyframes);
   doc["sharpness"] = {{"points", sharp.points}, {"mean_plane_variance", sharp.mean_plane_variance}};
   if (!run.corrected.empty()) {
+    options.datum = readDatum(run_dir);
     const WallAgreement w =
         evaluateWallAgreement(run.keyframes, run.dump.buildings, run.corrected, options);
     nlohmann::json rows = nlohmann::json::array();
@@ -133,6 +154,11 @@ int main(int argc, char** argv) {
                     {"unobserved_buildings", w.unobserved},
                     {"max_unobserved_shift_m", w.max_unobserved_shift},
                     {"max_unobserved_shift_id", w.max_unobserved_shift_id},
+                    {"max_unobserved_shift_after_datum_m", w.max_unobserved_shift_after_datum},
+                    {"osm_datum", options.datum ? nlohmann::json{{"x_m", options.datum->x()},
+                                                                 {"y_m", options.datum->y()},
+                                                                 {"yaw_rad", options.datum->z()}}
+                                                : nlohmann::json()},
                     {"buildings", rows}};
   }
   if (!baseline_dir.empty()) {
@@ -181,6 +207,13 @@ int main(int argc, char** argv) {
         w["prior_p90_m"].get<double>(), w["corrected_p90_m"].get<double>(),
         w["unobserved_buildings"].get<size_t>(), w["max_unobserved_shift_m"].get<double>(),
         w["max_unobserved_shift_id"].get<long long>());
+    if (!w["osm_datum"].is_null())
+      std::printf(
+          "OSM datum (the extract's common offset) %.3f, %.3f m, %.3f deg; the largest "
+          "unobserved shift after it %.3f m\n",
+          w["osm_datum"]["x_m"].get<double>(), w["osm_datum"]["y_m"].get<double>(),
+          w["osm_datum"]["yaw_rad"].get<double>() * 180.0 / M_PI,
+          w["max_unobserved_shift_after_datum_m"].get<double>());
   }
   if (doc.count("baseline")) {
     const auto& b = doc["baseline"];

@@ -56,6 +56,21 @@ TEST(WallAgreement, CorrectedOutlineOnTheWallsAndUnobservedShift) {
   EXPECT_NEAR(w.max_unobserved_shift, 0.5, 1e-9);
   EXPECT_EQ(w.max_unobserved_shift_id, 2);
 
+  // With the back-end's OSM datum (the extract's common offset), what the unobserved building
+  // moved on its own: here it moved exactly with a datum of (0.3, 0.4), so nothing; a datum
+  // rotated about the origin moves building 2 (at 100 m) by 1.4 m more.
+  WallAgreementOptions with_datum;
+  with_datum.datum = Eigen::Vector3d(0.3, 0.4, 0.0);
+  const WallAgreement wd =
+      evaluateWallAgreement(kfs, {prior1, prior2}, {corrected1, corrected2}, with_datum);
+  EXPECT_NEAR(wd.max_unobserved_shift, 0.5, 1e-9);
+  EXPECT_NEAR(wd.max_unobserved_shift_after_datum, 0.0, 1e-9);
+  with_datum.datum = Eigen::Vector3d(0.3, 0.4, 0.01);
+  EXPECT_GT(evaluateWallAgreement(kfs, {prior1, prior2}, {corrected1, corrected2}, with_datum)
+                .max_unobserved_shift_after_datum,
+            1.0);
+  EXPECT_DOUBLE_EQ(w.max_unobserved_shift_after_datum, -1.0) << "no datum given";
+
   // Points outside the height band are not walls (a car at 0.5 m, a roof at 8 m).
   WallAgreementOptions high;
   high.min_z = 5.0;

@@ -4,6 +4,7 @@
 // moved that no keyframe saw, and how sharp the accumulated map is (a prior that bends the
 // trajectory blurs it).
 #include <cstdint>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -22,6 +23,9 @@ struct WallAgreementOptions {
   double max_distance = 3.0;  ///< [m] points farther from every outline are not walls of one
   double voxel = 0.2;         ///< [m] of the accumulated wall points (each place counts once)
   size_t min_points = 50;     ///< a building with fewer points counts as unobserved
+  /// The back-end's OSM datum (x, y, yaw: the extract's common offset it estimated), if any:
+  /// the unobserved buildings' shift is also reported after it (what they moved on their own).
+  std::optional<Eigen::Vector3d> datum;
 };
 
 struct BuildingAgreement {
@@ -41,6 +45,8 @@ struct WallAgreement {
   size_t unobserved = 0;
   double max_unobserved_shift = 0;  ///< [m]
   int64_t max_unobserved_shift_id = 0;
+  /// [m] the largest unobserved shift left after the datum's (options.datum given; else -1)
+  double max_unobserved_shift_after_datum = -1;
 };
 
 /// prior and corrected: the same buildings (matched by id and part), ENU filled.
