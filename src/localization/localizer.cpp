@@ -211,33 +211,13 @@ void Localizer::learnOverlapLimit() {
   const size_t samples =
       std::min(n, static_cast<size_t>(std::max(0, params_.global_overlap_samples)));
   std::vector<double> own, impostor;
-  const double radius = std::min(params_.local_map_radius, 50.0);
   for (size_t s = 0; s < samples; ++s) {
     const size_t index = (2 * s + 1) * n / (2 * samples);  // evenly spread over the drive
     const MapKeyframe& kf = map_->keyframes[index];
     if (!kf.cloud || kf.cloud->size() < static_cast<size_t>(params_.min_points)) continue;
     const Eigen::Vector2d centre = impl_->keyframe_xy[index];
-    // Its own place, seen without its own points (another pass sees the place from elsewhere),
-    // mapped by keyframes thinned to kOwnSpacing (a map of every keyframe per sample costs
-    // seconds on a city map). The map was built at the keyframe poses: no registration needed.
-    constexpr double kOwnSpacing = 5.0;  // [m]
-    std::vector<KeyframeState> others;
-    std::vector<Eigen::Vector2d> picked{centre};
-    for (size_t j = 0; j < n; ++j) {
-      const Eigen::Vector2d& xy = impl_->keyframe_xy[j];
-      if (j == index || !map_->keyframes[j].cloud || (xy - centre).norm() > radius) continue;
-      bool near = false;
-      for (const auto& q : picked) near = near || (xy - q).norm() < kOwnSpacing;
-      if (near) continue;
-      picked.push_back(xy);
-      KeyframeState& o = others.emplace_back();
-      o.map_pose = map_->keyframes[j].pose;
-      o.cloud = map_->keyframes[j].cloud;
-    }
-    const PointCloudPtr own_map = buildMapCloud(others, params_.map_voxel_size);
-    const PointCloudPtr target = MapGrid(own_map, 10.0).crop(centre, radius);
-    if (target->size() >= static_cast<size_t>(params_.min_points))
-      own.push_back(overlapAt(*kf.cloud, kf.pose, target, centre, radius).first);
+    const double own_overlap = ownPlaceOverlap(index);
+    if (own_overlap >= 0.0) own.push_back(own_overlap);
     // The other places Scan Context proposes for it.
     const PointCloudPtr coarse_source = voxelize(kf.cloud, params_.global_voxel_size);
     const std::vector<Place> places =
@@ -258,6 +238,33 @@ void Localizer::learnOverlapLimit() {
   stats_.global_overlap_impostor_high = limit.impostor_high;
   stats_.global_overlap_limit = overlap_limit_;
   stats_.global_overlap_learn_ms = msSince(t0);
+}
+
+double Localizer::ownPlaceOverlap(size_t index) const {
+  // Its own place, seen without its own points (another pass sees the place from elsewhere),
+  // mapped by keyframes thinned to kOwnSpacing (a map of every keyframe per sample costs
+  // seconds on a city map). The map was built at the keyframe poses: no registration needed.
+  constexpr double kOwnSpacing = 5.0;  // [m]
+  const MapKeyframe& kf = map_->keyframes[index];
+  const Eigen::Vector2d& centre = impl_->keyframe_xy[index];
+  const double radius = globalSearchRadius();
+  std::vector<KeyframeState> others;
+  std::vector<Eigen::Vector2d> picked{centre};
+  for (size_t j = 0; j < map_->keyframes.size(); ++j) {
+    const Eigen::Vector2d& xy = impl_->keyframe_xy[j];
+    if (j == index || !map_->keyframes[j].cloud || (xy - centre).norm() > radius) continue;
+    bool near = false;
+    for (const auto& q : picked) near = near || (xy - q).norm() < kOwnSpacing;
+    if (near) continue;
+    picked.push_back(xy);
+    KeyframeState& o = others.emplace_back();
+    o.map_pose = map_->keyframes[j].pose;
+    o.cloud = map_->keyframes[j].cloud;
+  }
+  const PointCloudPtr target =
+      MapGrid(buildMapCloud(others, params_.map_voxel_size), 10.0).crop(centre, radius);
+  if (target->size() < static_cast<size_t>(params_.min_points)) return -1.0;
+  return overlapAt(*kf.cloud, kf.pose, target, centre, radius).first;
 }
 
 double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
@@ -370,7 +377,7 @@ bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
                                 GlobalCandidate& record) const {
   const MapKeyframe& kf = map_->keyframes[place.index];
   const Eigen::Vector2d centre = kf.pose.translation().head<2>();
-  const double radius = std::min(params_.local_map_radius, 50.0);
+  const double radius = globalSearchRadius();
   record.keyframe_id = kf.id;
   record.source = place.source;
   record.descriptor_distance = place.descriptor_distance;

@@ -9,15 +9,15 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <sstream>
 #include <string>
 
 #include "osm_graph_slam/eval/map_agreement.h"
+#include "osm_graph_slam/graph/g2o_io.h"
+#include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -78,17 +78,11 @@ bool loadRun(const std::string& dir, Run& run, std::string* error) {
 /// The OSM datum vertex of the run's graph.g2o (the extract's common offset the back-end
 /// estimated), if the run had one.
 std::optional<Eigen::Vector3d> readDatum(const std::string& dir) {
-  std::ifstream in(fs::path(dir) / "graph.g2o");
-  std::string line, tag;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    long long id = 0;
-    Eigen::Vector3d v;
-    if (ls >> tag >> id >> v.x() >> v.y() >> v.z() && tag == "VERTEX_SE2" &&
-        id == GraphBackend::kOsmDatumVertex)
-      return v;
-  }
-  return std::nullopt;
+  PoseGraph graph;
+  if (!readG2o((fs::path(dir) / "graph.g2o").string(), &graph).ok) return std::nullopt;
+  const std::optional<Pose2> datum = graph.vertexSE2(GraphBackend::kOsmDatumVertex);
+  if (!datum) return std::nullopt;
+  return Eigen::Vector3d(datum->x, datum->y, datum->theta);
 }
 
 int usage(const std::string& why) {

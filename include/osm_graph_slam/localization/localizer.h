@@ -8,6 +8,7 @@
 // Scans farther than off_map_distance from every keyframe are flagged off the map: predicted
 // only, never corrected against a map that is not there.
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <string>
@@ -208,6 +209,11 @@ class Localizer {
   std::vector<Place> distinctPlaces(const std::vector<Place>& places, int max_places) const;
   void learnDescriptorLimit();
   void learnOverlapLimit();
+  /// The overlap of map keyframe index at its own place without its own points (-1: no map
+  /// around it).
+  double ownPlaceOverlap(size_t index) const;
+  /// [m] the map region a global candidate is registered against.
+  double globalSearchRadius() const { return std::min(params_.local_map_radius, 50.0); }
   /// Coarse, then fine registration of the cloud at the place; fills the record's pose, fitness,
   /// overlap and outcome (up to "overlap": the limit is the caller's). True: it passed the
   /// fitness test.
