@@ -179,7 +179,17 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   }
   bag.close();
   std::filesystem::remove_all(dir);
-  ros::WallDuration(0.5).sleep();
+  // Status, filtered clouds and keyframes are topics of their own: the last may arrive after its
+  // odometry (a fixed 0.5 s wait lost one on a loaded CI machine). Wait for them, bounded.
+  waitFor(
+      [&] {
+        return count([&] {
+          return rx.filtered >= kScans && rx.status.size() >= size_t(kScans) &&
+                 rx.keyframes.size() >= 2;
+        });
+      },
+      30.0);
+  ros::WallDuration(0.5).sleep();  // anything beyond kScans would show up in the counts below
 
   std::lock_guard<std::mutex> lock(rx.mutex);
   EXPECT_EQ(rx.filtered, kScans);
