@@ -8,6 +8,7 @@
 
 #include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/osm/building_set.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -59,16 +60,24 @@ WallAgreement evaluateWallAgreement(const std::vector<PosedCloud>& keyframes,
                                     const WallAgreementOptions& o) {
   std::map<std::pair<int64_t, int>, const Building*> corrected_by_id;
   for (const auto& b : corrected) corrected_by_id[{b.id, b.part}] = &b;
-  std::vector<std::pair<const Building*, const Building*>> pairs;  // prior, corrected
+  std::vector<std::pair<const Building*, const Building*>> pairs, roofs;  // prior, corrected
   for (const auto& b : prior) {
     const auto it = corrected_by_id.find({b.id, b.part});
-    if (it != corrected_by_id.end() && b.outline_enu.size() >= 3) pairs.push_back({&b, it->second});
+    if (it == corrected_by_id.end() || b.outline_enu.size() < 3) continue;
+    (isRoofOnly(b) ? roofs : pairs).push_back({&b, it->second});
   }
+  WallAgreement out;
+  for (const auto& [p, c] : roofs)
+    out.roof_only.push_back({p->id, p->part, 0, 0, maxVertexShift(*p, *c)});
   // Each wall point belongs to the building whose outline (prior or corrected) is nearest.
   std::vector<std::vector<double>> d_prior(pairs.size()), d_corrected(pairs.size());
   const PointCloudPtr walls = accumulate(keyframes, o.voxel, o.min_z, o.max_z);
   for (const auto& p : walls->points) {
     const Eigen::Vector2d x(p.x, p.y);
+    for (size_t i = 0; i < roofs.size(); ++i) {
+      out.roof_only[i].inside_prior += pointInPolygon(x, roofs[i].first->outline_enu);
+      out.roof_only[i].inside_corrected += pointInPolygon(x, roofs[i].second->outline_enu);
+    }
     size_t best = pairs.size();
     double best_d = o.max_distance, bp = 0, bc = 0;
     for (size_t i = 0; i < pairs.size(); ++i) {
@@ -80,7 +89,6 @@ WallAgreement evaluateWallAgreement(const std::vector<PosedCloud>& keyframes,
     d_prior[best].push_back(bp);
     d_corrected[best].push_back(bc);
   }
-  WallAgreement out;
   std::vector<double> pm, cm, p9, c9;
   for (size_t i = 0; i < pairs.size(); ++i) {
     const double shift = maxVertexShift(*pairs[i].first, *pairs[i].second);

@@ -15,4 +15,13 @@ std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
   return pairs;
 }
 
+bool isRoofOnly(const Building& building) {
+  const auto tag = [&](const char* key) {
+    const auto it = building.tags.find(key);
+    return it == building.tags.end() ? std::string() : it->second;
+  };
+  const std::string type = tag("building");
+  return type == "roof" || type == "carport" || tag("building:walls") == "no";
+}
+
 }  // namespace osm_graph_slam

@@ -139,6 +139,13 @@ int main(int argc, char** argv) {
                       {"corrected_median_m", b.corrected_median},
                       {"corrected_p90_m", b.corrected_p90},
                       {"shift_m", b.shift}});
+    nlohmann::json roofs = nlohmann::json::array();
+    for (const auto& r : w.roof_only)
+      roofs.push_back({{"id", r.id},
+                       {"part", r.part},
+                       {"points_inside_prior", r.inside_prior},
+                       {"points_inside_corrected", r.inside_corrected},
+                       {"shift_m", r.shift}});
     doc["walls"] = {{"observed_buildings", w.observed.size()},
                     {"points", w.points},
                     {"prior_median_m", w.prior_median},
@@ -153,7 +160,8 @@ int main(int argc, char** argv) {
                                                                  {"y_m", options.datum->y()},
                                                                  {"yaw_rad", options.datum->z()}}
                                                 : nlohmann::json()},
-                    {"buildings", rows}};
+                    {"buildings", rows},
+                    {"roof_only", roofs}};
   }
   if (!baseline_dir.empty()) {
     const MapSharpness b = evaluateMapSharpness(baseline.keyframes);
@@ -201,6 +209,12 @@ int main(int argc, char** argv) {
         w["prior_p90_m"].get<double>(), w["corrected_p90_m"].get<double>(),
         w["unobserved_buildings"].get<size_t>(), w["max_unobserved_shift_m"].get<double>(),
         w["max_unobserved_shift_id"].get<long long>());
+    for (const auto& r : w["roof_only"])
+      std::printf(
+          "roof only (building=roof/carport: no walls, not measured) %lld: wall-band points under "
+          "it prior %zu -> corrected %zu, shift %.3f m\n",
+          r["id"].get<long long>(), r["points_inside_prior"].get<size_t>(),
+          r["points_inside_corrected"].get<size_t>(), r["shift_m"].get<double>());
     if (!w["osm_datum"].is_null())
       std::printf(
           "OSM datum (the extract's common offset) %.3f, %.3f m, %.3f deg; the largest "

@@ -2,9 +2,12 @@
 // of unobserved buildings, and map sharpness (a blurred map scores worse).
 #include <gtest/gtest.h>
 
+#include <map>
 #include <random>
+#include <string>
 
 #include "osm_graph_slam/eval/map_agreement.h"
+#include "osm_graph_slam/osm/building_set.h"
 
 using namespace osm_graph_slam;
 
@@ -76,6 +79,45 @@ TEST(WallAgreement, CorrectedOutlineOnTheWallsAndUnobservedShift) {
   high.min_z = 5.0;
   high.max_z = 9.0;
   EXPECT_TRUE(evaluateWallAgreement(kfs, {prior1}, {corrected1}, high).observed.empty());
+}
+
+TEST(WallAgreement, ARoofOnOpenSidesIsNotMeasuredByTheWallsBesideIt) {
+  // The real drive's tram shelter (building=roof): a fence runs 1.2 m beside the prior outline
+  // and 3.5 m from the corrected one, which lies on the shelter's own points (its roof, seen
+  // from below). As a building with walls the fence made the correction look 3 m wrong.
+  Building prior = square(5, {0, 11.2}, 4), corrected = square(5, {0, 2.5}, 4);
+  PointCloudPtr points = wallPoints(-1, 5, 10, 0.02, 2);  // the fence
+  for (double x = 0.5; x < 3.6; x += 0.25)
+    for (double y = 3.0; y < 6.0; y += 0.25) {
+      PointT p;
+      p.x = static_cast<float>(x), p.y = static_cast<float>(y), p.z = 2.8f;
+      points->push_back(p);
+    }
+  const std::vector<PosedCloud> kfs = {{Eigen::Isometry3d::Identity(), points}};
+  const WallAgreement as_walls = evaluateWallAgreement(kfs, {prior}, {corrected});
+  ASSERT_EQ(as_walls.observed.size(), 1u);
+  EXPECT_GT(as_walls.corrected_median, as_walls.prior_median + 1.0);
+
+  prior.tags["building"] = corrected.tags["building"] = "roof";
+  const WallAgreement w = evaluateWallAgreement(kfs, {prior}, {corrected});
+  EXPECT_TRUE(w.observed.empty());
+  EXPECT_EQ(w.unobserved, 0u);
+  ASSERT_EQ(w.roof_only.size(), 1u);
+  EXPECT_EQ(w.roof_only[0].id, 5);
+  EXPECT_EQ(w.roof_only[0].inside_prior, 0u);
+  EXPECT_GT(w.roof_only[0].inside_corrected, 100u);
+  EXPECT_NEAR(w.roof_only[0].shift, 8.7, 1e-9);
+
+  for (const auto& [key, value] :
+       std::map<std::string, std::string>{{"building", "carport"}, {"building:walls", "no"}}) {
+    Building b = square(6, {0, 0}, 4);
+    b.tags[key] = value;
+    EXPECT_TRUE(isRoofOnly(b)) << key << "=" << value;
+  }
+  Building house = square(7, {0, 0}, 4);
+  house.tags["building"] = "yes";
+  house.tags["amenity"] = "shelter";  // a shelter with walls
+  EXPECT_FALSE(isRoofOnly(house));
 }
 
 TEST(MapSharpness, ABlurredMapScoresWorse) {

@@ -37,9 +37,20 @@ struct BuildingAgreement {
   double shift = 0;  ///< [m] largest vertex displacement, corrected vs prior
 };
 
+/// A roof on open sides (isRoofOnly): no walls to measure; what lies under it instead.
+struct RoofAgreement {
+  int64_t id = 0;
+  int part = 0;
+  size_t inside_prior = 0, inside_corrected = 0;  ///< wall-band points inside the outline
+  double shift = 0;                               ///< [m] as BuildingAgreement::shift
+};
+
 struct WallAgreement {
   std::vector<BuildingAgreement> observed;  ///< buildings with >= min_points wall points
-  size_t points = 0;                        ///< wall points assigned to observed buildings
+  /// Left out of the wall measure and of `unobserved`: the points near a shelter's outline are
+  /// those of the platform, fence or tram beside it (real drive 0005), not its walls.
+  std::vector<RoofAgreement> roof_only;
+  size_t points = 0;  ///< wall points assigned to observed buildings
   /// Medians over the observed buildings of their per-building medians / 90th percentiles.
   double prior_median = 0, corrected_median = 0, prior_p90 = 0, corrected_p90 = 0;
   size_t unobserved = 0;

@@ -16,4 +16,8 @@ inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
 std::vector<std::pair<size_t, size_t>> findOverlappingBuildings(
     const std::vector<Building>& buildings, double min_area = 0.05);
 
+/// Whether OSM says the outline is a roof on open sides (`building=roof` or `carport`, or
+/// `building:walls=no`): a tram shelter, a petrol-station canopy. Its outline edges are not walls.
+bool isRoofOnly(const Building& building);
+
 }  // namespace osm_graph_slam
