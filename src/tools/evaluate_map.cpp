@@ -20,6 +20,8 @@
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/osm/building_set.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/graph_dump.h"
@@ -83,6 +85,28 @@ std::optional<Eigen::Vector3d> readDatum(const std::string& dir) {
   const std::optional<Pose2> datum = graph.vertexSE2(GraphBackend::kOsmDatumVertex);
   if (!datum) return std::nullopt;
   return Eigen::Vector3d(datum->x, datum->y, datum->theta);
+}
+
+/// The pairs of corrected buildings that overlap (as the back-end counts them), with the area
+/// and the same pair's overlap in the prior.
+nlohmann::json overlapsJson(const std::vector<Building>& prior,
+                            const std::vector<Building>& corrected) {
+  std::map<std::pair<int64_t, int>, const Building*> prior_by_id;
+  for (const auto& b : prior) prior_by_id[{b.id, b.part}] = &b;
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& [i, j] : findOverlappingBuildings(corrected)) {
+    const Building &a = corrected[i], &b = corrected[j];
+    const auto pa = prior_by_id.find({a.id, a.part}), pb = prior_by_id.find({b.id, b.part});
+    const double prior_area =
+        pa != prior_by_id.end() && pb != prior_by_id.end()
+            ? polygonOverlapArea(pa->second->outline_enu, pb->second->outline_enu)
+            : 0.0;
+    out.push_back({{"a", a.id},
+                   {"b", b.id},
+                   {"area_m2", polygonOverlapArea(a.outline_enu, b.outline_enu)},
+                   {"prior_area_m2", prior_area}});
+  }
+  return out;
 }
 
 int usage(const std::string& why) {
@@ -160,6 +184,7 @@ int main(int argc, char** argv) {
                                                                  {"y_m", options.datum->y()},
                                                                  {"yaw_rad", options.datum->z()}}
                                                 : nlohmann::json()},
+                    {"overlapping_pairs", overlapsJson(run.dump.buildings, run.corrected)},
                     {"buildings", rows},
                     {"roof_only", roofs}};
   }
@@ -209,6 +234,11 @@ int main(int argc, char** argv) {
         w["prior_p90_m"].get<double>(), w["corrected_p90_m"].get<double>(),
         w["unobserved_buildings"].get<size_t>(), w["max_unobserved_shift_m"].get<double>(),
         w["max_unobserved_shift_id"].get<long long>());
+    std::printf("overlapping pairs of corrected buildings: %zu\n", w["overlapping_pairs"].size());
+    for (const auto& o : w["overlapping_pairs"])
+      std::printf("  %lld and %lld: %.3f m^2 (prior %.3f m^2)\n", o["a"].get<long long>(),
+                  o["b"].get<long long>(), o["area_m2"].get<double>(),
+                  o["prior_area_m2"].get<double>());
     for (const auto& r : w["roof_only"])
       std::printf(
           "roof only (building=roof/carport: no walls, not measured) %lld: wall-band points under "
