@@ -344,6 +344,22 @@ TEST(LineMatcherOverlap, RotatedIntrusionIsSeparatedWithinTheRotationBound) {
   EXPECT_LT(r.translation, 2.0);  // a local fix, not a jump across the block
 }
 
+TEST(LineMatcherOverlap, ACornerWithNoParallelWallIsShiftedOut) {
+  // A's corner pokes 0.5 m into B's east wall and A is turned 45 deg: no wall of A is within
+  // the 10 deg bound of a wall of B, so no flush or corner hypothesis applies (the real drive's
+  // last overlap, 1.07 m^2, was such a case). The shortest shift separates them.
+  const Polygon2 b = {{0, 0}, {10, 0}, {10, 10}, {0, 10}};
+  const Polygon2 a_local = {{0, 0}, {4, 0}, {4, 4}, {0, 4}};
+  const Pose2 guess(9.5, 5.0, -45.0 * kDeg);  // corner at (9.5, 5), the square to the east
+  ASSERT_GT(polygonOverlapArea(transformPolygon(a_local, guess), b), 0.2);
+  const LineMatchResult r = LineMatcher().removeOverlap(a_local, guess, b);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_LT(polygonOverlapArea(transformPolygon(a_local, r.transform), b), 0.05);
+  EXPECT_DOUBLE_EQ(r.transform.theta, guess.theta);
+  EXPECT_GT(r.transform.x, guess.x);  // out through the wall it entered
+  EXPECT_LT(r.translation, 0.5);
+}
+
 TEST(LineMatcherOverlap, SeparatedOutlinesAreLeftAlone) {
   const Polygon2 b = {{0, 0}, {12, 0}, {12, 10}, {0, 10}};
   const Polygon2 a = {{0, 0}, {5, 0}, {5, 5}, {0, 5}};
