@@ -152,6 +152,7 @@ TEST_F(RealDrive, Kitti0005RunsEndToEndWithAndWithoutOsm) {
   EXPECT_LE(corrected_walls, 0.30);  // issue 28's target (measured 0.264 m over 17 buildings)
   EXPECT_LT(m["baseline"]["sharpness_change"].get<double>(), 0.01);  // measured -0.5 %
   EXPECT_LT(m["baseline"]["trajectory_difference_max_m"].get<double>(), 0.5);
+  EXPECT_TRUE(m["walls"]["overlapping_pairs"].empty()) << m["walls"]["overlapping_pairs"].dump();
   // The tram shelter (building=roof) is not measured by the platform's points beside it; the
   // corrected outline lies over the shelter's own points (measured: 0 -> 218 points under it).
   bool shelter = false;
