@@ -221,7 +221,17 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
   return result;
 }
 
-TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud,
+PointCloudConstPtr KeyframeTracker::deskewed(const PointCloudConstPtr& cloud) const {
+  const double dt_prev = last_stamp_ - prev_stamp_;
+  if (!params_.deskew || poses_seen_ < 2 || dt_prev <= 1e-9) return cloud;
+  const Eigen::Isometry3d motion =
+      scaleMotion(prev_pose_.inverse() * pose_, params_.sweep.period / dt_prev);
+  auto out = std::make_shared<PointCloud>(*cloud);
+  deskewCloud(*out, params_.sensor_to_base, motion, params_.sweep);
+  return out;
+}
+
+TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_cloud,
                                    const std::optional<Eigen::Quaterniond>& imu_orientation) {
   TrackResult result;
   result.keyframe_id = keyframe_.id;
@@ -230,8 +240,8 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
     result.message = "stamp is not finite";
     return result;
   }
-  const bool cloud_ok = cloud && static_cast<int>(cloud->size()) >= params_.min_points;
-  if (cloud_ok && jumpedBack(stamp)) return restart(stamp, cloud, imu_orientation);
+  const bool cloud_ok = raw_cloud && static_cast<int>(raw_cloud->size()) >= params_.min_points;
+  if (cloud_ok && jumpedBack(stamp)) return restart(stamp, raw_cloud, imu_orientation);
   if (has_keyframe_ && stamp <= last_stamp_) {
     std::ostringstream why;
     why << std::fixed << std::setprecision(3) << "stamp " << stamp
@@ -243,11 +253,12 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& cloud
   }
   if (!cloud_ok) {
     result.status = TrackStatus::kRejectedCloud;
-    result.message = "cloud has " + std::to_string(cloud ? cloud->size() : 0) +
+    result.message = "cloud has " + std::to_string(raw_cloud ? raw_cloud->size() : 0) +
                      " points, fewer than min_points " + std::to_string(params_.min_points);
     result.pose = pose_;
     return result;
   }
+  const PointCloudConstPtr cloud = deskewed(raw_cloud);
 
   if (!has_keyframe_) {
     try {

@@ -38,6 +38,9 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("recovery_yaw_step", p.recovery_yaw_step);
   r.param("recovery_yaw_steps", p.recovery_yaw_steps);
   r.param("reanchor_after_failures", p.reanchor_after_failures);
+  r.param("deskew", p.deskew);
+  r.param("sweep_period", p.sweep.period);
+  r.param("sweep_clockwise", p.sweep.clockwise);
 }
 
 }  // namespace osm_graph_slam

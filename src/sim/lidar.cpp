@@ -48,8 +48,8 @@ inline void columnGeometry(const LidarModel& m, int c, double& dt, double& azimu
 }  // namespace
 
 SimulatedScan simulateScan(const World& world, const LidarModel& model, const SensorPoseFn& pose,
-                           double stamp, uint64_t seed, uint64_t scan_index,
-                           bool motion_distortion) {
+                           double stamp, uint64_t seed, uint64_t scan_index, bool motion_distortion,
+                           bool compensated_sweep) {
   const int beams = int(model.elevations_deg.size());
   const size_t rays = model.numRays();
   std::vector<float> range(rays, -1.0f), intensity(rays, 0.0f);
@@ -83,8 +83,11 @@ SimulatedScan simulateScan(const World& world, const LidarModel& model, const Se
           double dt, az;
           columnGeometry(model, c, dt, az);
           const Eigen::Isometry3d T = motion_distortion ? pose(stamp + dt) : pose_at_stamp;
-          // Column pose expressed in the stamp frame (identity without distortion).
-          const Eigen::Isometry3d to_stamp = stamp_inv * T;
+          // A driver without motion compensation (KITTI raw, a plain velodyne_pointcloud) gives
+          // each point in the frame of its own column; with compensated_sweep the simulator
+          // moves it to the stamp's frame by the true motion (what a perfect deskew would do).
+          const Eigen::Isometry3d to_stamp =
+              compensated_sweep ? stamp_inv * T : Eigen::Isometry3d::Identity();
           const double ca = std::cos(az), sa = std::sin(az);
           for (int b = 0; b < beams; ++b) {
             const size_t i = size_t(c) * beams + b;

@@ -275,7 +275,7 @@ OxtsRecord UrbanSimulator::measuredOxts(size_t k) const {
 SimulatedScan UrbanSimulator::simulate(size_t k) const {
   return simulateScan(
       scene_.world, params_.lidar, [this](double t) { return sensorPose(t); }, scanTime(k),
-      params_.seed, k, params_.motion_distortion);
+      params_.seed, k, params_.motion_distortion, params_.compensated_sweep);
 }
 
 bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& stats,
@@ -433,6 +433,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
        << ", \"alt\": " << fmt("%.3f", enu_->originAlt()) << "},\n"
        << "  \"sensor\": \"" << params_.lidar.name << "\",\n"
        << "  \"motion_distortion\": " << (params_.motion_distortion ? "true" : "false") << ",\n"
+       << "  \"compensated_sweep\": " << (params_.compensated_sweep ? "true" : "false") << ",\n"
        << "  \"calibration_error\": {\"elevation_bias_deg\": "
        << fmt("%.3f", params_.lidar.elevation_bias_deg)
        << ", \"beam_elevation_sigma_deg\": " << fmt("%.3f", params_.lidar.beam_elevation_sigma_deg)

@@ -24,6 +24,13 @@ class StageTimer {
   Clock::time_point t0_;
 };
 
+/// The tracker deskews in base_link and needs the LiDAR's mounting to know each point's azimuth.
+KeyframeTrackerParams trackerParams(const SlamPipelineParams& params) {
+  KeyframeTrackerParams tracker = params.tracker;
+  tracker.sensor_to_base = params.prefilter.sensor_to_base;
+  return tracker;
+}
+
 }  // namespace
 
 SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
@@ -33,7 +40,7 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
       logger_(logger ? std::move(logger) : std::make_shared<Logger>()),
       osm_source_(std::move(osm_source)),
       prefilter_(params.prefilter),
-      tracker_(params.tracker),
+      tracker_(trackerParams(params)),
       tracking_(params.tracker.lost_track_after),
       floor_(params.floor),
       floor_health_(params.floor.warn_after_missing),

@@ -16,36 +16,40 @@ using namespace osm_graph_slam::sim;
 namespace {
 
 void usage() {
-  std::fprintf(stderr,
-               "usage: simulate_urban --out DIR [options]\n"
-               "  --osm FILE              OSM extract (.osm/.osm.pbf); default: procedural city\n"
-               "  --seed N                (default 1)\n"
-               "  --world-seed N          the world's layout and heights (default: the seed);\n"
-               "                          another --seed drives other roads of the same world\n"
-               "  --length M              route length [m] (default 1500)\n"
-               "  --speed V               cruise speed [m/s] (default 8)\n"
-               "  --scans N               stop after N scans (default: whole route)\n"
-               "  --sensor hdl64e|os1_64|navtech  (default hdl64e; navtech radar: doc/radar.md)\n"
-               "  --radar-doppler-beta S (0.049)  --radar-no-skew   (navtech only)\n"
-               "  --motion-distortion     per-column sensor poses (default off)\n"
-               "  --origin LAT,LON[,ALT]  ENU origin (default: extract centre / Karlsruhe)\n"
-               "  --no-clutter            buildings and ground only\n"
-               "  --flat-ground           level ground (default: gentle slopes of a few percent)\n"
-               "  --world city|forest|park  procedural world (default city; forest/park: trails,\n"
-               "                          trees, undergrowth; doc/landmarks.md)\n"
-               "  --forest-density sparse|intermediate|dense  (default intermediate)\n"
-               "  --blocks NX,NY          procedural city size in blocks (default 7,6)\n"
-               "  --prior-translation-sigma M (1.0)  --prior-rotation-sigma-deg D (2.0)\n"
-               "  --prior-removal F (0.05)  --prior-phantom F (0.03)\n"
-               "  --dropout P (0.02)  --range-noise M (0.02)\n"
-               "  --elevation-bias-deg D (0)  --beam-elevation-sigma-deg D (0)\n"
-               "  --beam-range-offset-sigma M (0)   intrinsic calibration errors\n"
-               "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n"
-               "  --manoeuvres LIST       none (default), all, or a comma list of\n"
-               "                          sharp_turn,u_turn,stop,dead_end,long_straight\n"
-               "  --drop-scans F          each scan missing with probability F (default 0)\n"
-               "  --dropout-burst N[@T]   N consecutive scans missing, from T s (default:\n"
-               "                          a seeded time in the middle of the drive)\n");
+  std::fprintf(
+      stderr,
+      "usage: simulate_urban --out DIR [options]\n"
+      "  --osm FILE              OSM extract (.osm/.osm.pbf); default: procedural city\n"
+      "  --seed N                (default 1)\n"
+      "  --world-seed N          the world's layout and heights (default: the seed);\n"
+      "                          another --seed drives other roads of the same world\n"
+      "  --length M              route length [m] (default 1500)\n"
+      "  --speed V               cruise speed [m/s] (default 8)\n"
+      "  --scans N               stop after N scans (default: whole route)\n"
+      "  --sensor hdl64e|os1_64|navtech  (default hdl64e; navtech radar: doc/radar.md)\n"
+      "  --radar-doppler-beta S (0.049)  --radar-no-skew   (navtech only)\n"
+      "  --motion-distortion     per-column sensor poses, each point in its column's frame\n"
+      "                          as a driver without deskewing gives it (default off)\n"
+      "  --compensated-sweep     with --motion-distortion: points moved to the stamp's\n"
+      "                          frame by the true motion (a perfect deskew)\n"
+      "  --origin LAT,LON[,ALT]  ENU origin (default: extract centre / Karlsruhe)\n"
+      "  --no-clutter            buildings and ground only\n"
+      "  --flat-ground           level ground (default: gentle slopes of a few percent)\n"
+      "  --world city|forest|park  procedural world (default city; forest/park: trails,\n"
+      "                          trees, undergrowth; doc/landmarks.md)\n"
+      "  --forest-density sparse|intermediate|dense  (default intermediate)\n"
+      "  --blocks NX,NY          procedural city size in blocks (default 7,6)\n"
+      "  --prior-translation-sigma M (1.0)  --prior-rotation-sigma-deg D (2.0)\n"
+      "  --prior-removal F (0.05)  --prior-phantom F (0.03)\n"
+      "  --dropout P (0.02)  --range-noise M (0.02)\n"
+      "  --elevation-bias-deg D (0)  --beam-elevation-sigma-deg D (0)\n"
+      "  --beam-range-offset-sigma M (0)   intrinsic calibration errors\n"
+      "  --kitti-calibration-error   = 0.22 deg bias, 0.1 deg / 2 cm per beam\n"
+      "  --manoeuvres LIST       none (default), all, or a comma list of\n"
+      "                          sharp_turn,u_turn,stop,dead_end,long_straight\n"
+      "  --drop-scans F          each scan missing with probability F (default 0)\n"
+      "  --dropout-burst N[@T]   N consecutive scans missing, from T s (default:\n"
+      "                          a seeded time in the middle of the drive)\n");
   const SimulationParams d;  // the defaults
   const NavErrorParams& n = d.nav;
   const PriorPerturbationParams& r = d.prior;
@@ -108,6 +112,8 @@ int main(int argc, char** argv) {
       p.max_scans = std::atoi(next().c_str());
     else if (a == "--motion-distortion")
       p.motion_distortion = true;
+    else if (a == "--compensated-sweep")
+      p.compensated_sweep = true;
     else if (a == "--no-clutter")
       p.clutter_enabled = false;
     else if (a == "--flat-ground")

@@ -78,6 +78,7 @@ TEST(KeyframeTrackerTest, FailedMatchKeepsConstantVelocityPrediction) {
   step.linear() = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   // The scene seen from poses 0, step, step^2: a cloud seen from pose T is T^-1 * scene.
   KeyframeTrackerParams params;
+  params.deskew = false;  // the synthetic scans are instantaneous: no sweep to undo
   params.keyframe_delta_trans = 100.0;
   params.keyframe_delta_time = 100.0;
   KeyframeTracker tracker(params);
@@ -115,6 +116,7 @@ TEST(KeyframeTrackerTest, FailedMatchKeepsConstantVelocityPrediction) {
 TEST(KeyframeTrackerTest, NewKeyframeWhenTimeOrAngleThresholdExceeded) {
   const auto scene = test::syntheticScene(600);
   KeyframeTrackerParams params;
+  params.deskew = false;  // the synthetic scans are instantaneous: no sweep to undo
   params.keyframe_delta_trans = 100.0;
   params.keyframe_delta_angle = 0.1;
   params.keyframe_delta_time = 2.5;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/cloud/scan_deskew.h"
 #include "osm_graph_slam/odometry/fitness_gate.h"
 #include "osm_graph_slam/odometry/pre_tracker.h"
 #include "osm_graph_slam/registration/registration.h"
@@ -68,6 +69,12 @@ struct KeyframeTrackerParams {
   /// After this many failed matches in a row, re-anchor: the scan becomes a keyframe at the best
   /// guess, flagged so that the back-end links it by a weak odometry edge. 0 disables.
   int reanchor_after_failures = 5;
+  /// Motion compensation of each scan (scan_deskew.h) by the last tracked motion, before it is
+  /// matched and kept as a keyframe. sensor_to_base: the LiDAR's mounting (the prefilter's), to
+  /// find each point's azimuth and so its time in the sweep.
+  bool deskew = true;
+  SweepTiming sweep;
+  Eigen::Isometry3d sensor_to_base = Eigen::Isometry3d::Identity();
 };
 
 enum class TrackStatus {
@@ -130,6 +137,10 @@ class KeyframeTracker {
   const Keyframe& keyframe() const { return keyframe_; }
   uint64_t keyframeCount() const { return has_keyframe_ ? keyframe_.id + 1 : 0; }
   const KeyframeTrackerParams& params() const { return params_; }
+  /// The LiDAR's mounting for deskewing, once known (the nodelet reads it from TF).
+  void setSensorToBase(const Eigen::Isometry3d& sensor_to_base) {
+    params_.sensor_to_base = sensor_to_base;
+  }
   void reset();
 
  private:
@@ -138,6 +149,8 @@ class KeyframeTracker {
     Eigen::Isometry3d pose;  ///< in odom
   };
   Eigen::Isometry3d predict(double stamp) const;
+  /// The scan moved to the stamp's frame by the last motion (params_.deskew), else the scan.
+  PointCloudConstPtr deskewed(const PointCloudConstPtr& cloud) const;
   /// The constant-velocity prediction with its rotation replaced by the IMU's, if both IMU
   /// orientations (this scan's and the previous tracked scan's) are known.
   std::optional<Eigen::Isometry3d> imuPredict(

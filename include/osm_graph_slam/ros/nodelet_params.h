@@ -22,6 +22,9 @@ struct PrefilteringNodeletParams {
 struct ScanMatchingNodeletParams {
   std::string odom_frame = "odom";
   std::string base_link_frame = "base_link";
+  /// The LiDAR's frame: deskewing takes each point's azimuth about it (TF base_link <- it).
+  std::string sensor_frame = "velo_link";
+  double tf_timeout = 0.2;  ///< [s] the first lookup of sensor_frame
   bool publish_tf = true;
   double warn_throttle_period = 5.0;  ///< [s]
 };

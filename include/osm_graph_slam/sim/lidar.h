@@ -55,9 +55,11 @@ using SensorPoseFn = std::function<Eigen::Isometry3d(double t)>;
 /// Simulates one revolution stamped at `stamp`. Column c fires at stamp + (c / columns - 0.5) /
 /// rate_hz, starting behind the sensor and turning clockwise (like a Velodyne); with
 /// motion_distortion the sensor pose of each column's firing time is used, otherwise the pose at
-/// the stamp for all columns. Points are expressed in the sensor frame at the stamp.
+/// the stamp for all columns. Each point is in the sensor frame of its column's firing time, as a
+/// driver without motion compensation gives it (KITTI raw); with compensated_sweep it is moved to
+/// the sensor frame at the stamp by the true motion (a perfectly deskewed scan).
 SimulatedScan simulateScan(const World& world, const LidarModel& model, const SensorPoseFn& pose,
                            double stamp, uint64_t seed, uint64_t scan_index,
-                           bool motion_distortion = false);
+                           bool motion_distortion = false, bool compensated_sweep = false);
 
 }  // namespace osm_graph_slam::sim

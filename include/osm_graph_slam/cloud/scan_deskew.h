@@ -1,0 +1,35 @@
+#pragma once
+// Motion compensation of a spinning LiDAR's sweep (deskewing): each point was measured at its
+// own time within the sweep, from a sensor that kept moving; the scan's points are moved to where
+// they would have been seen at the scan's stamp, assuming constant velocity over the sweep.
+#include <Eigen/Geometry>
+
+#include "osm_graph_slam/cloud/point_cloud.h"
+
+namespace osm_graph_slam {
+
+/// When each azimuth of a sweep is measured. Defaults: a Velodyne/Ouster-style head turning
+/// clockwise seen from above (azimuth decreasing), the sweep cut behind the sensor and the stamp
+/// at the sweep's middle, when the head faces forward (KITTI raw; the simulator's convention).
+struct SweepTiming {
+  double period = 0.1;    ///< [s] one revolution (10 Hz)
+  bool clockwise = true;  ///< azimuth atan2(y, x) decreases with time
+  /// [s] the stamp's time after the sweep's start, as a fraction of the period (0.5: mid-sweep).
+  double stamp_fraction = 0.5;
+  /// [rad] sensor-frame azimuth where the sweep starts (pi: behind the sensor)
+  double start_azimuth = 3.14159265358979323846;
+};
+
+/// [s] time of a point at sensor-frame (x, y) relative to the stamp, in
+/// [-stamp_fraction, 1 - stamp_fraction) * period.
+double sweepTimeOffset(double x, double y, const SweepTiming& timing);
+
+/// Moves every point of `cloud` (in base_link) to the base_link frame at the stamp. The point's
+/// time comes from its azimuth in the sensor frame (sensor_to_base maps sensor to base_link);
+/// `motion` is base_link's pose change over one period at constant velocity (the tracker's last
+/// motion scaled to the period), so a point taken dt after the stamp is moved by
+/// motion^(dt/period).
+void deskewCloud(PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
+                 const Eigen::Isometry3d& motion, const SweepTiming& timing);
+
+}  // namespace osm_graph_slam
