@@ -13,13 +13,14 @@ double sweepTimeOffset(double x, double y, const SweepTiming& timing) {
 }
 
 void deskewCloud(PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
-                 const Eigen::Isometry3d& motion, const SweepTiming& timing) {
-  if (timing.period <= 0.0) return;
+                 const Eigen::Isometry3d& motion, double motion_duration,
+                 const SweepTiming& timing) {
+  if (!(motion_duration > 1e-9) || timing.period <= 0.0) return;
   // Constant velocity: the motion over dt is the period's motion scaled in its twist (first
   // order in the rotation angle, which is at most a few degrees per sweep).
   const Eigen::AngleAxisd rotation(motion.rotation());
-  const Eigen::Vector3d omega = rotation.axis() * rotation.angle() / timing.period;
-  const Eigen::Vector3d velocity = motion.translation() / timing.period;
+  const Eigen::Vector3d omega = rotation.axis() * rotation.angle() / motion_duration;
+  const Eigen::Vector3d velocity = motion.translation() / motion_duration;
   const Eigen::Isometry3d base_to_sensor = sensor_to_base.inverse();
   for (auto& p : cloud.points) {
     const Eigen::Vector3d b(p.x, p.y, p.z);

@@ -538,7 +538,8 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
 
   auto t0 = Clock::now();
   const Eigen::Isometry3d before = ukf_.pose();
-  ukf_.predict(stamp - last_stamp_, gyro);
+  const double dt = stamp - last_stamp_;
+  ukf_.predict(dt, gyro);
   last_stamp_ = stamp;
   const Eigen::Isometry3d predicted = ukf_.pose();
   out.motion = before.inverse() * predicted;
@@ -566,8 +567,14 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       stats_.local_map_ms += msSince(t0);
       t0 = Clock::now();
     }
+    PointCloudConstPtr scan = cloud;
+    if (params_.deskew) {
+      auto moved = std::make_shared<PointCloud>(*cloud);
+      deskewCloud(*moved, params_.sensor_to_base, out.motion, dt, params_.sweep);
+      scan = moved;
+    }
     const PointCloudConstPtr source =
-        params_.scan_voxel_size > 0.0 ? voxelDownsample(cloud, params_.scan_voxel_size) : cloud;
+        params_.scan_voxel_size > 0.0 ? voxelDownsample(scan, params_.scan_voxel_size) : scan;
     const RegistrationResult r = impl_->tracker->align(source, predicted);
     stats_.registration_ms += msSince(t0);
     out.fitness = r.converged ? r.fitness : -1.0;

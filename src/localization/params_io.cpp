@@ -33,6 +33,9 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("divergence_scans", p.divergence_scans);
   r.param("off_map_distance", p.off_map_distance);
   r.param("min_points", p.min_points);
+  r.param("deskew", p.deskew);
+  r.param("sweep_period", p.sweep.period);
+  r.param("sweep_clockwise", p.sweep.clockwise);
   readParams(PrefixedParamReader(r, "ukf"), p.ukf);
   r.param("init_position_std", p.init_position_std);
   r.param("init_orientation_std", p.init_orientation_std);

@@ -31,6 +31,7 @@
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/ros/sensor_mount_lookup.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
 
@@ -83,6 +84,9 @@ class LocalizationNodelet : public nodelet::Nodelet {
     status_pub_ = nh.advertise<LocalizationReport>("localization/status", 10);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("localization/map_points", 1, true);
+    if (params.deskew)
+      mount_ = std::make_unique<SensorMountLookup>(
+          nh, node_params_.base_link_frame, node_params_.sensor_frame, node_params_.tf_timeout);
     if (!node_params_.publish_odom_tf) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
@@ -222,6 +226,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
         gyro = gyro_.meanBetween(last_scan_stamp_.value_or(stamp - 0.1), stamp,
                                  node_params_.imu_max_gap);
     }
+    if (mount_)
+      if (const auto mount = mount_->get()) localizer_->setSensorToBase(*mount);
     const auto t0 = std::chrono::steady_clock::now();
     const LocalizationOutput out = localizer_->process(stamp, cloud, gyro);
     const double ms =
@@ -325,6 +331,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<SensorMountLookup> mount_;  ///< only when deskewing
 };
 
 }  // namespace osm_graph_slam

@@ -7,9 +7,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
-#include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
-#include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/Marker.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -25,6 +23,7 @@
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/ros/sensor_mount_lookup.h"
 
 namespace osm_graph_slam {
 
@@ -45,10 +44,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       tracker_ = std::make_unique<KeyframeTracker>(fallback);
     }
     health_ = std::make_unique<TrackingHealth>(params.lost_track_after);
-    if (params.deskew) {
-      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
-      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
-    }
+    if (params.deskew)
+      mount_ = std::make_unique<SensorMountLookup>(
+          nh, node_params_.base_link_frame, node_params_.sensor_frame, node_params_.tf_timeout);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
     status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);
@@ -115,7 +113,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
     const double stamp = msg->header.stamp.toSec();
     warnOnGap(stamp);
-    if (tracker_->params().deskew && !sensor_to_base_known_) lookUpSensorToBase();
+    if (mount_)
+      if (const auto mount = mount_->get()) tracker_->setSensorToBase(*mount);
     const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp));
     // Lost and recovered are each one line, whatever the throttling.
     if (const auto event = health_->update(msg->header.stamp.toSec(), result))
@@ -134,27 +133,6 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
     publishOdometry(msg->header.stamp, result.pose);
     if (result.new_keyframe) publishKeyframe(*msg, result);
-  }
-
-  /// Deskewing needs each point's azimuth about the LiDAR: TF base_link <- sensor_frame (static,
-  /// looked up until found; meanwhile the azimuth is taken about base_link, with one warning).
-  void lookUpSensorToBase() {
-    const bool first = !tried_sensor_to_base_;
-    tried_sensor_to_base_ = true;
-    try {
-      const auto t = tf_buffer_->lookupTransform(
-          node_params_.base_link_frame, node_params_.sensor_frame, ros::Time(0),
-          ros::Duration(first ? node_params_.tf_timeout : 0.0));
-      tracker_->setSensorToBase(fromTransformMsg(t.transform));
-      sensor_to_base_known_ = true;
-      NODELET_INFO("deskewing about %s (TF from %s)", node_params_.sensor_frame.c_str(),
-                   node_params_.base_link_frame.c_str());
-    } catch (const tf2::TransformException& e) {
-      if (first)
-        NODELET_WARN("deskewing: no TF %s <- %s yet (%s): azimuths taken about %s until it comes",
-                     node_params_.base_link_frame.c_str(), node_params_.sensor_frame.c_str(),
-                     e.what(), node_params_.base_link_frame.c_str());
-    }
   }
 
   /// One line per gap in the scans longer than the motion model extrapolates over.
@@ -253,9 +231,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   std::unique_ptr<TrackingHealth> health_;
   TrackingHealthDisplay health_display_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;  ///< only when deskewing
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  bool tried_sensor_to_base_ = false, sensor_to_base_known_ = false;
+  std::unique_ptr<SensorMountLookup> mount_;  ///< only when deskewing
   ros::Publisher odom_pub_, keyframe_pub_, status_pub_, marker_pub_;
   ros::Subscriber sub_, imu_sub_;
   std::mutex imu_mutex_;

@@ -224,10 +224,8 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
 PointCloudConstPtr KeyframeTracker::deskewed(const PointCloudConstPtr& cloud) const {
   const double dt_prev = last_stamp_ - prev_stamp_;
   if (!params_.deskew || poses_seen_ < 2 || dt_prev <= 1e-9) return cloud;
-  const Eigen::Isometry3d motion =
-      scaleMotion(prev_pose_.inverse() * pose_, params_.sweep.period / dt_prev);
   auto out = std::make_shared<PointCloud>(*cloud);
-  deskewCloud(*out, params_.sensor_to_base, motion, params_.sweep);
+  deskewCloud(*out, params_.sensor_to_base, prev_pose_.inverse() * pose_, dt_prev, params_.sweep);
   return out;
 }
 

@@ -56,6 +56,8 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("map_frame", p.map_frame);
   r.param("odom_frame", p.odom_frame);
   r.param("base_link_frame", p.base_link_frame);
+  r.param("sensor_frame", p.sensor_frame);
+  r.param("tf_timeout", p.tf_timeout);
   r.param("publish_tf", p.publish_tf);
   r.param("publish_odom_tf", p.publish_odom_tf);
   r.param("use_imu", p.use_imu);

@@ -182,6 +182,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   pipeline.prefilter.sensor_to_base = drive->sensor_to_base;
+  params.sensor_to_base = drive->sensor_to_base;  // deskewing: azimuths about the LiDAR
   CloudPrefilter prefilter(pipeline.prefilter);
   const EnuConverter drive_enu(drive->lat, drive->lon, drive->alt);
   const EnuConverter map_enu(map->origin_lat, map->origin_lon, map->origin_alt);

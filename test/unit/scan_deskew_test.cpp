@@ -46,7 +46,7 @@ TEST(ScanDeskew, RawSimulatedSweepBecomesTheCompensatedOne) {
   PointCloud fixed = raw.cloud;
   SweepTiming timing;
   timing.period = period;
-  deskewCloud(fixed, Eigen::Isometry3d::Identity(), motion, timing);
+  deskewCloud(fixed, Eigen::Isometry3d::Identity(), motion, period, timing);
 
   std::vector<double> before, after;
   for (size_t i = 0; i < raw.cloud.size(); ++i) {

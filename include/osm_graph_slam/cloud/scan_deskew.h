@@ -26,10 +26,11 @@ double sweepTimeOffset(double x, double y, const SweepTiming& timing);
 
 /// Moves every point of `cloud` (in base_link) to the base_link frame at the stamp. The point's
 /// time comes from its azimuth in the sensor frame (sensor_to_base maps sensor to base_link);
-/// `motion` is base_link's pose change over one period at constant velocity (the tracker's last
-/// motion scaled to the period), so a point taken dt after the stamp is moved by
-/// motion^(dt/period).
+/// `motion` is base_link's pose change over `motion_duration` seconds at constant velocity (the
+/// tracker's last motion, a filter's prediction), so a point taken dt after the stamp is moved by
+/// motion^(dt / motion_duration).
 void deskewCloud(PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
-                 const Eigen::Isometry3d& motion, const SweepTiming& timing);
+                 const Eigen::Isometry3d& motion, double motion_duration,
+                 const SweepTiming& timing);
 
 }  // namespace osm_graph_slam

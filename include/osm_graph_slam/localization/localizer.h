@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/cloud/scan_deskew.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/pose_ukf.h"
 #include "osm_graph_slam/loop/landmark_loop_source.h"
@@ -41,6 +42,11 @@ struct LocalizationParams {
   int divergence_scans = 5;        ///< failed corrections in a row: re-localise globally
   double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
   int min_points = 100;            ///< fewer scan points: no correction
+  /// Motion compensation of each tracked scan by the filter's predicted motion (scan_deskew.h;
+  /// as the SLAM tracker does, so that scans and map agree). sensor_to_base: the LiDAR mounting.
+  bool deskew = true;
+  SweepTiming sweep;
+  Eigen::Isometry3d sensor_to_base = Eigen::Isometry3d::Identity();
   PoseUkfParams ukf;
   double init_position_std = 0.5;      ///< [m] a given or global initial pose
   double init_orientation_std = 0.05;  ///< [rad]
@@ -187,6 +193,10 @@ class Localizer {
 
   bool initialized() const { return ukf_.initialized(); }
   const LocalizationParams& params() const { return params_; }
+  /// The LiDAR's mounting for deskewing, once known (the nodelet reads it from TF).
+  void setSensorToBase(const Eigen::Isometry3d& sensor_to_base) {
+    params_.sensor_to_base = sensor_to_base;
+  }
   const LocalizationStats& stats() const { return stats_; }
   /// The last global localisation attempt (diagnosis).
   const GlobalLocalizationResult& lastGlobal() const { return last_global_; }

@@ -69,6 +69,9 @@ struct LocalizationNodeletParams {
   std::string map_frame = "map";
   std::string odom_frame = "odom";
   std::string base_link_frame = "base_link";
+  /// The LiDAR's frame: deskewing takes each point's azimuth about it (TF base_link <- it).
+  std::string sensor_frame = "velo_link";
+  double tf_timeout = 0.2;  ///< [s] the first lookup of sensor_frame
   bool publish_tf = true;
   bool publish_odom_tf = true;
   bool use_imu = true;

@@ -1,0 +1,33 @@
+#pragma once
+// The LiDAR's mounting (TF base_link <- sensor frame) for the nodelets that deskew scans already
+// moved into base_link: scan matching and localisation. Looked up until found (the first time
+// with a timeout, then without waiting); one warning while it is missing.
+#include <ros/ros.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace osm_graph_slam {
+
+class SensorMountLookup {
+ public:
+  SensorMountLookup(ros::NodeHandle& nh, std::string base_frame, std::string sensor_frame,
+                    double timeout);
+  /// The mounting once TF has it (then cached: it is static); nothing while it is missing.
+  std::optional<Eigen::Isometry3d> get();
+  const std::string& sensorFrame() const { return sensor_frame_; }
+
+ private:
+  tf2_ros::Buffer buffer_;
+  tf2_ros::TransformListener listener_;
+  std::string base_frame_, sensor_frame_;
+  double timeout_;
+  bool tried_ = false;
+  std::optional<Eigen::Isometry3d> found_;
+};
+
+}  // namespace osm_graph_slam
