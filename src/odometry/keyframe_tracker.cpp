@@ -66,6 +66,7 @@ void KeyframeTracker::reset() {
   pose_ = prev_pose_ = Eigen::Isometry3d::Identity();
   last_stamp_ = prev_stamp_ = 0.0;
   poses_seen_ = 0;
+  raw_keyframe_deferrals_ = 0;
   failures_in_row_ = 0;
   fitness_gate_.clear();
   last_imu_.reset();
@@ -221,12 +222,35 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
   return result;
 }
 
-PointCloudConstPtr KeyframeTracker::deskewed(const PointCloudConstPtr& cloud) const {
-  const double dt_prev = last_stamp_ - prev_stamp_;
-  if (!params_.deskew || poses_seen_ < 2 || dt_prev <= 1e-9) return cloud;
+PointCloudConstPtr KeyframeTracker::deskewed(double stamp, const PointCloudConstPtr& cloud,
+                                             const Eigen::Isometry3d& predicted) const {
+  // The predicted motion to this scan (constant velocity, its rotation from the IMU when the
+  // guess uses it) is centred half a period before the sweep; the last tracked motion would be a
+  // period and a half before it, and lag behind every change of speed or turn rate.
+  const double dt = stamp - last_stamp_, dt_prev = last_stamp_ - prev_stamp_;
+  const bool recent = dt > 1e-9 && dt <= params_.deskew_max_interval && dt_prev > 1e-9 &&
+                      dt_prev <= params_.deskew_max_interval;
+  if (!params_.deskew || poses_seen_ < 2 || !recent) return cloud;
   auto out = std::make_shared<PointCloud>(*cloud);
-  deskewCloud(*out, params_.sensor_to_base, prev_pose_.inverse() * pose_, dt_prev, params_.sweep);
+  deskewCloud(*out, params_.sensor_to_base, pose_.inverse() * predicted, dt, params_.sweep);
   return out;
+}
+
+PointCloudConstPtr KeyframeTracker::deskewedByMatch(double stamp, const PointCloudConstPtr& raw,
+                                                    TrackResult& result,
+                                                    Eigen::Isometry3d& relative) {
+  // A scan matched as it came (after a gap, or the second of the drive: no velocity known): its
+  // match gives the mean motion since the last scan. Deskewed by that, it is matched again from
+  // there (frontend_dropout, 2.1 s hole in a turn: the raw first scan was 0.17 m off).
+  const double dt = stamp - last_stamp_;
+  if (!params_.deskew || !(dt > 1e-9) || dt > params_.max_prediction_gap) return raw;
+  const Eigen::Isometry3d matched = keyframe_.pose * relative;
+  auto moved = std::make_shared<PointCloud>(*raw);
+  deskewCloud(*moved, params_.sensor_to_base, pose_.inverse() * matched, dt, params_.sweep);
+  Eigen::Isometry3d again = relative;
+  if (!attempt(moved, {"deskewed_by_match", matched}, result, again)) return raw;
+  relative = again;
+  return moved;
 }
 
 TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_cloud,
@@ -256,9 +280,8 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
     result.pose = pose_;
     return result;
   }
-  const PointCloudConstPtr cloud = deskewed(raw_cloud);
-
   if (!has_keyframe_) {
+    const PointCloudConstPtr& cloud = raw_cloud;  // no motion known yet to deskew it
     try {
       makeKeyframe(stamp, cloud);
     } catch (const std::exception& e) {
@@ -285,6 +308,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
   const bool imu_guess = params_.guess == "imu" || params_.guess == "pre_tracker_imu";
   // The pre-tracker starts from the best motion model at hand.
   const Eigen::Isometry3d motion_model = imu_guess && imu ? *imu : constant_velocity;
+  PointCloudConstPtr cloud = deskewed(stamp, raw_cloud, motion_model);
   Guess best{imu_guess && imu ? "imu" : "constant_velocity", motion_model};
   if (params_.guess.rfind("pre_tracker", 0) == 0)
     if (const auto p = preTracked(cloud, motion_model, result)) best = {"pre_tracker", *p};
@@ -331,6 +355,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
                                              : std::string());
     ++failures_in_row_;
   }
+  if (matched && cloud == raw_cloud) cloud = deskewedByMatch(stamp, raw_cloud, result, relative);
 
   prev_pose_ = pose_;
   prev_stamp_ = last_stamp_;
@@ -345,7 +370,13 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
   // Only a verified match may become a keyframe: a predicted pose would anchor later scans on
   // a guess. The exception is re-anchoring after failures in a row, flagged for the back-end:
   // without it the keyframe falls ever further behind and the rest of the drive is lost.
-  if (matched && needsKeyframe(relative, stamp)) {
+  // A scan that could not be deskewed (just after a gap) makes a poor keyframe: every later
+  // scan would be matched against its smear. It waits up to kMaxRawKeyframeDeferrals scans for
+  // one that can (frontend_dropout, 2.1 s hole: 0.17 m error after the gap without the wait).
+  const bool raw = params_.deskew && cloud == raw_cloud;
+  raw_keyframe_deferrals_ = raw ? raw_keyframe_deferrals_ + 1 : 0;
+  const bool defer = raw && raw_keyframe_deferrals_ <= kMaxRawKeyframeDeferrals;
+  if (matched && !defer && needsKeyframe(relative, stamp)) {
     makeKeyframe(stamp, cloud);
     result.new_keyframe = true;
     result.keyframe_id = keyframe_.id;

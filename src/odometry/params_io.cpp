@@ -39,6 +39,7 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   r.param("recovery_yaw_steps", p.recovery_yaw_steps);
   r.param("reanchor_after_failures", p.reanchor_after_failures);
   r.param("deskew", p.deskew);
+  r.param("deskew_max_interval", p.deskew_max_interval);
   r.param("sweep_period", p.sweep.period);
   r.param("sweep_clockwise", p.sweep.clockwise);
 }

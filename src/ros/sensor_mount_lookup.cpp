@@ -8,7 +8,8 @@ namespace osm_graph_slam {
 
 SensorMountLookup::SensorMountLookup(ros::NodeHandle& nh, std::string base_frame,
                                      std::string sensor_frame, double timeout)
-    : listener_(buffer_, nh),
+    : buffer_(std::make_unique<tf2_ros::Buffer>()),
+      listener_(std::make_unique<tf2_ros::TransformListener>(*buffer_, nh)),
       base_frame_(std::move(base_frame)),
       sensor_frame_(std::move(sensor_frame)),
       timeout_(timeout) {}
@@ -18,9 +19,11 @@ std::optional<Eigen::Isometry3d> SensorMountLookup::get() {
   const bool first = !tried_;
   tried_ = true;
   try {
-    const auto t = buffer_.lookupTransform(base_frame_, sensor_frame_, ros::Time(0),
-                                           ros::Duration(first ? timeout_ : 0.0));
+    const auto t = buffer_->lookupTransform(base_frame_, sensor_frame_, ros::Time(0),
+                                            ros::Duration(first ? timeout_ : 0.0));
     found_ = fromTransformMsg(t.transform);
+    listener_.reset();
+    buffer_.reset();
     ROS_INFO("deskewing about %s (TF from %s)", sensor_frame_.c_str(), base_frame_.c_str());
   } catch (const tf2::TransformException& e) {
     if (first)

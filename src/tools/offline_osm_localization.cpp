@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   pipeline.prefilter.sensor_to_base = drive->sensor_to_base;
+  pipeline.tracker.sensor_to_base = drive->sensor_to_base;  // deskewing: azimuths about the LiDAR
   std::vector<Building> buildings = loadBuildings(args["osm"], *drive, &error);
   if (buildings.empty()) {
     std::cerr << "offline_osm_localization: no buildings from " << args["osm"] << ": " << error
@@ -203,7 +204,8 @@ int main(int argc, char** argv) {
     }
     status << std::setprecision(10) << scan.stamp << "," << toString(a.status) << ","
            << a.osm_outcome << "," << std::setprecision(4) << a.osm_fitness << "," << a.datum.x()
-           << "," << a.datum.y() << "," << e_osm << "," << e_gnss << ",\"" << a.osm_message << "\"\n";
+           << "," << a.datum.y() << "," << e_osm << "," << e_gnss << ",\"" << a.osm_message
+           << "\"\n";
   }
   const double wall_s = std::chrono::duration<double>(Clock::now() - start).count();
 

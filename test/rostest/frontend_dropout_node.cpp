@@ -52,6 +52,10 @@ struct Case {
   int gap_first = -1, gap_scans = 0;  ///< window indices [gap_first, gap_first + gap_scans)
   size_t min_keyframes_after = 0;     ///< keyframes after the gap, at least
   size_t max_failed = 0;              ///< failed matches, at most
+  /// [m] error of the scans after the gap against the gapless run, at most. The first scan after
+  /// a hole cannot know its own velocity, so it is deskewed by the mean motion across the hole
+  /// (doc/frontend.md); across gap20's yaw-rate reversal that leaves it 0.13 m off (measured).
+  double max_err_t = 0.085;
   bool dropped(int k) const { return k >= gap_first && k < gap_first + gap_scans; }
   int firstAfterGap() const { return gap_first + gap_scans; }
 };
@@ -61,7 +65,7 @@ const Case kReference{"reference"};
 const Case kGap5{"gap5", 18, 5, 6, 1};
 // Drive scans 55..74 left out: 54 -> 75, a 2.1 s hole (8.5 m) across the turn's yaw-rate reversal
 // (+0.85 to -1.1 deg per scan), so the constant-velocity guess across it is ~20 deg off.
-const Case kGap20{"gap20", 15, 20, 4, 5};
+const Case kGap20{"gap20", 15, 20, 4, 5, 0.2};
 
 struct Received {
   std::mutex mutex;
@@ -321,7 +325,10 @@ TEST_F(FrontendDropout, KeyframesAndOdometryContinueThroughTheGap) {
     EXPECT_EQ(a.scans, size_t(kScans - c->firstAfterGap()));
     EXPECT_GT(a.travelled, 10.0);
     // Measured 2.8 / 2.4 cm and 0.052 / 0.039 deg (gap5 / gap20, deterministic); ~3x that.
-    EXPECT_LT(a.max_err_t, 0.085);
+    // Session 24, deskewing: 2.8 / 13.0 cm (the first scan after the hole), final 1.7 / 5.4 cm,
+    // 0.090 / 0.137 deg.
+    EXPECT_LT(a.max_err_t, c->max_err_t);
+    EXPECT_LT(a.final_err_t, 0.085);
     EXPECT_LT(a.max_err_deg, 0.16);
     // Keyframes keep coming after the gap, as many as without it (+-1: the gap moves them).
     EXPECT_GE(a.keyframes, c->min_keyframes_after);

@@ -69,10 +69,14 @@ struct KeyframeTrackerParams {
   /// After this many failed matches in a row, re-anchor: the scan becomes a keyframe at the best
   /// guess, flagged so that the back-end links it by a weak odometry edge. 0 disables.
   int reanchor_after_failures = 5;
-  /// Motion compensation of each scan (scan_deskew.h) by the last tracked motion, before it is
+  /// Motion compensation of each scan (scan_deskew.h) by its predicted motion, before it is
   /// matched and kept as a keyframe. sensor_to_base: the LiDAR's mounting (the prefilter's), to
   /// find each point's azimuth and so its time in the sweep.
   bool deskew = true;
+  /// [s] the prediction is taken for the sweep's velocity only if it and the last tracked motion
+  /// span at most this: after a dropout (frontend_dropout: 2.1 s through a turn) it is stale, and
+  /// the scans are matched as they come until two scans in a row give a velocity again.
+  double deskew_max_interval = 0.3;
   SweepTiming sweep;
   Eigen::Isometry3d sensor_to_base = Eigen::Isometry3d::Identity();
 };
@@ -149,8 +153,13 @@ class KeyframeTracker {
     Eigen::Isometry3d pose;  ///< in odom
   };
   Eigen::Isometry3d predict(double stamp) const;
-  /// The scan moved to the stamp's frame by the last motion (params_.deskew), else the scan.
-  PointCloudConstPtr deskewed(const PointCloudConstPtr& cloud) const;
+  /// The scan moved to the stamp's frame by the predicted motion (params_.deskew), else the scan.
+  PointCloudConstPtr deskewed(double stamp, const PointCloudConstPtr& cloud,
+                              const Eigen::Isometry3d& predicted) const;
+  /// A scan matched without deskewing, deskewed by the motion its match gives and matched again
+  /// (relative updated); the raw scan if that match fails.
+  PointCloudConstPtr deskewedByMatch(double stamp, const PointCloudConstPtr& raw,
+                                     TrackResult& result, Eigen::Isometry3d& relative);
   /// The constant-velocity prediction with its rotation replaced by the IMU's, if both IMU
   /// orientations (this scan's and the previous tracked scan's) are known.
   std::optional<Eigen::Isometry3d> imuPredict(
@@ -187,6 +196,8 @@ class KeyframeTracker {
   double last_stamp_ = 0.0;
   double prev_stamp_ = 0.0;
   int poses_seen_ = 0;
+  static constexpr int kMaxRawKeyframeDeferrals = 2;  ///< scans after a gap: velocity known again
+  int raw_keyframe_deferrals_ = 0;                    ///< scans in a row that could not be deskewed
 };
 
 }  // namespace osm_graph_slam

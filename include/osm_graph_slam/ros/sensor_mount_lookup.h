@@ -22,8 +22,9 @@ class SensorMountLookup {
   const std::string& sensorFrame() const { return sensor_frame_; }
 
  private:
-  tf2_ros::Buffer buffer_;
-  tf2_ros::TransformListener listener_;
+  // Dropped once the mounting is found: every listener logs each jump back of /clock.
+  std::unique_ptr<tf2_ros::Buffer> buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> listener_;
   std::string base_frame_, sensor_frame_;
   double timeout_;
   bool tried_ = false;
