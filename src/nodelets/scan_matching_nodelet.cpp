@@ -171,7 +171,13 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
     msg->tracking_recovered = result.reanchored;
     msg->recovery_gap = result.gap;
-    msg->cloud = cloud;
+    if (kf.cloud && tracker_->params().deskew) {
+      // The keyframe holds the deskewed scan: walls, loops and the map must get that one.
+      toPointCloud2(*kf.cloud, msg->cloud);
+      msg->cloud.header = cloud.header;
+    } else {
+      msg->cloud = cloud;
+    }
     keyframe_pub_.publish(boost::shared_ptr<const KeyFrame>(msg));
   }
 
