@@ -85,8 +85,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("localization/map_points", 1, true);
     if (params.deskew)
-      mount_ = std::make_unique<SensorMountLookup>(
-          nh, node_params_.base_link_frame, node_params_.sensor_frame, node_params_.tf_timeout);
+      mount_ = std::make_unique<SensorMountLookup>(nh, node_params_.base_link_frame,
+                                                   node_params_.sensor_frame);
     if (!node_params_.publish_odom_tf) {
       tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);

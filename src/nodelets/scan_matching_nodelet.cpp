@@ -45,8 +45,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
     health_ = std::make_unique<TrackingHealth>(params.lost_track_after);
     if (params.deskew)
-      mount_ = std::make_unique<SensorMountLookup>(
-          nh, node_params_.base_link_frame, node_params_.sensor_frame, node_params_.tf_timeout);
+      mount_ = std::make_unique<SensorMountLookup>(nh, node_params_.base_link_frame,
+                                                   node_params_.sensor_frame);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
     keyframe_pub_ = nh.advertise<KeyFrame>("keyframe", 10);
     status_pub_ = nh.advertise<ScanMatchingStatus>("scan_matching_status", 10);

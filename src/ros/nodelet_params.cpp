@@ -14,7 +14,6 @@ void readParams(const ParamReader& r, ScanMatchingNodeletParams& p) {
   r.param("odom_frame", p.odom_frame);
   r.param("base_link_frame", p.base_link_frame);
   r.param("sensor_frame", p.sensor_frame);
-  r.param("tf_timeout", p.tf_timeout);
   r.param("publish_tf", p.publish_tf);
   r.param("warn_throttle_period", p.warn_throttle_period);
 }
@@ -57,7 +56,6 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("odom_frame", p.odom_frame);
   r.param("base_link_frame", p.base_link_frame);
   r.param("sensor_frame", p.sensor_frame);
-  r.param("tf_timeout", p.tf_timeout);
   r.param("publish_tf", p.publish_tf);
   r.param("publish_odom_tf", p.publish_odom_tf);
   r.param("use_imu", p.use_imu);

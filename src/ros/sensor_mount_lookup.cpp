@@ -7,20 +7,20 @@
 namespace osm_graph_slam {
 
 SensorMountLookup::SensorMountLookup(ros::NodeHandle& nh, std::string base_frame,
-                                     std::string sensor_frame, double timeout)
+                                     std::string sensor_frame)
     : buffer_(std::make_unique<tf2_ros::Buffer>()),
       listener_(std::make_unique<tf2_ros::TransformListener>(*buffer_, nh)),
       base_frame_(std::move(base_frame)),
-      sensor_frame_(std::move(sensor_frame)),
-      timeout_(timeout) {}
+      sensor_frame_(std::move(sensor_frame)) {}
 
 std::optional<Eigen::Isometry3d> SensorMountLookup::get() {
   if (found_) return found_;
   const bool first = !tried_;
   tried_ = true;
   try {
-    const auto t = buffer_->lookupTransform(base_frame_, sensor_frame_, ros::Time(0),
-                                            ros::Duration(first ? timeout_ : 0.0));
+    // Never waits: a timeout runs on the ROS clock, and under a simulated clock that a test or
+    // rosbag advances only when outputs arrive, a wait in the scan callback stalls the pipeline.
+    const auto t = buffer_->lookupTransform(base_frame_, sensor_frame_, ros::Time(0));
     found_ = fromTransformMsg(t.transform);
     listener_.reset();
     buffer_.reset();

@@ -24,7 +24,6 @@ struct ScanMatchingNodeletParams {
   std::string base_link_frame = "base_link";
   /// The LiDAR's frame: deskewing takes each point's azimuth about it (TF base_link <- it).
   std::string sensor_frame = "velo_link";
-  double tf_timeout = 0.2;  ///< [s] the first lookup of sensor_frame
   bool publish_tf = true;
   double warn_throttle_period = 5.0;  ///< [s]
 };
@@ -71,7 +70,6 @@ struct LocalizationNodeletParams {
   std::string base_link_frame = "base_link";
   /// The LiDAR's frame: deskewing takes each point's azimuth about it (TF base_link <- it).
   std::string sensor_frame = "velo_link";
-  double tf_timeout = 0.2;  ///< [s] the first lookup of sensor_frame
   bool publish_tf = true;
   bool publish_odom_tf = true;
   bool use_imu = true;
