@@ -26,6 +26,17 @@ export ROS_HOME="$WS/ros_home"
 export ROS_LOG_DIR="$WS/ros_home/log"
 mkdir -p "$ROS_LOG_DIR"
 
+# A full run leaves 2.2 GB in build_ws (build, simulated drives, bags, maps; session 25) and
+# writes < 1 GB to /tmp; a full disk otherwise shows up as unrelated write errors in the tests.
+free_gb() { df -P -k "$1" 2>/dev/null | awk 'NR == 2 { printf "%.1f", $4 / 1048576 }'; }
+for dir in "$WS" "${TMPDIR:-/tmp}"; do
+  gb="$(free_gb "$dir")"
+  echo "[test] ${gb:-?} GB free on the file system of $dir"
+  if [ -n "$gb" ] && awk -v g="$gb" -v need="${OGS_TEST_MIN_FREE_GB:-5}" 'BEGIN { exit !(g < need) }'; then
+    echo "[test] WARNING: less than ${OGS_TEST_MIN_FREE_GB:-5} GB free on $dir: the regression tests may fail with write errors"
+  fi
+done
+
 rm -rf "$WS/build/test_results"
 cd "$WS"
 echo "[test] building and running tests (-j$JOBS)"
@@ -40,4 +51,7 @@ echo "[test] python tests (test/scripts)"
 /usr/bin/python3 "$ROOT/scripts/run_python_tests.py" "$WS/build/test_results/python/scripts.xml" \
   > "$WS/python_tests.log" 2>&1 || grep -E "^(FAIL|ERROR):" "$WS/python_tests.log"
 
+if grep -q "No space left on device" "$WS/test.log"; then
+  echo "[test] the disk ran full during the tests (\"No space left on device\" in build_ws/test.log): free space and run again"
+fi
 /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$WS/build/test_results" --build-status "$build_status"
