@@ -34,8 +34,9 @@ GraphBackendParams baseParams(OsmMode mode) {
   p.initial_yaw = drive().true_poses[0].theta;
   // The drives below drift by up to 4 mrad of yaw and 1 % of length per keyframe, ten times worse
   // than scan matching on the simulated KITTI drives: the odometry edges say so.
-  p.odometry.min_std_yaw = p.odometry.min_std_rot;
-  p.odometry.max_std_yaw = p.odometry.max_std_rot;
+  p.odometry.max_std_rot = 0.02;  // and pitch up to 5 mrad per keyframe (ImuAttitude... below)
+  p.odometry.min_std_yaw = 0.001;
+  p.odometry.max_std_yaw = 0.02;
   p.odometry.max_std_xyz = 0.25;
   // The test street's buildings stand 2-6 m apart, never touching: with priors misplaced by
   // 0.8 m, shared-wall detection would tie neighbours that are not (corner error 0.05 -> 0.32 m
