@@ -37,4 +37,12 @@ void deskewCloud(PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
   }
 }
 
+PointCloudPtr deskewedCopy(const PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
+                           const Eigen::Isometry3d& motion, double motion_duration,
+                           const SweepTiming& timing) {
+  auto out = std::make_shared<PointCloud>(cloud);
+  deskewCloud(*out, sensor_to_base, motion, motion_duration, timing);
+  return out;
+}
+
 }  // namespace osm_graph_slam

@@ -567,12 +567,9 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       stats_.local_map_ms += msSince(t0);
       t0 = Clock::now();
     }
-    PointCloudConstPtr scan = cloud;
-    if (params_.deskew) {
-      auto moved = std::make_shared<PointCloud>(*cloud);
-      deskewCloud(*moved, params_.sensor_to_base, out.motion, dt, params_.sweep);
-      scan = moved;
-    }
+    const PointCloudConstPtr scan =
+        params_.deskew ? deskewedCopy(*cloud, params_.sensor_to_base, out.motion, dt, params_.sweep)
+                       : cloud;
     const PointCloudConstPtr source =
         params_.scan_voxel_size > 0.0 ? voxelDownsample(scan, params_.scan_voxel_size) : scan;
     const RegistrationResult r = impl_->tracker->align(source, predicted);

@@ -231,9 +231,8 @@ PointCloudConstPtr KeyframeTracker::deskewed(double stamp, const PointCloudConst
   const bool recent = dt > 1e-9 && dt <= params_.deskew_max_interval && dt_prev > 1e-9 &&
                       dt_prev <= params_.deskew_max_interval;
   if (!params_.deskew || poses_seen_ < 2 || !recent) return cloud;
-  auto out = std::make_shared<PointCloud>(*cloud);
-  deskewCloud(*out, params_.sensor_to_base, pose_.inverse() * predicted, dt, params_.sweep);
-  return out;
+  return deskewedCopy(*cloud, params_.sensor_to_base, pose_.inverse() * predicted, dt,
+                      params_.sweep);
 }
 
 PointCloudConstPtr KeyframeTracker::deskewedByMatch(double stamp, const PointCloudConstPtr& raw,
@@ -245,8 +244,8 @@ PointCloudConstPtr KeyframeTracker::deskewedByMatch(double stamp, const PointClo
   const double dt = stamp - last_stamp_;
   if (!params_.deskew || !(dt > 1e-9) || dt > params_.max_prediction_gap) return raw;
   const Eigen::Isometry3d matched = keyframe_.pose * relative;
-  auto moved = std::make_shared<PointCloud>(*raw);
-  deskewCloud(*moved, params_.sensor_to_base, pose_.inverse() * matched, dt, params_.sweep);
+  const PointCloudConstPtr moved =
+      deskewedCopy(*raw, params_.sensor_to_base, pose_.inverse() * matched, dt, params_.sweep);
   Eigen::Isometry3d again = relative;
   if (!attempt(moved, {"deskewed_by_match", matched}, result, again)) return raw;
   relative = again;

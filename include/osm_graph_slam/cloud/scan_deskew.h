@@ -33,4 +33,10 @@ void deskewCloud(PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
                  const Eigen::Isometry3d& motion, double motion_duration,
                  const SweepTiming& timing);
 
+/// A deskewed copy of `cloud` (deskewCloud on a copy): the input may be shared (a message's
+/// cloud, a cloud a registration back-end keeps prepared) and must stay as it came.
+PointCloudPtr deskewedCopy(const PointCloud& cloud, const Eigen::Isometry3d& sensor_to_base,
+                           const Eigen::Isometry3d& motion, double motion_duration,
+                           const SweepTiming& timing);
+
 }  // namespace osm_graph_slam

@@ -23,7 +23,7 @@ bool parseOsmMode(const std::string& text, OsmMode* mode);
 /// deviations grow linearly from min to max as the fitness grows to max_fitness. Standard
 /// deviations are in metres and radians and are squared into variances.
 struct InformationParams {
-  double min_std_xyz = 0.01, max_std_xyz = 0.23;   ///< [m]
+  double min_std_xyz = 0.01, max_std_xyz = 0.23;    ///< [m]
   double min_std_rot = 0.001, max_std_rot = 0.005;  ///< [rad] roll and pitch (doc/backend.md)
   /// [rad] yaw (about the keyframe's z axis) separately: scan matching measures heading far
   /// better than roll/pitch or translation (simulated: 0.03 mrad vs 5 mm per 2 m keyframe), and a
