@@ -118,6 +118,13 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     kf.accum_distance = msg->accum_distance;
     kf.odom_fitness = msg->fitness;
     kf.reanchored = msg->tracking_recovered;
+    kf.odom_prediction_error = {msg->prediction_error.x, msg->prediction_error.y,
+                                msg->prediction_error.z};
+    if (msg->odom_hessian.size() == 21) {
+      auto value = msg->odom_hessian.begin();
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) kf.odom_hessian(r, c) = kf.odom_hessian(c, r) = *value++;
+    }
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
     if (fromPointCloud2(msg->cloud, *cloud, &error)) {

@@ -171,6 +171,14 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
     msg->tracking_recovered = result.reanchored;
     msg->recovery_gap = result.gap;
+    if (result.registration.converged && !result.registration.hessian.isZero()) {
+      const auto& h = result.registration.hessian;
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) msg->odom_hessian.push_back(h(r, c));
+    }
+    msg->prediction_error.x = result.prediction_error.x();
+    msg->prediction_error.y = result.prediction_error.y();
+    msg->prediction_error.z = result.prediction_error.z();
     if (kf.cloud && tracker_->params().deskew) {
       // The keyframe holds the deskewed scan: walls, loops and the map must get that one.
       toPointCloud2(*kf.cloud, msg->cloud);

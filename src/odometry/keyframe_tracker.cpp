@@ -359,6 +359,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
   prev_pose_ = pose_;
   prev_stamp_ = last_stamp_;
   pose_ = keyframe_.pose * relative;
+  if (matched) result.prediction_error = (motion_model.inverse() * pose_).translation();
   last_stamp_ = stamp;
   last_imu_ = imu_orientation;
   ++poses_seen_;

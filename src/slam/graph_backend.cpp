@@ -239,6 +239,8 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   kf.odom_pose = in.odom_pose;
   kf.accum_distance = in.accum_distance;
   kf.odom_fitness = in.odom_fitness;
+  kf.odom_hessian = in.odom_hessian;
+  kf.odom_prediction_error = in.odom_prediction_error;
   kf.reanchored = in.reanchored;
   kf.gravity_roll_pitch = in.gravity_roll_pitch;
   kf.cloud = in.cloud;
@@ -296,6 +298,24 @@ void GraphBackend::anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& k
   s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
 }
 
+namespace {
+
+/// The odometry edge's information: from the match's fitness, plus its Hessian (translation,
+/// if weighted), loosened along the match's offset from the motion model's prediction (a motion
+/// the model did not predict also distorted the deskewed scan).
+Matrix6d odometryEdgeInformation(const KeyframeInput& in, const Eigen::Isometry3d& delta,
+                                 const InformationParams& p) {
+  Matrix6d info = odometryInformation(in.odom_fitness, p, delta.translation());
+  if (p.hessian_weight > 0.0 && !in.odom_hessian.isZero())
+    info.topLeftCorner<3, 3>() +=
+        p.hessian_weight * translationMarginal(registrationInformation(in.odom_hessian, delta));
+  info.topLeftCorner<3, 3>() = withDeviationAlong(
+      info.topLeftCorner<3, 3>(), p.prediction_error_scale * in.odom_prediction_error);
+  return info;
+}
+
+}  // namespace
+
 void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
@@ -303,7 +323,7 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
   kf.map_pose = prev.map_pose * delta;
   s.graph.addVertexSE3(vid, kf.map_pose);
-  Matrix6d info = odometryInformation(in.odom_fitness, params_.odometry, delta.translation());
+  Matrix6d info = odometryEdgeInformation(in, delta, params_.odometry);
   const bool jumped_back = in.stamp < prev.stamp;
   if (jumped_back)  // kept: the ids order the keyframes, the stamps may loop
     logger_->warn("keyframe " + std::to_string(in.id) + " is stamped " +

@@ -43,6 +43,8 @@ bool forEachLine(const std::string& path, bool required, std::string* error, Par
   return true;
 }
 
+constexpr size_t kHessianValues = 21;  // upper triangle of the odometry match's 6x6 Hessian
+
 }  // namespace
 
 bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) {
@@ -66,6 +68,17 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
         kf.gravity_roll_pitch.emplace(extra[1], extra[2]);
     }
     if (extra.size() >= 4) kf.reanchored = extra[3] != 0.0;
+    if (extra.size() >= 4 + kHessianValues) {
+      auto value = extra.begin() + 4;
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) kf.odom_hessian(r, c) = kf.odom_hessian(c, r) = *value++;
+      if (!kf.odom_hessian.allFinite()) return false;
+    }
+    if (extra.size() >= 7 + kHessianValues) {
+      const size_t first = 4 + kHessianValues;
+      kf.odom_prediction_error = {extra[first], extra[first + 1], extra[first + 2]};
+      if (!kf.odom_prediction_error.allFinite()) return false;
+    }
     dump.keyframes.push_back(std::move(kf));
     return true;
   };

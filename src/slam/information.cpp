@@ -39,6 +39,44 @@ Matrix6d odometryInformation(double fitness, const InformationParams& p,
   return info;
 }
 
+Matrix6d registrationInformation(const Matrix6d& hessian, const Eigen::Isometry3d& relative) {
+  // Exp(d) Z = Z Exp(Ad(Z^-1) d): the left perturbation d is Ad(Z) e of the right one e, so
+  // the information is Ad(Z)^T H Ad(Z), Ad(Z) = [R, [t]x R; 0, R] for (translation, rotation).
+  const Eigen::Matrix3d r = relative.linear();
+  const Eigen::Vector3d t = relative.translation();
+  Eigen::Matrix3d t_cross;
+  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
+  Matrix6d adjoint = Matrix6d::Zero();
+  adjoint.topLeftCorner<3, 3>() = r;
+  adjoint.topRightCorner<3, 3>() = t_cross * r;
+  adjoint.bottomRightCorner<3, 3>() = r;
+  Matrix6d info = adjoint.transpose() * hessian * adjoint;
+  // The edge's rotation error is half the angle: information per unit of it is 4x (2x across).
+  Eigen::Matrix<double, 6, 1> half_angle;
+  half_angle << 1.0, 1.0, 1.0, 2.0, 2.0, 2.0;
+  info = half_angle.asDiagonal() * info * half_angle.asDiagonal();
+  return 0.5 * (info + info.transpose());
+}
+
+Eigen::Matrix3d translationMarginal(const Matrix6d& info) {
+  const Eigen::LDLT<Eigen::Matrix3d> rotation(info.bottomRightCorner<3, 3>());
+  if (rotation.info() != Eigen::Success || !(rotation.vectorD().array() > 0.0).all())
+    return Eigen::Matrix3d::Zero();  // a rotation the match did not see: no translation claim
+  const Eigen::Matrix3d m =
+      info.topLeftCorner<3, 3>() -
+      info.topRightCorner<3, 3>() * rotation.solve(info.bottomLeftCorner<3, 3>());
+  return 0.5 * (m + m.transpose());
+}
+
+Eigen::Matrix3d withDeviationAlong(const Eigen::Matrix3d& info, const Eigen::Vector3d& offset) {
+  // Sherman-Morrison: (A^-1 + e e^T)^-1 = A - A e e^T A / (1 + e^T A e), no inverse of A.
+  const Eigen::Vector3d a_e = info * offset;
+  const double denominator = 1.0 + offset.dot(a_e);
+  if (!(denominator > 1.0) || !std::isfinite(denominator)) return info;
+  const Eigen::Matrix3d m = info - a_e * a_e.transpose() / denominator;
+  return 0.5 * (m + m.transpose());
+}
+
 Eigen::Matrix3d leverInformation(const Eigen::Matrix3d& info_at_point,
                                  const Eigen::Vector2d& lever) {
   Eigen::Matrix3d J = Eigen::Matrix3d::Identity();  // d(point error) / d(x, y, theta)

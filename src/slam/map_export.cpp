@@ -229,14 +229,20 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   std::ostringstream kf_csv, seg_csv;
   kf_csv << std::setprecision(17)
          << "# id stamp accum_distance odom_pose(3x4 row-major) odom_fitness imu_roll imu_pitch"
-            " reanchored (nan: unknown)\n";
+            " reanchored odom_hessian(upper triangle, row-major; zeros: unknown) "
+            "prediction_error(x y z)"
+            " (nan: unknown)\n";
   seg_csv << std::setprecision(12) << "# keyframe_id x1 y1 x2 y2 support\n";
   for (const auto& kf : keyframes) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const Eigen::Vector2d rp = kf.gravity_roll_pitch.value_or(Eigen::Vector2d(nan, nan));
     kf_csv << kf.id << ' ' << kf.stamp << ' ' << kf.accum_distance << ' ' << poseRow(kf.odom_pose)
            << ' ' << kf.odom_fitness << ' ' << rp.x() << ' ' << rp.y() << ' '
-           << (kf.reanchored ? 1 : 0) << '\n';
+           << (kf.reanchored ? 1 : 0);
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) kf_csv << ' ' << kf.odom_hessian(r, c);
+    const Eigen::Vector3d& e = kf.odom_prediction_error;
+    kf_csv << ' ' << e.x() << ' ' << e.y() << ' ' << e.z() << '\n';
     for (const auto& s : kf.segments)
       seg_csv << kf.id << ' ' << s.start.x() << ' ' << s.start.y() << ' ' << s.end.x() << ' '
               << s.end.y() << ' ' << s.support << '\n';

@@ -41,6 +41,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("odometry_max_std_yaw", p.odometry.max_std_yaw);
   r.param("odometry_max_fitness", p.odometry.max_fitness);
   r.param("odometry_lateral_std_ratio", p.odometry.lateral_std_ratio);
+  r.param("odometry_hessian_weight", p.odometry.hessian_weight);
+  r.param("odometry_prediction_error_scale", p.odometry.prediction_error_scale);
   r.param("reanchor_std_xyz", p.reanchor_std_xyz);
   r.param("reanchor_std_rot", p.reanchor_std_rot);
   r.param("gnss_prior_std", p.gnss_prior_std);
@@ -56,6 +58,16 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("ins_heading_kernel_width", p.ins_heading_kernel_width);
   r.param("anchor_std_xy", p.anchor_std_xy);
   r.param("anchor_std_yaw", p.anchor_std_yaw);
+  if (!(p.odometry.prediction_error_scale >= 0.0)) {
+    if (error) *error = "odometry_prediction_error_scale must be >= 0";
+    p.odometry.prediction_error_scale = InformationParams{}.prediction_error_scale;
+    ok = false;
+  }
+  if (!(p.odometry.hessian_weight >= 0.0)) {
+    if (error) *error = "odometry_hessian_weight must be >= 0";
+    p.odometry.hessian_weight = InformationParams{}.hessian_weight;
+    ok = false;
+  }
   if (!(p.odometry.lateral_std_ratio > 0.0)) {
     if (error) *error = "odometry_lateral_std_ratio must be > 0";
     p.odometry.lateral_std_ratio = InformationParams{}.lateral_std_ratio;

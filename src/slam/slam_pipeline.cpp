@@ -110,10 +110,7 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
   timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));
   if (!result.has_pose()) return false;
-  if (result.new_keyframe)
-    processKeyframe(tracker_.keyframe(),
-                    result.registration.converged ? result.registration.fitness : -1.0,
-                    result.reanchored, aiding);
+  if (result.new_keyframe) processKeyframe(tracker_.keyframe(), result, aiding);
   return true;
 }
 
@@ -123,7 +120,7 @@ void SlamPipeline::startClock() {
   started_ = true;
 }
 
-void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
+void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
                                    const ScanAiding& aiding) {
   ++timings_.keyframes;
   KeyframeInput input;
@@ -131,8 +128,12 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, double fitness, bool rean
   input.stamp = kf.stamp;
   input.odom_pose = kf.pose;
   input.accum_distance = kf.accum_distance;
-  input.odom_fitness = fitness;
-  input.reanchored = reanchored;
+  if (track.registration.converged) {
+    input.odom_fitness = track.registration.fitness;
+    input.odom_hessian = track.registration.hessian;
+    input.odom_prediction_error = track.prediction_error;
+  }
+  input.reanchored = track.reanchored;
   input.cloud = kf.cloud;
   input.gravity_roll_pitch = aiding.gravity_roll_pitch;
   input.gnss_position = aiding.gnss_position;

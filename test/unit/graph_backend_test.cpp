@@ -114,6 +114,66 @@ TEST(LeverInformation, RotationAboutTheMatchedWallCostsOnlyHeading) {
   EXPECT_TRUE(leverInformation(at_wall, Eigen::Vector2d::Zero()).isApprox(at_wall));
 }
 
+// The Hessian of a match, given for a left perturbation d (X = Exp(d) Z in the target frame),
+// must cost the same as PoseGraph's edge error of X against Z: e = (R_z^T (t_x - t_z),
+// vec(q_z^-1 q_x)).
+TEST(RegistrationInformation, CostsWhatTheHessianCostsInTheEdgeError) {
+  Matrix6d a;
+  a << 3, 1, 0, 0, 2, 0, 1, 5, 1, 0, 0, 1, 0, 1, 4, 1, 0, 0, 0, 0, 1, 6, 1, 0, 2, 0, 0, 1, 7, 2, 0,
+      1, 0, 0, 2, 9;
+  const Matrix6d h = 1e4 * a.transpose() * a;  // symmetric, positive definite, coupled
+  Eigen::Isometry3d z = Eigen::Isometry3d::Identity();
+  z.translation() << 1.9, -0.3, 0.05;
+  z.linear() = (Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(0.03, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  const Matrix6d info = registrationInformation(h, z);
+  EXPECT_TRUE(info.isApprox(info.transpose()));
+  const Eigen::Quaterniond qz(z.linear());
+  for (int k = 0; k < 12; ++k) {
+    Eigen::Matrix<double, 6, 1> d = 1e-4 * Eigen::Matrix<double, 6, 1>::Random();
+    Eigen::Isometry3d left = Eigen::Isometry3d::Identity();  // GICP's update: p' = R(phi) p + rho
+    left.linear() =
+        Eigen::AngleAxisd(d.tail<3>().norm(), d.tail<3>().normalized()).toRotationMatrix();
+    left.translation() = d.head<3>();
+    const Eigen::Isometry3d x = left * z;
+    Eigen::Quaterniond qe = qz.conjugate() * Eigen::Quaterniond(x.linear());
+    if (qe.w() < 0.0) qe.coeffs() *= -1.0;
+    Eigen::Matrix<double, 6, 1> e;
+    e << z.linear().transpose() * (x.translation() - z.translation()), qe.vec();
+    const double expected = d.dot(h * d), got = e.dot(info * e);
+    EXPECT_NEAR(got, expected, 1e-3 * expected) << "perturbation " << k;
+  }
+}
+
+TEST(RegistrationInformation, TranslationMarginalAndAddedDeviation) {
+  // Translation x coupled with yaw (a match that pins a point 10 m to the side): knowing the yaw
+  // would pin x (A = 1e4), not knowing it leaves the Schur complement.
+  Matrix6d info = Matrix6d::Identity() * 1e4;
+  info(0, 5) = info(5, 0) = 9e3;
+  const Eigen::Matrix3d marginal = translationMarginal(info);
+  EXPECT_NEAR(marginal(0, 0), 1e4 - 9e3 * 9e3 / 1e4, 1e-6);
+  EXPECT_NEAR(marginal(1, 1), 1e4, 1e-6);
+  Matrix6d blind = info;
+  blind.bottomRightCorner<3, 3>().setZero();  // no rotation information: no translation claim
+  EXPECT_TRUE(translationMarginal(blind).isZero());
+  // (info^-1 + e e^T)^-1: x (1 cm) loosened by an offset of 10 cm along x, z (10 cm) kept; also
+  // with a direction info does not constrain (y).
+  const Eigen::Matrix3d diag = Eigen::Vector3d(1e4, 0.0, 1e2).asDiagonal();
+  const Eigen::Matrix3d inflated = withDeviationAlong(diag, Eigen::Vector3d(0.1, 0.0, 0.0));
+  EXPECT_NEAR(inflated(0, 0), 1.0 / (1e-4 + 1e-2), 1e-9);
+  EXPECT_NEAR(inflated(1, 1), 0.0, 1e-12);
+  EXPECT_NEAR(inflated(2, 2), 1e2, 1e-9);
+  EXPECT_TRUE(withDeviationAlong(diag, Eigen::Vector3d::Zero()).isApprox(diag));
+  // A diagonal offset: the information along it is 1 / (its variance + |e|^2).
+  const Eigen::Matrix3d iso = Eigen::Matrix3d::Identity() * 1e4;
+  const Eigen::Vector3d e(0.06, 0.08, 0.0);  // 10 cm
+  const Eigen::Vector3d u = e.normalized(), side(-u.y(), u.x(), 0.0);
+  const Eigen::Matrix3d loose = withDeviationAlong(iso, e);
+  EXPECT_NEAR(u.dot(loose * u), 1.0 / (1e-4 + 1e-2), 1e-6);
+  EXPECT_NEAR(side.dot(loose * side), 1e4, 1e-6);
+}
+
 TEST(OdometryInformation, TranslationAcrossTheMotionIsTighterByTheLateralRatio) {
   InformationParams p;
   p.min_std_xyz = 0.02;

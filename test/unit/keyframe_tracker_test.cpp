@@ -28,6 +28,15 @@ std::vector<PointCloudPtr> loadPatchwork() {
   return scans;
 }
 
+/// For the synthetic scene's instantaneous scans (no sweep to undo), one keyframe for the test.
+KeyframeTrackerParams syntheticSceneParams() {
+  KeyframeTrackerParams params;
+  params.deskew = false;
+  params.keyframe_delta_trans = 100.0;
+  params.keyframe_delta_time = 100.0;
+  return params;
+}
+
 TEST(KeyframeTrackerTest, OdometryAgreesWithDirectRegistrationOverSixScans) {
   OGS_REQUIRE_SHARED_FILE(patchworkScan(5));
   const auto scans = loadPatchwork();
@@ -77,11 +86,7 @@ TEST(KeyframeTrackerTest, FailedMatchKeepsConstantVelocityPrediction) {
   step.translation() << 0.5, 0.05, 0.0;
   step.linear() = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   // The scene seen from poses 0, step, step^2: a cloud seen from pose T is T^-1 * scene.
-  KeyframeTrackerParams params;
-  params.deskew = false;  // the synthetic scans are instantaneous: no sweep to undo
-  params.keyframe_delta_trans = 100.0;
-  params.keyframe_delta_time = 100.0;
-  KeyframeTracker tracker(params);
+  KeyframeTracker tracker(syntheticSceneParams());
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   for (int i = 0; i < 3; ++i) {
     const auto result = tracker.track(1.0 + i, test::transformed(*scene, pose.inverse()));
@@ -111,6 +116,28 @@ TEST(KeyframeTrackerTest, FailedMatchKeepsConstantVelocityPrediction) {
   const auto resumed = tracker.track(5.0, test::transformed(*scene, pose.inverse()));
   EXPECT_EQ(resumed.status, TrackStatus::kMatched) << resumed.message;
   EXPECT_LT(translationError(pose, resumed.pose), 1e-3);
+}
+
+// The back-end trusts a match's geometry less when the motion model missed the motion (the scan
+// was deskewed by the wrong motion): the tracker reports how far the match lies from it.
+TEST(KeyframeTrackerTest, PredictionErrorIsHowFarTheMatchLiesFromTheMotionModel) {
+  const auto scene = test::syntheticScene(600);
+  KeyframeTracker tracker(syntheticSceneParams());
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d step(0.5, 0.02, 0.0);
+  for (int i = 0; i < 4; ++i) {
+    const auto result = tracker.track(0.1 * i, test::transformed(*scene, pose.inverse()));
+    ASSERT_FALSE(result.failed()) << result.message;
+    if (i >= 2) {
+      EXPECT_LT(result.prediction_error.norm(), 1e-3) << "constant velocity, scan " << i;
+    }
+    pose.translation() += step;
+  }
+  pose.translation().x() += 0.3;  // the vehicle lurches: 0.3 m the model could not know
+  const auto lurch = tracker.track(0.4, test::transformed(*scene, pose.inverse()));
+  ASSERT_EQ(lurch.status, TrackStatus::kMatched) << lurch.message;
+  EXPECT_NEAR(lurch.prediction_error.x(), 0.3, 0.005);  // in base_link: ahead
+  EXPECT_NEAR(lurch.prediction_error.tail<2>().norm(), 0.0, 0.005);
 }
 
 TEST(KeyframeTrackerTest, NewKeyframeWhenTimeOrAngleThresholdExceeded) {

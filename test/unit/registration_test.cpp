@@ -2,6 +2,9 @@
 // bad input (empty, NaN-only, single point) without exceptions.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 #include "frontend_test_utils.h"
@@ -105,6 +108,68 @@ TEST(RegistrationTest, RecoversKnownSyntheticTransformExactly) {
   EXPECT_LT(et, 0.001);
   EXPECT_LT(er, 0.01);
   EXPECT_LT(result.fitness, 1e-6);
+}
+
+/// Points on two walls at y = +-4 m along x in [-20, 20] and a floor at z = -1.7 m (a corridor),
+/// with `cross_wall` a wall across it at x = 15 m; 2 mm noise.
+PointCloudPtr corridor(bool cross_wall, unsigned seed) {
+  std::srand(seed);
+  auto noise = [] { return 0.002f * (2.0f * std::rand() / RAND_MAX - 1.0f); };
+  PointCloudPtr cloud = std::make_shared<PointCloud>();
+  auto add = [&](float x, float y, float z) {
+    PointT p;
+    p.getVector3fMap() = Eigen::Vector3f(x + noise(), y + noise(), z + noise());
+    cloud->push_back(p);
+  };
+  for (float x = -20.0f; x <= 20.0f; x += 0.25f)
+    for (float z = -1.5f; z <= 2.0f; z += 0.25f) {
+      add(x, 4.0f, z);
+      add(x, -4.0f, z);
+    }
+  for (float x = -20.0f; x <= 20.0f; x += 0.5f)
+    for (float y = -3.75f; y <= 3.75f; y += 0.5f) add(x, y, -1.7f);
+  if (cross_wall)
+    for (float y = -3.75f; y <= 3.75f; y += 0.25f)
+      for (float z = -1.5f; z <= 2.0f; z += 0.25f) add(15.0f, y, z);
+  return cloud;
+}
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+RegistrationResult alignCorridor(bool cross_wall) {
+  RegistrationParams params;
+  auto reg = createRegistration(params);
+  reg->setTarget(corridor(cross_wall, 1));
+  return reg->align(corridor(cross_wall, 2), Eigen::Isometry3d::Identity());
+}
+
+// The Hessian at the solution says what the scene constrains: in a corridor of two walls and a
+// floor the translation along it is (almost) free; a wall across it constrains it.
+TEST(RegistrationTest, HessianShowsWhatTheSceneConstrains) {
+  const RegistrationResult open = alignCorridor(false), closed = alignCorridor(true);
+  ASSERT_TRUE(open.converged) << open.message;
+  ASSERT_TRUE(closed.converged) << closed.message;
+  for (const auto* r : {&open, &closed}) {
+    EXPECT_TRUE(r->hessian.isApprox(r->hessian.transpose(), 1e-9));
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Matrix6>(r->hessian).eigenvalues().minCoeff(), -1e-6);
+  }
+  const double along_open = open.hessian(0, 0), across_open = open.hessian(1, 1);
+  std::printf(
+      "[hessian] corridor: along %.3g, across %.3g, up %.3g; with a cross wall along %.3g\n",
+      along_open, across_open, open.hessian(2, 2), closed.hessian(0, 0));
+  EXPECT_LT(along_open, 0.01 * across_open);
+  EXPECT_GT(closed.hessian(0, 0), 30.0 * along_open);
+  EXPECT_GT(open.hessian(2, 2), 0.1 * across_open);  // the floor holds the height
+}
+
+TEST(RegistrationTest, PclBaselinesGiveNoHessian) {
+  RegistrationParams params;
+  params.method = "pcl_gicp";
+  auto reg = createRegistration(params);
+  reg->setTarget(corridor(true, 1));
+  const RegistrationResult r = reg->align(corridor(true, 2), Eigen::Isometry3d::Identity());
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_TRUE(r.hessian.isZero()) << "zero means unknown to the back-end";
 }
 
 PointCloudPtr cloudOf(std::initializer_list<Eigen::Vector3f> points) {

@@ -119,6 +119,11 @@ struct TrackResult {
   bool reanchored = false;
   double gap = 0.0;
   RegistrationResult registration;
+  /// [m] where the accepted match lies from the motion model's prediction (the one the scan was
+  /// deskewed by), in the scan's base_link: a motion the model missed also distorted the
+  /// deskewed scan, so the match is uncertain along it (odometry information, doc/backend.md).
+  /// Zero if no match was accepted.
+  Eigen::Vector3d prediction_error = Eigen::Vector3d::Zero();
   std::string guess_source;     ///< guess of the accepted match (or of the kept prediction)
   int attempts = 0;             ///< registrations tried against the keyframe
   double pre_tracker_ms = 0.0;  ///< time of the pre-tracker's registration (0 when not run)

@@ -16,6 +16,11 @@ struct RegistrationResult {
   bool converged = false;
   /// Mean squared distance of inlier correspondences at the solution [m^2].
   double fitness = std::numeric_limits<double>::infinity();
+  /// Gauss-Newton Hessian of the cost at the solution for a perturbation applied on the left in
+  /// the target frame, ordered (translation, rotation); zero when the back-end gives none (the
+  /// PCL baselines). Its inverse is the match's covariance only up to a scale: GICP counts
+  /// neighbouring points as independent evidence (odometry information, doc/backend.md).
+  Eigen::Matrix<double, 6, 6> hessian = Eigen::Matrix<double, 6, 6>::Zero();
   int iterations = 0;
   double time_ms = 0.0;
   std::string message;  ///< why it failed, when it did

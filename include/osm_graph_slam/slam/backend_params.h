@@ -35,6 +35,18 @@ struct InformationParams {
   /// along-track step error std 9 mm, lateral 3 mm), and isotropic deviations let
   /// robot<->building edges jitter keyframes sideways.
   double lateral_std_ratio = 0.3;
+  /// Geometry as evidence: this times the match's own information (its GICP Hessian, moved to
+  /// the edge's error coordinates) is added to the fitness-based information, so a direction the
+  /// scene constrains well (along a square's walls) is held where the fitness model, which only
+  /// knows streets, assumes it weak. The Hessian counts neighbouring points as independent, so
+  /// the weight is far below 1 (doc/backend.md). 0 = off; keyframes without a Hessian (PCL
+  /// registration, old dumps) get the fitness model alone.
+  double hessian_weight = 0.0;
+  /// A keyframe whose match lay an offset e from the motion model's prediction (TrackResult::
+  /// prediction_error: the scan was deskewed by a motion that did not happen) gets
+  /// (scale * e)(scale * e)^T added to its translation covariance: along e the step is
+  /// uncertain by about that much, whatever fitness and Hessian say. 0 = off (doc/backend.md).
+  double prediction_error_scale = 1.0;
 };
 
 struct GraphBackendParams {

@@ -35,6 +35,11 @@ struct KeyframeInput {
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
   double accum_distance = 0.0;
   double odom_fitness = -1.0;  ///< fitness of the match that made it (< 0: unknown)
+  /// That match's Hessian (RegistrationResult::hessian: left perturbation in the previous
+  /// keyframe's frame, translation then rotation); zero when unknown.
+  Matrix6d odom_hessian = Matrix6d::Zero();
+  /// [m] that match's offset from the motion model's prediction (TrackResult), zero if unknown.
+  Eigen::Vector3d odom_prediction_error = Eigen::Vector3d::Zero();
   /// The tracker re-anchored it on a guess after failed matches: a weak odometry edge.
   bool reanchored = false;
   PointCloudConstPtr cloud;  ///< filtered cloud in base_link (may be null)
@@ -110,6 +115,8 @@ struct KeyframeState {
   Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
   double odom_fitness = -1.0;
+  Matrix6d odom_hessian = Matrix6d::Zero();                         ///< as received (KeyframeInput)
+  Eigen::Vector3d odom_prediction_error = Eigen::Vector3d::Zero();  ///< as received
   bool reanchored = false;  ///< linked by a weak odometry edge (the tracker re-anchored it)
   std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
   std::optional<Eigen::Vector4d> floor;               ///< in base_link, as received

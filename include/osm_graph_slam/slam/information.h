@@ -14,6 +14,20 @@ namespace osm_graph_slam {
 Matrix6d odometryInformation(double fitness, const InformationParams& params,
                              const Eigen::Vector3d& motion = Eigen::Vector3d::Zero());
 
+/// A registration's Hessian (RegistrationResult::hessian: left perturbation of `relative`, the
+/// match's source-to-target transform, in the target frame) as information of an SE3 edge
+/// measuring `relative`, in PoseGraph's error coordinates (right perturbation; the rotation
+/// error is a quaternion's vector part, half the angle).
+Matrix6d registrationInformation(const Matrix6d& hessian, const Eigen::Isometry3d& relative);
+
+/// The translation's information with the rotation unknown (Schur complement of the rotation
+/// block): what `info` says about the translation alone.
+Eigen::Matrix3d translationMarginal(const Matrix6d& info);
+
+/// `info` with an independent deviation `offset` (its length, along its direction) added to its
+/// covariance: (info^-1 + offset offset^T)^-1, also for a singular info.
+Eigen::Matrix3d withDeviationAlong(const Eigen::Matrix3d& info, const Eigen::Vector3d& offset);
+
 /// Planar (x, y, theta) information of a pose from a measurement that pins the point `lever`
 /// away from it (same frame), given as information at that point: a rotation about the pose
 /// moves the point by theta × lever, so position and heading errors are coupled.

@@ -110,8 +110,7 @@ class SlamPipeline {
                      const ScanAiding& aiding);
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
-  void processKeyframe(const Keyframe& kf, double fitness, bool reanchored,
-                       const ScanAiding& aiding);
+  void processKeyframe(const Keyframe& kf, const TrackResult& track, const ScanAiding& aiding);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
