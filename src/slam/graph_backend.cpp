@@ -306,11 +306,13 @@ namespace {
 Matrix6d odometryEdgeInformation(const KeyframeInput& in, const Eigen::Isometry3d& delta,
                                  const InformationParams& p) {
   Matrix6d info = odometryInformation(in.odom_fitness, p, delta.translation());
-  if (p.hessian_weight > 0.0 && !in.odom_hessian.isZero())
+  // Zero (unknown) or non-finite (a corrupt message) inputs add nothing.
+  if (p.hessian_weight > 0.0 && !in.odom_hessian.isZero() && in.odom_hessian.allFinite())
     info.topLeftCorner<3, 3>() +=
         p.hessian_weight * translationMarginal(registrationInformation(in.odom_hessian, delta));
-  info.topLeftCorner<3, 3>() = withDeviationAlong(
-      info.topLeftCorner<3, 3>(), p.prediction_error_scale * in.odom_prediction_error);
+  if (in.odom_prediction_error.allFinite())
+    info.topLeftCorner<3, 3>() = withDeviationAlong(
+        info.topLeftCorner<3, 3>(), p.prediction_error_scale * in.odom_prediction_error);
   return info;
 }
 

@@ -30,6 +30,7 @@ struct Drive {
   double loop_information = 100.0;  // 10 cm, 0.1 rad
   std::string loop_kernel = GraphBackendParams().loop_kernel;
   double prediction_error = 0.0005;  // [m] ahead, of keyframe 2's match (the one with a Hessian)
+  double prediction_error_scale = 1.0;
 };
 
 /// The optimised keyframes' x.
@@ -38,6 +39,7 @@ std::vector<double> optimisedX(const Drive& drive, std::string* dump_dir = nullp
   GraphBackendParams params;
   params.use_osm = false;
   params.odometry.hessian_weight = drive.hessian_weight;
+  params.odometry.prediction_error_scale = drive.prediction_error_scale;
   params.loop_kernel = drive.loop_kernel;
   GraphBackend backend(params);
   const double xs[] = {0.0, 2.0, 4.0, 7.5};
