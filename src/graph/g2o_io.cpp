@@ -17,6 +17,8 @@
 #include <sstream>
 #include <vector>
 
+#include "osm_graph_slam/common/upper_triangle.h"
+
 namespace osm_graph_slam {
 namespace {
 
@@ -71,20 +73,6 @@ bool parseDouble(const std::string& token, double* value) {
   if (errno == ERANGE || end == token.c_str() || *end != '\0' || !std::isfinite(v)) return false;
   *value = v;
   return true;
-}
-
-// Symmetric n×n matrix from its upper triangle, row by row.
-Eigen::MatrixXd upperTriangleToMatrix(const std::vector<double>& v, size_t offset, int n) {
-  Eigen::MatrixXd m(n, n);
-  size_t k = offset;
-  for (int r = 0; r < n; ++r) {
-    for (int c = r; c < n; ++c) {
-      m(r, c) = v[k];
-      m(c, r) = v[k];
-      ++k;
-    }
-  }
-  return m;
 }
 
 // Layout of one tag: number of integer ids, measurement size, information size.
@@ -405,12 +393,6 @@ G2oReadResult buildGraph(const ParsedFile& file, const G2oReadOptions& options, 
   result.num_initialised = initialiser.initialised();
   *out = std::move(graph);
   return result;
-}
-
-void writeUpperTriangle(std::ostream& out, const Eigen::MatrixXd& m) {
-  for (int r = 0; r < m.rows(); ++r) {
-    for (int c = r; c < m.cols(); ++c) out << ' ' << m(r, c);
-  }
 }
 
 void writeValues(std::ostream& out, const Eigen::VectorXd& v) {

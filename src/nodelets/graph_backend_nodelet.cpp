@@ -29,6 +29,7 @@
 #include "osm_graph_slam/LineSegmentArray.h"
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
+#include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
@@ -120,11 +121,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     kf.reanchored = msg->tracking_recovered;
     kf.odom_prediction_error = {msg->prediction_error.x, msg->prediction_error.y,
                                 msg->prediction_error.z};
-    if (msg->odom_hessian.size() == 21) {
-      auto value = msg->odom_hessian.begin();
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) kf.odom_hessian(r, c) = kf.odom_hessian(c, r) = *value++;
-    }
+    if (msg->odom_hessian.size() == 21)
+      kf.odom_hessian = upperTriangleToMatrix(msg->odom_hessian, 0, 6);
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
     if (fromPointCloud2(msg->cloud, *cloud, &error)) {

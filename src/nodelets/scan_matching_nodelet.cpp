@@ -16,6 +16,7 @@
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/ScanMatchingStatus.h"
+#include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/odometry/imu_orientation_buffer.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/odometry/params_io.h"
@@ -171,11 +172,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
     msg->tracking_recovered = result.reanchored;
     msg->recovery_gap = result.gap;
-    if (result.registration.converged && !result.registration.hessian.isZero()) {
-      const auto& h = result.registration.hessian;
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) msg->odom_hessian.push_back(h(r, c));
-    }
+    if (result.registration.converged && !result.registration.hessian.isZero())
+      msg->odom_hessian = upperTriangle(result.registration.hessian);
     msg->prediction_error.x = result.prediction_error.x();
     msg->prediction_error.y = result.prediction_error.y();
     msg->prediction_error.z = result.prediction_error.z();

@@ -273,10 +273,12 @@ class FastGicp : public Registration {
     }
     // Fitness on nearest points (not voxel means) so that every method reports the same measure;
     // GICP reuses its last nearest neighbours (the final step moved the points by < epsilon).
+    // The Hessian of the last Gauss-Newton linearisation: at the solution within the convergence
+    // epsilon, of the cost that was minimised (voxel distributions for VGICP); not recomputed.
+    if (result.converged) result.hessian = eq.h;
     if (voxelized_) updateCorrespondences(src, t, corr, false);
-    eq = linearise(src, t, corr, true, false);
+    eq = linearise(src, t, corr, false, false);
     result.transform = t;
-    result.hessian = eq.h;
     result.fitness =
         eq.inliers > 0 ? eq.squared_distance / eq.inliers : std::numeric_limits<double>::infinity();
     if (!result.converged) {

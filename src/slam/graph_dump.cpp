@@ -8,6 +8,7 @@
 #include <limits>
 #include <sstream>
 
+#include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 
@@ -69,9 +70,7 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
     }
     if (extra.size() >= 4) kf.reanchored = extra[3] != 0.0;
     if (extra.size() >= 4 + kHessianValues) {
-      auto value = extra.begin() + 4;
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) kf.odom_hessian(r, c) = kf.odom_hessian(c, r) = *value++;
+      kf.odom_hessian = upperTriangleToMatrix(extra, 4, 6);
       if (!kf.odom_hessian.allFinite()) return false;
     }
     if (extra.size() >= 7 + kHessianValues) {

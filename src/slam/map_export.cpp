@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/common/xml_escape.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
@@ -239,8 +240,7 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     kf_csv << kf.id << ' ' << kf.stamp << ' ' << kf.accum_distance << ' ' << poseRow(kf.odom_pose)
            << ' ' << kf.odom_fitness << ' ' << rp.x() << ' ' << rp.y() << ' '
            << (kf.reanchored ? 1 : 0);
-    for (int r = 0; r < 6; ++r)
-      for (int c = r; c < 6; ++c) kf_csv << ' ' << kf.odom_hessian(r, c);
+    writeUpperTriangle(kf_csv, kf.odom_hessian);
     const Eigen::Vector3d& e = kf.odom_prediction_error;
     kf_csv << ' ' << e.x() << ' ' << e.y() << ' ' << e.z() << '\n';
     for (const auto& s : kf.segments)
