@@ -471,16 +471,20 @@ G2oWriteResult writeG2o(const PoseGraph& graph, std::ostream& out) {
         out << "VERTEX_TRACKXYZ " << id;
         writeValues(out, Eigen::Map<const Eigen::VectorXd>(v.x.data(), 3));
         break;
+      case VertexType::kScale:
+        ++result.num_skipped_vertices;
+        continue;
     }
     out << '\n';
     ++result.num_vertices;
   }
   for (const auto& [id, v] : graph.vertices()) {
-    if (v.fixed) out << "FIX " << id << '\n';
+    if (v.fixed && v.type != VertexType::kScale) out << "FIX " << id << '\n';
   }
   for (const auto& [id, e] : graph.edges()) {
     const char* tag = nullptr;
     if (e.type == EdgeType::kSE2) tag = "EDGE_SE2";
+    if (e.type == EdgeType::kSE3Scaled) tag = "EDGE_SE3:QUAT";
     if (e.type == EdgeType::kSE3) tag = "EDGE_SE3:QUAT";
     if (e.type == EdgeType::kSE2PointXY) tag = "EDGE_SE2_XY";
     if (e.type == EdgeType::kPriorSE2) tag = "EDGE_PRIOR_SE2";
@@ -488,9 +492,15 @@ G2oWriteResult writeG2o(const PoseGraph& graph, std::ostream& out) {
       ++result.num_skipped_edges;
       continue;
     }
+    Eigen::VectorXd measurement = e.measurement;
+    int num_ids = e.num_vertices;
+    if (e.type == EdgeType::kSE3Scaled) {  // g2o has no scale: the edge at today's estimate
+      measurement.head<3>() *= graph.vertexScale(e.vertices[2]).value_or(1.0);
+      num_ids = 2;
+    }
     out << tag;
-    for (int k = 0; k < e.num_vertices; ++k) out << ' ' << e.vertices[k];
-    writeValues(out, e.measurement);
+    for (int k = 0; k < num_ids; ++k) out << ' ' << e.vertices[k];
+    writeValues(out, measurement);
     writeUpperTriangle(out, e.information);
     out << '\n';
     ++result.num_edges;

@@ -4,6 +4,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -13,44 +14,49 @@ namespace {
 
 struct EdgeSignature {
   int num_vertices;
-  VertexType first;
-  VertexType second;
+  std::array<VertexType, kMaxEdgeVertices> types;  ///< the first num_vertices are used
 };
 
 EdgeSignature signatureOf(EdgeType type) {
   using V = VertexType;
   switch (type) {
     case EdgeType::kSE3:
-      return {2, V::kSE3, V::kSE3};
+      return {2, {V::kSE3, V::kSE3}};
     case EdgeType::kSE2:
-      return {2, V::kSE2, V::kSE2};
+      return {2, {V::kSE2, V::kSE2}};
     case EdgeType::kSE3SE2:
-      return {2, V::kSE3, V::kSE2};
+      return {2, {V::kSE3, V::kSE2}};
     case EdgeType::kPriorSE3:
     case EdgeType::kPriorSE3XY:
     case EdgeType::kPriorSE3XYZ:
     case EdgeType::kPriorSE3Yaw:
-      return {1, V::kSE3, V::kSE3};
+      return {1, {V::kSE3}};
     case EdgeType::kPriorSE2:
-      return {1, V::kSE2, V::kSE2};
+      return {1, {V::kSE2}};
     case EdgeType::kSE2PointXY:
-      return {2, V::kSE2, V::kPointXY};
+      return {2, {V::kSE2, V::kPointXY}};
     case EdgeType::kSE3PointXY:
-      return {2, V::kSE3, V::kPointXY};
+      return {2, {V::kSE3, V::kPointXY}};
     case EdgeType::kSE2PointOnLine:
-      return {2, V::kSE2, V::kSE2};
+      return {2, {V::kSE2, V::kSE2}};
     case EdgeType::kSE3PlanePair:
-      return {2, V::kSE3, V::kSE3};
+      return {2, {V::kSE3, V::kSE3}};
     case EdgeType::kPriorPointXYZ:
-      return {1, V::kPointXYZ, V::kPointXYZ};
+      return {1, {V::kPointXYZ}};
     case EdgeType::kPointXYZGaussMarkov:
-      return {2, V::kPointXYZ, V::kPointXYZ};
+      return {2, {V::kPointXYZ, V::kPointXYZ}};
     case EdgeType::kSE3PositionWithOffset:
-      return {2, V::kSE3, V::kPointXYZ};
+      return {2, {V::kSE3, V::kPointXYZ}};
     case EdgeType::kSE3YawDifference:
-      return {2, V::kSE3, V::kSE3};
+      return {2, {V::kSE3, V::kSE3}};
+    case EdgeType::kSE3Scaled:
+      return {3, {V::kSE3, V::kSE3, V::kScale}};
+    case EdgeType::kPriorScale:
+      return {1, {V::kScale}};
+    case EdgeType::kScaleDifference:
+      return {2, {V::kScale, V::kScale}};
   }
-  return {0, V::kSE3, V::kSE3};
+  return {0, {V::kSE3}};
 }
 
 bool allFinite(const Eigen::MatrixXd& m) {
@@ -104,6 +110,8 @@ const char* toString(VertexType type) {
       return "XY";
     case VertexType::kPointXYZ:
       return "XYZ";
+    case VertexType::kScale:
+      return "scale";
   }
   return "?";
 }
@@ -142,6 +150,12 @@ const char* toString(EdgeType type) {
       return "SE3 position + XYZ offset";
     case EdgeType::kSE3YawDifference:
       return "SE3 yaw difference";
+    case EdgeType::kSE3Scaled:
+      return "SE3 scaled";
+    case EdgeType::kPriorScale:
+      return "prior scale";
+    case EdgeType::kScaleDifference:
+      return "scale difference";
   }
   return "?";
 }
@@ -163,6 +177,7 @@ const char* toString(TerminationReason reason) {
 int errorDimension(EdgeType type) {
   switch (type) {
     case EdgeType::kSE3:
+    case EdgeType::kSE3Scaled:
     case EdgeType::kPriorSE3:
       return 6;
     case EdgeType::kSE2:
@@ -181,13 +196,16 @@ int errorDimension(EdgeType type) {
     case EdgeType::kSE3YawDifference:
     case EdgeType::kPriorSE3Yaw:
     case EdgeType::kSE2PointOnLine:
+    case EdgeType::kPriorScale:
+    case EdgeType::kScaleDifference:
       return 1;
   }
   return 0;
 }
 
 int measurementDimension(EdgeType type) {
-  if (type == EdgeType::kSE3 || type == EdgeType::kPriorSE3) return 7;
+  if (type == EdgeType::kSE3 || type == EdgeType::kSE3Scaled || type == EdgeType::kPriorSE3)
+    return 7;
   if (type == EdgeType::kSE2PointOnLine) return 5;
   if (type == EdgeType::kSE3PlanePair) return 8;
   if (type == EdgeType::kPointXYZGaussMarkov) return 1;
@@ -239,6 +257,10 @@ bool PoseGraph::addVertexPointXYZ(int id, const Eigen::Vector3d& point, bool fix
   return addVertex(id, VertexType::kPointXYZ, point.data(), 3, fixed);
 }
 
+bool PoseGraph::addVertexScale(int id, double scale, bool fixed) {
+  return addVertex(id, VertexType::kScale, &scale, 1, fixed);
+}
+
 bool PoseGraph::removeVertex(int id) {
   if (!vertices_.count(id)) return false;
   for (int e : edgesOfVertex(id)) edges_.erase(e);
@@ -281,6 +303,12 @@ std::optional<Eigen::Vector3d> PoseGraph::vertexPointXYZ(int id) const {
   return Eigen::Vector3d(it->second.x[0], it->second.x[1], it->second.x[2]);
 }
 
+std::optional<double> PoseGraph::vertexScale(int id) const {
+  const auto it = vertices_.find(id);
+  if (it == vertices_.end() || it->second.type != VertexType::kScale) return std::nullopt;
+  return it->second.x[0];
+}
+
 bool PoseGraph::setVertexSE3(int id, const Eigen::Isometry3d& pose) {
   const auto it = vertices_.find(id);
   if (it == vertices_.end() || it->second.type != VertexType::kSE3) return false;
@@ -311,6 +339,14 @@ bool PoseGraph::setVertexPointXY(int id, const Eigen::Vector2d& point) {
   return true;
 }
 
+bool PoseGraph::setVertexScale(int id, double scale) {
+  const auto it = vertices_.find(id);
+  if (it == vertices_.end() || it->second.type != VertexType::kScale || !std::isfinite(scale))
+    return false;
+  it->second.x[0] = scale;
+  return true;
+}
+
 bool PoseGraph::setFixed(int id, bool fixed) {
   const auto it = vertices_.find(id);
   if (it == vertices_.end()) return false;
@@ -337,13 +373,15 @@ int PoseGraph::addEdge(EdgeType type, const std::vector<int>& ids,
   for (size_t k = 0; k < ids.size(); ++k) {
     const auto it = vertices_.find(ids[k]);
     if (it == vertices_.end()) return fail(what + ": unknown vertex " + std::to_string(ids[k]));
-    const VertexType expected = k == 0 ? sig.first : sig.second;
+    const VertexType expected = sig.types[k];
     if (it->second.type != expected) {
       return fail(what + ": vertex " + std::to_string(ids[k]) + " is " + toString(it->second.type) +
                   ", expected " + toString(expected));
     }
   }
-  if (ids.size() == 2 && ids[0] == ids[1]) return fail(what + " connects a vertex to itself");
+  for (size_t k = 1; k < ids.size(); ++k)
+    if (std::find(ids.begin(), ids.begin() + k, ids[k]) != ids.begin() + k)
+      return fail(what + " connects a vertex to itself");
   if (options.level < 0) return fail(what + ": optimisation level must be >= 0");
   if (options.kernel.type != RobustKernelType::kNone &&
       !(options.kernel.width > 0.0 && std::isfinite(options.kernel.width))) {
@@ -381,6 +419,24 @@ int PoseGraph::addEdge(EdgeType type, const std::vector<int>& ids,
 int PoseGraph::addEdgeSE3(int from, int to, const Eigen::Isometry3d& measurement,
                           const Matrix6d& information, const EdgeOptions& options) {
   return addEdge(EdgeType::kSE3, {from, to}, se3Vector(measurement), information, options);
+}
+
+int PoseGraph::addEdgeSE3Scaled(int from, int to, int scale, const Eigen::Isometry3d& measurement,
+                                const Matrix6d& information, const EdgeOptions& options) {
+  return addEdge(EdgeType::kSE3Scaled, {from, to, scale}, se3Vector(measurement), information,
+                 options);
+}
+
+int PoseGraph::addPriorScale(int scale, double measurement, double information,
+                             const EdgeOptions& options) {
+  return addEdge(EdgeType::kPriorScale, {scale}, Eigen::VectorXd::Constant(1, measurement),
+                 Eigen::MatrixXd::Constant(1, 1, information), options);
+}
+
+int PoseGraph::addEdgeScaleDifference(int from, int to, double difference, double information,
+                                      const EdgeOptions& options) {
+  return addEdge(EdgeType::kScaleDifference, {from, to}, Eigen::VectorXd::Constant(1, difference),
+                 Eigen::MatrixXd::Constant(1, 1, information), options);
 }
 
 int PoseGraph::addEdgeSE2(int from, int to, const Pose2& measurement,
@@ -536,9 +592,9 @@ std::vector<int> PoseGraph::edgeIds(int min_level, int max_level,
 std::vector<int> PoseGraph::edgesOfVertex(int vertex_id) const {
   std::vector<int> ids;
   for (const auto& [id, e] : edges_) {
-    if (e.vertices[0] == vertex_id || (e.num_vertices == 2 && e.vertices[1] == vertex_id)) {
+    if (std::find(e.vertices.begin(), e.vertices.begin() + e.num_vertices, vertex_id) !=
+        e.vertices.begin() + e.num_vertices)
       ids.push_back(id);
-    }
   }
   return ids;
 }

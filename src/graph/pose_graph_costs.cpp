@@ -66,10 +66,11 @@ void se2RelativeError(const T* xi, const T* xj, const double* z, T* e) {
   e[2] = normalizeAngle(xj[2] - xi[2] - T(z[2]));
 }
 
-// g2o SE3 error (t, q.vec with qw ≥ 0) of Z⁻¹ · (Xi⁻¹ Xj); xi == nullptr means identity.
+// g2o SE3 error (t, q.vec with qw ≥ 0) of Z⁻¹ · (Xi⁻¹ Xj); xi == nullptr means identity. tz is
+// Z's translation (times a scale, when one is estimated).
 template <typename T>
-void se3RelativeError(const T* xi, const T* xj, const Quaterniond& qz_inv, const Vector3d& tz,
-                      T* e) {
+void se3RelativeError(const T* xi, const T* xj, const Quaterniond& qz_inv,
+                      const Eigen::Matrix<T, 3, 1>& tz, T* e) {
   using Vec3 = Eigen::Matrix<T, 3, 1>;
   using Quat = Eigen::Quaternion<T>;
   const Eigen::Map<const Vec3> tj(xj);
@@ -83,7 +84,7 @@ void se3RelativeError(const T* xi, const T* xj, const Quaterniond& qz_inv, const
     qij = qi_inv * qj;
   }
   const Quat qz_inv_t = qz_inv.cast<T>();
-  const Vec3 te = qz_inv_t * (tij - tz.cast<T>());
+  const Vec3 te = qz_inv_t * (tij - tz);
   const Quat qe = qz_inv_t * qij;
   const T sign = qe.w() < T(0.0) ? T(-1.0) : T(1.0);
   for (int k = 0; k < 3; ++k) {
@@ -120,8 +121,42 @@ struct SE3RelativeFunctor {
   template <typename T>
   bool operator()(const T* xi, const T* xj, T* r) const {
     T e[6];
-    se3RelativeError(xi, xj, qz_inv, tz, e);
+    se3RelativeError<T>(xi, xj, qz_inv, tz.cast<T>(), e);
     weigh<6>(sqrt_info, e, r);
+    return true;
+  }
+};
+
+struct SE3ScaledFunctor {
+  Quaterniond qz_inv;
+  Vector3d tz;
+  Eigen::Matrix<double, 6, 6> sqrt_info;
+  template <typename T>
+  bool operator()(const T* xi, const T* xj, const T* scale, T* r) const {
+    T e[6];
+    se3RelativeError<T>(xi, xj, qz_inv, scale[0] * tz.cast<T>(), e);
+    weigh<6>(sqrt_info, e, r);
+    return true;
+  }
+};
+
+// e = x − z (prior) or e = x_to − x_from − z (random walk) of one-value vertices.
+struct ScalarPriorFunctor {
+  double z = 0.0;
+  double sqrt_info = 1.0;
+  template <typename T>
+  bool operator()(const T* x, T* r) const {
+    r[0] = sqrt_info * (x[0] - T(z));
+    return true;
+  }
+};
+
+struct ScalarDifferenceFunctor {
+  double z = 0.0;
+  double sqrt_info = 1.0;
+  template <typename T>
+  bool operator()(const T* from, const T* to, T* r) const {
+    r[0] = sqrt_info * (to[0] - from[0] - T(z));
     return true;
   }
 };
@@ -133,7 +168,7 @@ struct PriorSE3Functor {
   template <typename T>
   bool operator()(const T* x, T* r) const {
     T e[6];
-    se3RelativeError<T>(nullptr, x, qz_inv, tz, e);
+    se3RelativeError<T>(nullptr, x, qz_inv, tz.cast<T>(), e);
     weigh<6>(sqrt_info, e, r);
     return true;
   }
@@ -322,7 +357,7 @@ struct SE3PlanePairFunctor {
 // lifted tangent form expected by SE3LiftedManifold.
 class LiftedCost : public ceres::CostFunction {
  public:
-  LiftedCost(std::unique_ptr<ceres::CostFunction> inner, std::array<bool, 2> is_se3)
+  LiftedCost(std::unique_ptr<ceres::CostFunction> inner, std::array<bool, kMaxEdgeVertices> is_se3)
       : inner_(std::move(inner)), is_se3_(is_se3) {
     set_num_residuals(inner_->num_residuals());
     *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
@@ -332,8 +367,8 @@ class LiftedCost : public ceres::CostFunction {
                 double** jacobians) const override {
     if (jacobians == nullptr) return inner_->Evaluate(parameters, residuals, nullptr);
     const size_t num_blocks = parameter_block_sizes().size();
-    std::array<std::array<double, 6 * 7>, 2> ambient;
-    std::array<double*, 2> inner_jacobians{{nullptr, nullptr}};
+    std::array<std::array<double, 6 * 7>, kMaxEdgeVertices> ambient;
+    std::array<double*, kMaxEdgeVertices> inner_jacobians{{nullptr, nullptr, nullptr}};
     for (size_t i = 0; i < num_blocks; ++i) {
       inner_jacobians[i] =
           (jacobians[i] != nullptr && is_se3_[i]) ? ambient[i].data() : jacobians[i];
@@ -356,7 +391,7 @@ class LiftedCost : public ceres::CostFunction {
 
  private:
   std::unique_ptr<ceres::CostFunction> inner_;
-  std::array<bool, 2> is_se3_;
+  std::array<bool, kMaxEdgeVertices> is_se3_;
 };
 
 // ---- closed-form Jacobians for the two edge types that dominate real graphs -------------------
@@ -469,9 +504,10 @@ std::unique_ptr<ceres::CostFunction> autoDiff(Functor functor) {
 }
 
 std::unique_ptr<ceres::CostFunction> lifted(std::unique_ptr<ceres::CostFunction> inner,
-                                            bool first_se3, bool second_se3 = false) {
-  return std::make_unique<LiftedCost>(std::move(inner),
-                                      std::array<bool, 2>{{first_se3, second_se3}});
+                                            bool first_se3, bool second_se3 = false,
+                                            bool third_se3 = false) {
+  return std::make_unique<LiftedCost>(
+      std::move(inner), std::array<bool, kMaxEdgeVertices>{{first_se3, second_se3, third_se3}});
 }
 
 void se3Measurement(const Eigen::VectorXd& m, Quaterniond* qz_inv, Vector3d* tz) {
@@ -559,6 +595,16 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       if (analytic) return std::make_unique<SE3RelativeCost>(f.qz_inv, f.tz, f.sqrt_info);
       return lifted(autoDiff<SE3RelativeFunctor, 6, 7, 7>(f), true, true);
     }
+    case EdgeType::kSE3Scaled: {
+      SE3ScaledFunctor f;
+      se3Measurement(m, &f.qz_inv, &f.tz);
+      f.sqrt_info = s;
+      return lifted(autoDiff<SE3ScaledFunctor, 6, 7, 7, 1>(f), true, true, false);
+    }
+    case EdgeType::kPriorScale:
+      return autoDiff<ScalarPriorFunctor, 1, 1>(ScalarPriorFunctor{m[0], s(0, 0)});
+    case EdgeType::kScaleDifference:
+      return autoDiff<ScalarDifferenceFunctor, 1, 1, 1>(ScalarDifferenceFunctor{m[0], s(0, 0)});
     case EdgeType::kSE2: {
       if (analytic) return std::make_unique<SE2RelativeCost>(m, s);
       return autoDiff<SE2RelativeFunctor, 3, 3, 3>(SE2RelativeFunctor{m, s});

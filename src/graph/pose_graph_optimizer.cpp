@@ -31,7 +31,7 @@ const ceres::Manifold* manifoldFor(VertexType type) {
 // One active edge: its cost (owned by the problem) and its parameter blocks.
 struct ActiveResidual {
   const ceres::CostFunction* cost = nullptr;
-  std::array<double*, 2> blocks{{nullptr, nullptr}};
+  std::array<double*, kMaxEdgeVertices> blocks{{nullptr, nullptr, nullptr}};
 };
 
 // A Ceres problem over the edges of level ≤ level of a graph whose vertex storage it points into.

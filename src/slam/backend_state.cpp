@@ -75,6 +75,26 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
   return id;
 }
 
+int BackendState::odometryScaleVertex(double accum_distance, const GraphBackendParams& p) {
+  const int k = std::max(0, static_cast<int>(std::floor(accum_distance / p.odometry_scale_window)));
+  const auto found = scale_vertices.find(k);
+  if (found != scale_vertices.end()) return found->second;
+  const int id = GraphBackend::kScaleVertexTop - k;
+  const auto before = scale_vertices.lower_bound(k);
+  if (before == scale_vertices.begin()) {
+    graph.addVertexScale(id, 1.0);
+    graph.addPriorScale(id, 1.0, 1.0 / (p.odometry_scale_std * p.odometry_scale_std));
+  } else {
+    // A re-anchored or skipped stretch leaves windows out: the walk spans them all.
+    const auto& [j, prev] = *std::prev(before);
+    const double var = std::max(k - j, 1) * p.odometry_scale_walk_std * p.odometry_scale_walk_std;
+    graph.addVertexScale(id, graph.vertexScale(prev).value_or(1.0));
+    graph.addEdgeScaleDifference(prev, id, 0.0, 1.0 / var);
+  }
+  scale_vertices.emplace(k, id);
+  return id;
+}
+
 bool BackendState::covered(const Eigen::Vector2d& position) const {
   for (const auto& [center, radius] : coverage)
     if ((position - center).norm() <= radius) return true;

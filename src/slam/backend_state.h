@@ -57,6 +57,7 @@ struct BackendState {
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
   std::optional<double> gnss_bias_start;  ///< stamp where GNSS bias window 0 starts
   std::map<int, int> gnss_bias_vertices;  ///< window -> its bias vertex
+  std::map<int, int> scale_vertices;      ///< odometry scale window -> its scale vertex
   /// accum_distance -> (keyframe, INS yaw) of the keyframes with an INS heading
   std::map<double, std::pair<uint64_t, double>> ins_headings;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
@@ -87,6 +88,9 @@ struct BackendState {
   /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
   /// and tied to the previous window's by the Gauss-Markov process.
   int gnssBiasVertex(double stamp, const GraphBackendParams& p);
+  /// The odometry scale vertex of the path window holding accum_distance (created on first use:
+  /// a prior around 1 for the first window, a random walk from the previous one otherwise).
+  int odometryScaleVertex(double accum_distance, const GraphBackendParams& p);
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
   int datumVertex(const GraphBackendParams& p);
   /// Whether an answered OSM query covers the position.

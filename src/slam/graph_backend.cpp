@@ -323,7 +323,13 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   const int vid = static_cast<int>(in.id);
   const KeyframeState& prev = s.keyframes.rbegin()->second;
   const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
-  kf.map_pose = prev.map_pose * delta;
+  // A re-anchored step is a guess, not a measurement of the odometry's scale.
+  const int scale = params_.odometry_scale_window > 0.0 && !in.reanchored
+                        ? s.odometryScaleVertex(in.accum_distance, params_)
+                        : -1;
+  Eigen::Isometry3d scaled_delta = delta;
+  if (scale >= 0) scaled_delta.translation() *= s.graph.vertexScale(scale).value_or(1.0);
+  kf.map_pose = prev.map_pose * scaled_delta;
   s.graph.addVertexSE3(vid, kf.map_pose);
   Matrix6d info = odometryEdgeInformation(in, delta, params_.odometry);
   const bool jumped_back = in.stamp < prev.stamp;
@@ -341,14 +347,17 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
       logger_->info("keyframe " + std::to_string(in.id) +
                     " was re-anchored after a lost track: weak odometry edge");
   }
-  std::vector<int> edges{
-      s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta, info, EdgeOptions{0, {}})};
+  auto add = [&](const Matrix6d& information, int level) {
+    const int from = static_cast<int>(prev.id);
+    return scale >= 0 ? s.graph.addEdgeSE3Scaled(from, vid, scale, delta, information,
+                                                 EdgeOptions{level, {}})
+                      : s.graph.addEdgeSE3(from, vid, delta, information, EdgeOptions{level, {}});
+  };
+  std::vector<int> edges{add(info, 0)};
   // Levels >= 1 (the joint phase) see the odometry joint_odometry_weight times stiffer: the
   // buildings then correct the drift smoothly instead of kinking single keyframes.
   if (params_.joint_odometry_weight > 1.0)
-    edges.push_back(s.graph.addEdgeSE3(static_cast<int>(prev.id), vid, delta,
-                                       (params_.joint_odometry_weight - 1.0) * info,
-                                       EdgeOptions{1, {}}));
+    edges.push_back(add((params_.joint_odometry_weight - 1.0) * info, 1));
   if (jumped_back && in.reanchored) s.unplaced = BackendState::UnplacedPass{in.id, edges};
 }
 
@@ -742,6 +751,14 @@ std::vector<BuildingObservation> GraphBackend::buildingObservations() const {
 std::optional<Pose2> GraphBackend::osmDatum() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return state_->graph.vertexSE2(kOsmDatumVertex);
+}
+
+std::vector<double> GraphBackend::odometryScales() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<double> out;
+  for (const auto& [window, vid] : state_->scale_vertices)
+    out.push_back(state_->graph.vertexScale(vid).value_or(1.0));
+  return out;
 }
 
 std::vector<BuildingState> GraphBackend::buildings() const {

@@ -114,6 +114,20 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("window_loop_chi2", p.window_loop_chi2);
   r.param("joint_optimization", p.joint_optimization);
   r.param("joint_odometry_weight", p.joint_odometry_weight);
+  r.param("odometry_scale_window", p.odometry_scale_window);
+  r.param("odometry_scale_std", p.odometry_scale_std);
+  r.param("odometry_scale_walk_std", p.odometry_scale_walk_std);
+  if (p.odometry_scale_window > 0.0 &&
+      !(p.odometry_scale_std > 0.0 && p.odometry_scale_walk_std > 0.0)) {
+    if (error) *error = "odometry_scale_std and odometry_scale_walk_std must be > 0";
+    p.odometry_scale_window = 0.0;
+    ok = false;
+  }
+  if (!(p.odometry_scale_window >= 0.0)) {
+    if (error) *error = "odometry_scale_window must be >= 0";
+    p.odometry_scale_window = 0.0;
+    ok = false;
+  }
   r.param("resolve_overlaps", p.resolve_overlaps);
   r.param("overlap_max_iterations", p.overlap_max_iterations);
   r.param("overlap_information", p.overlap_information);

@@ -1,5 +1,6 @@
 #include "osm_graph_slam/slam/slam_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -249,6 +250,16 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.slowest_update_ms = std::max(timings_.slowest_update_ms, report.total_ms);
 }
 
+std::string SlamPipeline::scaleLine() const {
+  const std::vector<double> scales = backend_->odometryScales();
+  if (scales.empty()) return "";
+  const auto [lo, hi] = std::minmax_element(scales.begin(), scales.end());
+  char line[160];
+  std::snprintf(line, sizeof(line), "odometry scale: %zu windows, %.4f .. %.4f\n", scales.size(),
+                *lo, *hi);
+  return line;
+}
+
 std::string SlamPipeline::timingTable() const {
   const PipelineTimings t = timings();
   const double scans = std::max<size_t>(1, t.scans);
@@ -310,7 +321,7 @@ std::string SlamPipeline::timingTable() const {
           ? "prefilter ran ahead on the reading thread, overlapping the stages below: "
             "the stage times add up to more than the wall time\n"
           : "";
-  return std::string(buf) + ahead + track + updates + floor + heading;
+  return std::string(buf) + ahead + track + updates + floor + heading + scaleLine();
 }
 
 std::string SlamPipeline::timingJson() const {
@@ -360,6 +371,8 @@ std::string SlamPipeline::timingJson() const {
                           {"first_stamp", k.first_stamp},
                           {"last_stamp", k.last_stamp},
                           {"longest_no_keyframe_s", k.longest_no_keyframe_s}}}};
+  if (const std::vector<double> scales = backend_->odometryScales(); !scales.empty())
+    doc["odometry_scales"] = scales;
   if (const auto& h = t.heading_from_map) {
     doc["heading_from_map"] = {{"keyframe", h->keyframe_id},
                                {"x", h->matched_pose.x},

@@ -206,6 +206,7 @@ int main(int argc, char** argv) {
   if (const auto datum = backend.osmDatum())
     std::cout << "OSM datum: " << datum->x << " " << datum->y << " m, "
               << datum->theta * 180.0 / M_PI << " deg\n";
+  for (double scale : backend.odometryScales()) std::cout << "odometry scale: " << scale << "\n";
   if (!ok) {
     std::cerr << "replay_backend: writing " << out << " failed " << error << "\n";
     return 1;

@@ -86,6 +86,38 @@ TEST(G2oIo, RoundTripReproducesTheGraph) {
   EXPECT_NEAR(back.chi2(), without_prior.chi2(), 1e-9 * without_prior.chi2());
 }
 
+// g2o has no scale: a scaled SE3 edge is written as the SE3 edge it is at today's scale, the
+// scale vertex and its prior are left out, and the file's χ² is the graph's odometry χ².
+TEST(G2oIo, ScaledSE3EdgeIsWrittenAtTheEstimatedScale) {
+  PoseGraph g;
+  Eigen::Isometry3d b = Eigen::Isometry3d::Identity();
+  b.translation() << 2.0, 0.5, 0.0;
+  g.addVertexSE3(0, Eigen::Isometry3d::Identity(), true);
+  g.addVertexSE3(1, b);
+  g.addVertexScale(5, 1.004);
+  g.addPriorScale(5, 1.0, 1e4);
+  Eigen::Isometry3d z = b;
+  z.translation() *= 0.99;
+  ASSERT_GE(g.addEdgeSE3Scaled(0, 1, 5, z, Matrix6d::Identity() * 100), 0);
+  std::ostringstream out;
+  const G2oWriteResult w = writeG2o(g, out);
+  ASSERT_TRUE(w.ok);
+  EXPECT_EQ(w.num_vertices, 2);
+  EXPECT_EQ(w.num_skipped_vertices, 1);
+  EXPECT_EQ(w.num_edges, 1);
+  EXPECT_EQ(w.num_skipped_edges, 1);
+  PoseGraph back;
+  ASSERT_TRUE(readText(out.str(), &back).ok) << out.str();
+  const EdgeInfo e = *back.edge(back.edgeIds().front());
+  EXPECT_EQ(e.type, EdgeType::kSE3);
+  EXPECT_EQ(e.vertices, (std::vector<int>{0, 1}));
+  EXPECT_NEAR(e.measurement[0], 2.0 * 0.99 * 1.004, 1e-12);
+  EXPECT_NEAR(e.measurement[1], 0.5 * 0.99 * 1.004, 1e-12);
+  PoseGraph odometry_only = g;
+  odometry_only.removeEdge(g.edgeIds(0, INT_MAX, EdgeType::kPriorScale).front());
+  EXPECT_NEAR(back.chi2(), odometry_only.chi2(), 1e-9);
+}
+
 TEST(G2oIo, EdgeOnlyFileIsInitialisedFromTheOdometryChain) {
   const std::string text =
       "# M3500-style: edges only\n"

@@ -20,6 +20,7 @@ struct Block {
 
 int tangentSize(VertexType t) {
   if (t == VertexType::kSE3) return 6;
+  if (t == VertexType::kScale) return 1;
   return t == VertexType::kSE2 || t == VertexType::kPointXYZ ? 3 : 2;
 }
 
@@ -63,7 +64,9 @@ double jacobianError(const PoseGraph::Edge& edge, const std::vector<Block>& bloc
   for (size_t i = 0; i < blocks.size(); ++i) {
     const int n = tangentSize(blocks[i].type);
     RowMajor reported = jac[i].leftCols(n);  // lifted: first n columns are d r / d δ
-    if (blocks[i].type == VertexType::kSE3) EXPECT_EQ(jac[i].col(6).norm(), 0.0);
+    if (blocks[i].type == VertexType::kSE3) {
+      EXPECT_EQ(jac[i].col(6).norm(), 0.0);
+    }
     const double h = 1e-6;
     for (int k = 0; k < n; ++k) {
       Eigen::VectorXd d = Eigen::VectorXd::Zero(n);
@@ -115,6 +118,7 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
     const Block se2b{VertexType::kSE2, randomSE2(rng)};
     const Block xy{VertexType::kPointXY, {4.0, -2.0}};
     const Block xyz{VertexType::kPointXYZ, {4.0, -2.0, 1.0}};
+    const Block scale{VertexType::kScale, {1.03}};
     const Eigen::VectorXd z7 = vec(randomSE3(rng)), z3 = vec(randomSE2(rng));
     const Eigen::Vector2d z2(1.0, 0.5);
     Eigen::VectorXd planes(8);
@@ -143,6 +147,11 @@ TEST(PoseGraphJacobians, EveryEdgeTypeMatchesFiniteDifferences) {
          Eigen::VectorXd::Constant(1, 0.7),
          {xyz, Block{VertexType::kPointXYZ, {-1.0, 3.0, 0.5}}}},
         {EdgeType::kSE3PositionWithOffset, Eigen::Vector3d(1, 2, 3), {se3a, xyz}},
+        {EdgeType::kSE3Scaled, z7, {se3a, se3b, scale}},
+        {EdgeType::kPriorScale, Eigen::VectorXd::Constant(1, 1.0), {scale}},
+        {EdgeType::kScaleDifference,
+         Eigen::VectorXd::Constant(1, 0.01),
+         {scale, Block{VertexType::kScale, {0.98}}}},
     };
     for (const Case& c : cases) {
       const PoseGraph::Edge edge = makeEdge(c.type, c.z, rng);

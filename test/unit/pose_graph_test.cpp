@@ -309,6 +309,68 @@ TEST(PoseGraph, UnaryPriorsAndPointEdges) {
   EXPECT_LT(se2Distance(*g.vertexSE2(2), Pose2(2, 2, M_PI / 2)), 1e-6);
 }
 
+// Odometry 0.5 % short on a curved 3D path, two windows of scale, and XY fixes at the true
+// positions: the scales absorb the shortfall, so the stiff odometry edges end without error (no
+// prior on the scale: the fixes decide it).
+TEST(PoseGraph, ScaledOdometryEdgesRecoverTheOdometryScale) {
+  const int n = 24;
+  const auto truth = helixTruth(n);
+  const double odometry_scale = 0.995;
+  PoseGraph g;
+  ASSERT_TRUE(g.addVertexScale(100, 1.0));
+  ASSERT_TRUE(g.addVertexScale(101, 1.0));
+  ASSERT_GE(g.addEdgeScaleDifference(100, 101, 0.0, 1.0 / (0.002 * 0.002)), 0);
+  for (int i = 0; i < n; ++i) {
+    g.addVertexSE3(i, i == 0 ? truth[0] : Eigen::Isometry3d::Identity(), i == 0);
+    if (i % 4 == 0)
+      g.addPriorSE3XY(i, truth[i].translation().head<2>(), Eigen::Matrix2d::Identity() * 100.0);
+  }
+  for (int i = 1; i < n; ++i) {
+    Eigen::Isometry3d odom = truth[i - 1].inverse() * truth[i];
+    odom.translation() *= odometry_scale;
+    ASSERT_GE(g.addEdgeSE3Scaled(i - 1, i, i < n / 2 ? 100 : 101, odom, se3Information(1e4, 1e6)),
+              0)
+        << g.lastError();
+  }
+  OptimizerOptions tight;
+  tight.function_tolerance = 1e-14;
+  tight.parameter_tolerance = 1e-14;
+  const OptimizationResult r = g.optimize(0, tight);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_NEAR(*g.vertexScale(100), 1.0 / odometry_scale, 2e-4);
+  EXPECT_NEAR(*g.vertexScale(101), 1.0 / odometry_scale, 2e-4);
+  for (int i = 0; i < n; ++i) EXPECT_LT(se3Distance(*g.vertexSE3(i), truth[i]), 2e-3) << i;
+  // The same graph with the scales held at 1 keeps the odometry's shortfall.
+  g.setFixed(100, true);
+  g.setFixed(101, true);
+  g.setVertexScale(100, 1.0);
+  g.setVertexScale(101, 1.0);
+  g.optimize(0, tight);
+  double worst = 0.0;
+  for (int i = 0; i < n; ++i) worst = std::max(worst, se3Distance(*g.vertexSE3(i), truth[i]));
+  EXPECT_GT(worst, 0.02);
+}
+
+TEST(PoseGraph, ScaleEdgesCheckTheirVertices) {
+  PoseGraph g;
+  g.addVertexSE3(0, Eigen::Isometry3d::Identity());
+  g.addVertexSE3(1, Eigen::Isometry3d::Identity());
+  g.addVertexScale(2, 1.0);
+  EXPECT_FALSE(g.addVertexScale(3, NAN));
+  const Eigen::Isometry3d z = Eigen::Isometry3d::Identity();
+  EXPECT_LT(g.addEdgeSE3Scaled(0, 1, 1, z, Matrix6d::Identity()), 0);
+  EXPECT_NE(g.lastError().find("expected scale"), std::string::npos) << g.lastError();
+  EXPECT_LT(g.addEdgeSE3Scaled(0, 0, 2, z, Matrix6d::Identity()), 0);
+  EXPECT_NE(g.lastError().find("itself"), std::string::npos);
+  EXPECT_LT(g.addPriorScale(0, 1.0, 1.0), 0);
+  const int e = g.addEdgeSE3Scaled(0, 1, 2, z, Matrix6d::Identity());
+  ASSERT_GE(e, 0);
+  EXPECT_EQ(g.edge(e)->vertices, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(g.edgesOfVertex(2), std::vector<int>{e});
+  EXPECT_TRUE(g.removeVertex(2));
+  EXPECT_EQ(g.numEdges(), 0u);
+}
+
 // A straight SE2 corridor with one wrong loop closure (10 m off).
 PoseGraph corridorWithOutlier(RobustKernel kernel) {
   PoseGraph g;

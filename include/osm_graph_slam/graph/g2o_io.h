@@ -60,11 +60,14 @@ struct G2oWriteResult {
   std::string message;
   int num_vertices = 0;
   int num_edges = 0;
-  int num_skipped_edges = 0;  ///< edge types the g2o format above cannot express (SE3 priors...)
+  int num_skipped_edges = 0;     ///< edge types the g2o format above cannot express (SE3 priors...)
+  int num_skipped_vertices = 0;  ///< vertex types it cannot express (scales)
 };
 
 /// Writes every vertex, FIX lines for fixed vertices and every expressible edge, with 17
-/// significant digits (exact round trip). The file is written to a temp file, then renamed.
+/// significant digits (exact round trip). A scaled SE3 edge is written as an SE3 edge whose
+/// translation is multiplied by its scale vertex's estimate; scale vertices are skipped. The file
+/// is written to a temp file, then renamed.
 G2oWriteResult writeG2o(const PoseGraph& graph, const std::string& path);
 G2oWriteResult writeG2o(const PoseGraph& graph, std::ostream& out);
 

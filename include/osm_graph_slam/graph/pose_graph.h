@@ -24,7 +24,8 @@ namespace osm_graph_slam {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-enum class VertexType { kSE3, kSE2, kPointXY, kPointXYZ };
+/// kScale: one positive factor (e.g. the odometry's scale over a stretch of the drive).
+enum class VertexType { kSE3, kSE2, kPointXY, kPointXYZ, kScale };
 
 enum class EdgeType {
   kSE3,          ///< SE3–SE3 relative pose (6×6 information)
@@ -54,7 +55,16 @@ enum class EdgeType {
   /// Yaw change between two SE3 poses (1×1): e = wrap(yaw(Xto) − yaw(Xfrom) − z), e.g. an INS's
   /// heading change, whose constant bias cancels.
   kSE3YawDifference,
+  /// SE3–SE3 relative pose whose measured translation is multiplied by a kScale vertex (third
+  /// vertex; 6×6 information as kSE3): e = log((R_z, s·t_z)⁻¹ · Xfrom⁻¹ Xto), e.g. odometry whose
+  /// scale is estimated.
+  kSE3Scaled,
+  kPriorScale,       ///< unary kScale (1×1): e = s − z
+  kScaleDifference,  ///< two kScale vertices (1×1): e = s_to − s_from − z (a random walk)
 };
+
+/// The most vertices an edge connects.
+constexpr int kMaxEdgeVertices = 3;
 
 const char* toString(VertexType type);
 const char* toString(EdgeType type);
@@ -150,6 +160,7 @@ class PoseGraph {
   bool addVertexSE2(int id, const Pose2& pose, bool fixed = false);
   bool addVertexPointXY(int id, const Eigen::Vector2d& point, bool fixed = false);
   bool addVertexPointXYZ(int id, const Eigen::Vector3d& point, bool fixed = false);
+  bool addVertexScale(int id, double scale, bool fixed = false);
   /// Removes the vertex and every edge attached to it; returns false if it did not exist.
   bool removeVertex(int id);
 
@@ -160,9 +171,11 @@ class PoseGraph {
   std::optional<Pose2> vertexSE2(int id) const;
   std::optional<Eigen::Vector2d> vertexPointXY(int id) const;
   std::optional<Eigen::Vector3d> vertexPointXYZ(int id) const;
+  std::optional<double> vertexScale(int id) const;
   bool setVertexSE3(int id, const Eigen::Isometry3d& pose);
   bool setVertexSE2(int id, const Pose2& pose);
   bool setVertexPointXY(int id, const Eigen::Vector2d& point);
+  bool setVertexScale(int id, double scale);
   bool setFixed(int id, bool fixed);
   bool isFixed(int id) const;
 
@@ -170,6 +183,14 @@ class PoseGraph {
   /// measurement = Xfrom⁻¹ · Xto.
   int addEdgeSE3(int from, int to, const Eigen::Isometry3d& measurement,
                  const Matrix6d& information, const EdgeOptions& options = {});
+  /// measurement = (R, t) with Xfrom⁻¹ · Xto = (R, s·t), s the scale vertex.
+  int addEdgeSE3Scaled(int from, int to, int scale, const Eigen::Isometry3d& measurement,
+                       const Matrix6d& information, const EdgeOptions& options = {});
+  int addPriorScale(int scale, double measurement, double information,
+                    const EdgeOptions& options = {});
+  /// e = s_to − s_from − difference.
+  int addEdgeScaleDifference(int from, int to, double difference, double information,
+                             const EdgeOptions& options = {});
   /// measurement = Xfrom⁻¹ · Xto.
   int addEdgeSE2(int from, int to, const Pose2& measurement, const Eigen::Matrix3d& information,
                  const EdgeOptions& options = {});
@@ -256,12 +277,12 @@ class PoseGraph {
   struct Vertex {
     VertexType type = VertexType::kSE3;
     bool fixed = false;
-    /// SE3: tx, ty, tz, qx, qy, qz, qw (unit); SE2: x, y, θ; XY: x, y.
+    /// SE3: tx, ty, tz, qx, qy, qz, qw (unit); SE2: x, y, θ; XY: x, y; scale: s.
     std::array<double, 7> x{};
   };
   struct Edge {
     EdgeType type = EdgeType::kSE2;
-    std::array<int, 2> vertices{{-1, -1}};
+    std::array<int, kMaxEdgeVertices> vertices{{-1, -1, -1}};
     int num_vertices = 0;
     int level = 0;
     RobustKernel kernel;

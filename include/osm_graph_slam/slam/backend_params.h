@@ -208,6 +208,16 @@ struct GraphBackendParams {
   bool joint_optimization = true;
   /// Odometry information in the joint phase relative to phase 1 (1: the same).
   double joint_odometry_weight = 1.0;
+  // --- odometry scale (doc/backend.md "Odometry scale") ---
+  /// One scale factor of the odometry's translations per odometry_scale_window metres of path,
+  /// estimated with the trajectory (OSM, loops and GNSS observe it): a range bias of the LiDAR
+  /// (e.g. a vertical-angle calibration error) makes scan matching a few tenths of a percent
+  /// short or long, and without the factor the map evidence has to bend single steps instead.
+  /// 0 = off (odometry edges as measured). 100 m: a gain or neutral on the quick matrix and the
+  /// manoeuvre drives, insensitive between 25 and 200 m (doc/backend.md, session 27).
+  double odometry_scale_window = 100.0;    ///< [m] of path per scale factor
+  double odometry_scale_std = 0.01;        ///< prior deviation of the first factor from 1
+  double odometry_scale_walk_std = 0.002;  ///< deviation of a factor from the previous window's
   bool resolve_overlaps = true;
   int overlap_max_iterations = 15;
   double overlap_information = 1e6;  ///< hard building↔building constraints (§3.5)

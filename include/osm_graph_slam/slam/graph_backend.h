@@ -205,8 +205,14 @@ class GraphBackend {
   static constexpr int kOsmDatumVertex = kBuildingVertexBase - 1;
   /// Vertex id of the GNSS bias of time window k (gnss_bias_std > 0): kGnssBiasVertexTop − k.
   static constexpr int kGnssBiasVertexTop = kOsmDatumVertex - 1;
+  /// Vertex id of the odometry scale of path window k (odometry_scale_window > 0):
+  /// kScaleVertexTop − k (below every GNSS bias window of a drive shorter than five years).
+  static constexpr int kScaleVertexTop = kGnssBiasVertexTop - (1 << 24);
   /// The estimated offset of the OSM map as a whole (ENU), when the datum is on and in the graph.
   std::optional<Pose2> osmDatum() const;
+  /// The estimated odometry scale of each path window, in path order (empty when
+  /// odometry_scale_window is 0).
+  std::vector<double> odometryScales() const;
 
  private:
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).

@@ -104,6 +104,8 @@ class SlamPipeline {
   PipelineTimings timings() const;
   std::string timingTable() const;
   std::string timingJson() const;
+  /// "odometry scale: ..." (empty when the scale is not estimated).
+  std::string scaleLine() const;
 
  private:
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
