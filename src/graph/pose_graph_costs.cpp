@@ -140,17 +140,7 @@ struct SE3ScaledFunctor {
   }
 };
 
-// e = x − z (prior) or e = x_to − x_from − z (random walk) of one-value vertices.
-struct ScalarPriorFunctor {
-  double z = 0.0;
-  double sqrt_info = 1.0;
-  template <typename T>
-  bool operator()(const T* x, T* r) const {
-    r[0] = sqrt_info * (x[0] - T(z));
-    return true;
-  }
-};
-
+// e = x_to − x_from − z of one-value vertices (a random walk).
 struct ScalarDifferenceFunctor {
   double z = 0.0;
   double sqrt_info = 1.0;
@@ -602,7 +592,7 @@ std::unique_ptr<ceres::CostFunction> makeCostFunction(const PoseGraph::Edge& edg
       return lifted(autoDiff<SE3ScaledFunctor, 6, 7, 7, 1>(f), true, true, false);
     }
     case EdgeType::kPriorScale:
-      return autoDiff<ScalarPriorFunctor, 1, 1>(ScalarPriorFunctor{m[0], s(0, 0)});
+      return autoDiff<PriorPositionFunctor<1>, 1, 1>(PriorPositionFunctor<1>{m, s});
     case EdgeType::kScaleDifference:
       return autoDiff<ScalarDifferenceFunctor, 1, 1, 1>(ScalarDifferenceFunctor{m[0], s(0, 0)});
     case EdgeType::kSE2: {
