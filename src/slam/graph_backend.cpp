@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iterator>
 
 #include "backend_state.h"
@@ -162,9 +163,28 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
       osm_->process(*state_, report);
       optimizePhases(report, window);
     }
+    reportOdometryScale();
   }
   report.total_ms = msSince(t0);
   return report;
+}
+
+void GraphBackend::reportOdometryScale() {
+  const BackendState& s = *state_;
+  for (const auto& [window, vid] : s.scale_vertices) {
+    const double scale = s.graph.vertexScale(vid).value_or(1.0);
+    if (std::abs(scale - 1.0) <= kOdometryScaleWarning) continue;
+    char text[320];
+    std::snprintf(text, sizeof(text),
+                  "the odometry's scale is estimated at %.4f over %.0f-%.0f m of path: the "
+                  "scan matching is %.1f %% %s than the map and loops say (a LiDAR range or "
+                  "vertical-angle calibration error?); logged once",
+                  scale, window * params_.odometry_scale_window,
+                  (window + 1) * params_.odometry_scale_window, std::abs(scale - 1.0) * 100.0,
+                  scale > 1.0 ? "shorter" : "longer");
+    logger_->warnOnce("odometry scale", text);
+    return;
+  }
 }
 
 void GraphBackend::flushKeyframes(BackendUpdateReport& report) {

@@ -4,9 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "backend_test_utils.h"
+#include "osm_graph_slam/common/logger.h"
 
 using namespace osm_graph_slam;
 
@@ -164,4 +168,26 @@ TEST(GnssPrior, AnEstimatedOdometryScaleRemovesALengthBias) {
   for (double s : on.scales) EXPECT_NEAR(s, 1.0 / 0.995, 1.5e-3);
   EXPECT_GT(off.along_rms, 0.15);  // measured 0.215 m: the fixes hold the ends, not the middle
   EXPECT_LT(on.along_rms, off.along_rms / 2.0);  // measured 0.064 m
+}
+
+TEST(GnssPrior, AnOdometryScaleFarFromOneIsLoggedOnce) {
+  GraphBackendParams params = noOsmKnownHeading();
+  params.gnss_prior_std = 1.5;
+  std::vector<std::string> warnings;
+  auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
+    if (level == LogLevel::kWarn) warnings.push_back(msg);
+  });
+  GraphBackend backend(params, logger);
+  for (uint64_t i = 0; i < 150; ++i) {  // odometry 3 % short, exact fixes
+    KeyframeInput kf = straightKeyframe(i);
+    kf.odom_pose.translation() *= 0.97;
+    kf.accum_distance *= 0.97;
+    kf.gnss_position = Eigen::Vector2d(2.0 * i, 0.0);
+    backend.addKeyframe(kf);
+    if (i % 50 == 49) backend.update(true);
+  }
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("odometry's scale is estimated at 1.0"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("shorter"), std::string::npos) << warnings[0];
 }

@@ -215,6 +215,10 @@ class GraphBackend {
   std::vector<double> odometryScales() const;
 
  private:
+  /// Logs once when an estimated odometry scale is more than kOdometryScaleWarning from 1.
+  void reportOdometryScale();
+  /// 1 %: twice what a KITTI HDL-64E's vertical-angle bias gives (0.46 % in the simulator).
+  static constexpr double kOdometryScaleWarning = 0.01;
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
   bool gnssPriors() const;
   /// ... with the fixes' altitude as evidence too (gnss_altitude_std > 0).
