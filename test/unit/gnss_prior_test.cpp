@@ -173,6 +173,7 @@ TEST(GnssPrior, AnEstimatedOdometryScaleRemovesALengthBias) {
 TEST(GnssPrior, AnOdometryScaleFarFromOneIsLoggedOnce) {
   GraphBackendParams params = noOsmKnownHeading();
   params.gnss_prior_std = 1.5;
+  params.odometry_scale_window = 100.0;
   std::vector<std::string> warnings;
   auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
     if (level == LogLevel::kWarn) warnings.push_back(msg);

@@ -213,9 +213,10 @@ struct GraphBackendParams {
   /// estimated with the trajectory (OSM, loops and GNSS observe it): a range bias of the LiDAR
   /// (e.g. a vertical-angle calibration error) makes scan matching a few tenths of a percent
   /// short or long, and without the factor the map evidence has to bend single steps instead.
-  /// 0 = off (odometry edges as measured). 100 m: a gain or neutral on the quick matrix and the
-  /// manoeuvre drives, insensitive between 25 and 200 m (doc/backend.md, session 27).
-  double odometry_scale_window = 100.0;    ///< [m] of path per scale factor
+  /// 0 = off (odometry edges as measured; default: with nothing else observing it, the floor
+  /// edges pull the scale and a long drive without OSM got 23 % worse; doc/backend.md). 100 m
+  /// is a gain or neutral on the quick matrix and the manoeuvre drives.
+  double odometry_scale_window = 0.0;      ///< [m] of path per scale factor
   double odometry_scale_std = 0.01;        ///< prior deviation of the first factor from 1
   double odometry_scale_walk_std = 0.002;  ///< deviation of a factor from the previous window's
   bool resolve_overlaps = true;
