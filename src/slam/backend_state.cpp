@@ -76,7 +76,10 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
 }
 
 int BackendState::odometryScaleVertex(double accum_distance, const GraphBackendParams& p) {
-  const int k = std::max(0, static_cast<int>(std::floor(accum_distance / p.odometry_scale_window)));
+  // A non-finite path length (a corrupt message) counts as the first window.
+  const double windows =
+      std::isfinite(accum_distance) ? accum_distance / p.odometry_scale_window : 0.0;
+  const int k = static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
   const auto found = scale_vertices.find(k);
   if (found != scale_vertices.end()) return found->second;
   const int id = GraphBackend::kScaleVertexTop - k;
