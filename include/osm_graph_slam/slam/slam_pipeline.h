@@ -104,10 +104,10 @@ class SlamPipeline {
   PipelineTimings timings() const;
   std::string timingTable() const;
   std::string timingJson() const;
-  /// "odometry scale: ..." (empty when the scale is not estimated).
-  std::string scaleLine() const;
 
  private:
+  /// "odometry scale: ..." (empty when the scale is not estimated).
+  std::string scaleLine() const;
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
                      const ScanAiding& aiding);
   void account(const BackendUpdateReport& report);
