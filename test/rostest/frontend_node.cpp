@@ -150,8 +150,15 @@ TEST(FrontendRostest, ReplayedBagGivesOdometryKeyframesAndTf) {
   writeBag(bag_path, ros::Time::now());
 
   ros::Publisher pub = nh.advertise<sensor_msgs::PointCloud2>("velodyne_points", 10);
-  ASSERT_TRUE(
-      waitFor([&] { return pub.getNumSubscribers() > 0 && odom_sub.getNumPublishers() > 0; }, 60.0))
+  // Every topic we count must be connected before the first scan: a subscriber that links up
+  // late misses the first message (a loaded CI machine lost the first filtered cloud).
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return pub.getNumSubscribers() > 0 && odom_sub.getNumPublishers() > 0 &&
+               kf_sub.getNumPublishers() > 0 && status_sub.getNumPublishers() > 0 &&
+               filtered_sub.getNumPublishers() > 0;
+      },
+      60.0))
       << "the front-end nodelets did not come up";
   auto count = [&](auto member) {
     std::lock_guard<std::mutex> lock(rx.mutex);
