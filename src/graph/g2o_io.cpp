@@ -495,7 +495,7 @@ G2oWriteResult writeG2o(const PoseGraph& graph, std::ostream& out) {
     Eigen::VectorXd measurement = e.measurement;
     int num_ids = e.num_vertices;
     if (e.type == EdgeType::kSE3Scaled) {  // g2o has no scale: the edge at today's estimate
-      measurement.head<3>() *= graph.vertexScale(e.vertices[2]).value_or(1.0);
+      measurement.head<2>() *= graph.vertexScale(e.vertices[2]).value_or(1.0);
       num_ids = 2;
     }
     out << tag;

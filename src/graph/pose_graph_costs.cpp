@@ -134,7 +134,10 @@ struct SE3ScaledFunctor {
   template <typename T>
   bool operator()(const T* xi, const T* xj, const T* scale, T* r) const {
     T e[6];
-    se3RelativeError<T>(xi, xj, qz_inv, scale[0] * tz.cast<T>(), e);
+    // Only the horizontal part in the from-frame: a vertical odometry drift (e.g. a LiDAR's
+    // elevation bias on walls) is not a scale, and the floors that correct it must not pull one.
+    const Eigen::Matrix<T, 3, 1> t(scale[0] * T(tz.x()), scale[0] * T(tz.y()), T(tz.z()));
+    se3RelativeError<T>(xi, xj, qz_inv, t, e);
     weigh<6>(sqrt_info, e, r);
     return true;
   }

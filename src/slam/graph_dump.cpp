@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "osm_graph_slam/common/upper_triangle.h"
@@ -99,6 +100,14 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
     dump.segments[id].push_back(s);
     return true;
   };
+  std::map<uint64_t, Eigen::Vector4d> floors;
+  auto floor = [&](std::istringstream& in) {
+    uint64_t id;
+    Eigen::Vector4d f;
+    if (!(in >> id >> f(0) >> f(1) >> f(2) >> f(3)) || !f.allFinite()) return false;
+    floors[id] = f;
+    return true;
+  };
   auto loop = [&](std::istringstream& in) {
     LoopClosureInput l;
     if (!(in >> l.from_id >> l.to_id) || !readPose(in, l.relative_pose)) return false;
@@ -121,6 +130,7 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
   };
   if (!forEachLine(dir + "/keyframes.csv", true, error, keyframe) ||
       !forEachLine(dir + "/segments.csv", false, error, segment) ||
+      !forEachLine(dir + "/floors.csv", false, error, floor) ||
       !forEachLine(dir + "/loops.csv", false, error, loop) ||
       !forEachLine(dir + "/origin.txt", false, error, origin) ||
       !forEachLine(dir + "/initial_heading.txt", false, error, heading))
@@ -137,6 +147,9 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
     if (error) *error = dir + "/keyframes.csv holds no keyframe";
     return false;
   }
+  // Floors of keyframes the dump does not hold are ignored, as the back-end drops them.
+  for (auto& kf : dump.keyframes)
+    if (auto it = floors.find(kf.id); it != floors.end()) kf.floor = it->second;
   return true;
 }
 

@@ -234,6 +234,8 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
             "prediction_error(x y z)"
             " (nan: unknown)\n";
   seg_csv << std::setprecision(12) << "# keyframe_id x1 y1 x2 y2 support\n";
+  std::ostringstream floor_csv;
+  floor_csv << std::setprecision(17) << "# keyframe_id a b c d (floor plane under base_link)\n";
   for (const auto& kf : keyframes) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     const Eigen::Vector2d rp = kf.gravity_roll_pitch.value_or(Eigen::Vector2d(nan, nan));
@@ -246,6 +248,10 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     for (const auto& s : kf.segments)
       seg_csv << kf.id << ' ' << s.start.x() << ' ' << s.start.y() << ' ' << s.end.x() << ' '
               << s.end.y() << ' ' << s.support << '\n';
+    if (kf.floor) {
+      const Eigen::Vector4d& f = *kf.floor;
+      floor_csv << kf.id << ' ' << f(0) << ' ' << f(1) << ' ' << f(2) << ' ' << f(3) << '\n';
+    }
     if (kf.cloud && !kf.cloud->empty()) {
       char name[64];
       std::snprintf(name, sizeof(name), "keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
@@ -255,6 +261,8 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   write("keyframes.csv", writeFileAtomically(write.path("keyframes.csv"), kf_csv.str(), &error),
         error);
   write("segments.csv", writeFileAtomically(write.path("segments.csv"), seg_csv.str(), &error),
+        error);
+  write("floors.csv", writeFileAtomically(write.path("floors.csv"), floor_csv.str(), &error),
         error);
 
   std::ostringstream loops;

@@ -86,12 +86,13 @@ TEST(G2oIo, RoundTripReproducesTheGraph) {
   EXPECT_NEAR(back.chi2(), without_prior.chi2(), 1e-9 * without_prior.chi2());
 }
 
-// g2o has no scale: a scaled SE3 edge is written as the SE3 edge it is at today's scale, the
-// scale vertex and its prior are left out, and the file's χ² is the graph's odometry χ².
+// g2o has no scale: a scaled SE3 edge is written as the SE3 edge it is at today's scale (its
+// horizontal translation scaled), the scale vertex and its prior are left out, and the file's χ²
+// is the graph's odometry χ².
 TEST(G2oIo, ScaledSE3EdgeIsWrittenAtTheEstimatedScale) {
   PoseGraph g;
   Eigen::Isometry3d b = Eigen::Isometry3d::Identity();
-  b.translation() << 2.0, 0.5, 0.0;
+  b.translation() << 2.0, 0.5, 0.3;
   g.addVertexSE3(0, Eigen::Isometry3d::Identity(), true);
   g.addVertexSE3(1, b);
   g.addVertexScale(5, 1.004);
@@ -113,6 +114,7 @@ TEST(G2oIo, ScaledSE3EdgeIsWrittenAtTheEstimatedScale) {
   EXPECT_EQ(e.vertices, (std::vector<int>{0, 1}));
   EXPECT_NEAR(e.measurement[0], 2.0 * 0.99 * 1.004, 1e-12);
   EXPECT_NEAR(e.measurement[1], 0.5 * 0.99 * 1.004, 1e-12);
+  EXPECT_NEAR(e.measurement[2], 0.3 * 0.99, 1e-12);  // the scale is horizontal
   PoseGraph odometry_only = g;
   odometry_only.removeEdge(g.edgeIds(0, INT_MAX, EdgeType::kPriorScale).front());
   EXPECT_NEAR(back.chi2(), odometry_only.chi2(), 1e-9);

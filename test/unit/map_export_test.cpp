@@ -47,6 +47,9 @@ struct ExportFixture : ::testing::Test {
     loop.relative_pose =
         isometryFromPlanar(drive_->true_poses[2].inverse() * drive_->true_poses[11]);
     backend_->addLoopClosure(loop);
+    // Flat ground 1.73 m below every other keyframe's base_link, slightly tilted.
+    for (uint64_t k = 0; k < 12; k += 2)
+      backend_->addFloor(k, Eigen::Vector4d(0.01, -0.005, 1.0, 1.73).normalized());
     backend_->update();
   }
   static void TearDownTestSuite() {
@@ -212,6 +215,10 @@ TEST_F(ExportFixture, DumpGraphKeepsEveryInput) {
   rows = 0;
   while (std::getline(loops, line)) rows += line[0] != '#';
   EXPECT_EQ(rows, 1);
+  std::ifstream floors(dir + "/floors.csv");
+  rows = 0;
+  while (std::getline(floors, line)) rows += line[0] != '#';
+  EXPECT_EQ(rows, 6);
   EXPECT_TRUE(fs::exists(dir + "/origin.txt"));
   EXPECT_TRUE(readBuildingsGeoJson(dir + "/buildings_prior.geojson").ok);
 }
@@ -224,6 +231,11 @@ TEST_F(ExportFixture, ReplayingADumpReproducesTheBackend) {
   ASSERT_TRUE(readGraphDump(dir, dump, &error)) << error;
   EXPECT_EQ(dump.keyframes.size(), 12u);
   EXPECT_EQ(dump.loops.size(), 1u);
+  for (const auto& kf : dump.keyframes) {
+    ASSERT_EQ(kf.floor.has_value(), kf.id % 2 == 0) << kf.id;
+    if (kf.floor)
+      EXPECT_NEAR(kf.floor->w(), 1.73 / Eigen::Vector4d(0.01, -0.005, 1.0, 1.73).norm(), 1e-12);
+  }
   EXPECT_EQ(dump.buildings.size(), backend_->buildings().size());
   ASSERT_TRUE(dump.origin && dump.initial_heading);
   GraphBackendParams params = backend_->params();
@@ -233,6 +245,9 @@ TEST_F(ExportFixture, ReplayingADumpReproducesTheBackend) {
   // Buildings come back through GeoJSON lat/lon (1e-7 deg, ~1 cm): mm-level differences.
   const Trajectory a = backend_->trajectory(), b = replay.trajectory();
   ASSERT_EQ(a.size(), b.size());
+  size_t tied = 0;
+  for (const auto& kf : replay.keyframes()) tied += kf.floor_tied;
+  EXPECT_EQ(tied, 6u);  // the floors came back and were tied to each other
   for (size_t k = 0; k < a.size(); ++k)
     EXPECT_LT((a[k].pose.translation() - b[k].pose.translation()).norm(), 0.01) << k;
   const auto ba = backend_->buildings(), bb = replay.buildings();
@@ -245,6 +260,10 @@ TEST_F(ExportFixture, ReplayingADumpReproducesTheBackend) {
   std::ofstream(dir + "/loops.csv") << "# header\n11 2 not-a-number\n";
   EXPECT_FALSE(readGraphDump(dir, dump, &error));
   EXPECT_NE(error.find("loops.csv:2"), std::string::npos) << error;
+  std::ofstream(dir + "/loops.csv") << "# header\n";
+  std::ofstream(dir + "/floors.csv") << "# header\n0 0 0 1 nan\n";
+  EXPECT_FALSE(readGraphDump(dir, dump, &error));
+  EXPECT_NE(error.find("floors.csv:2"), std::string::npos) << error;
 }
 
 TEST(MapExport, EmptyGraphAndUnwritableFolderFailWithReason) {

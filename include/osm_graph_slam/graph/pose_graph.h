@@ -56,8 +56,10 @@ enum class EdgeType {
   /// heading change, whose constant bias cancels.
   kSE3YawDifference,
   /// SE3–SE3 relative pose whose measured translation is multiplied by a kScale vertex (third
-  /// vertex; 6×6 information as kSE3): e = log((R_z, s·t_z)⁻¹ · Xfrom⁻¹ Xto), e.g. odometry whose
-  /// scale is estimated.
+  /// vertex; 6×6 information as kSE3): e = log((R_z, S·t_z)⁻¹ · Xfrom⁻¹ Xto) with S = diag(s, s,
+  /// 1): odometry whose scale is estimated. Only the horizontal part (x, y in the from-frame) is
+  /// scaled: a vertical drift of the odometry is no scale error, and the floor edges that hold
+  /// the height must not pull the scale with it.
   kSE3Scaled,
   kPriorScale,       ///< unary kScale (1×1): e = s − z
   kScaleDifference,  ///< two kScale vertices (1×1): e = s_to − s_from − z (a random walk)

@@ -32,7 +32,7 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
                         double resolution, const ScanContextParams* scan_context = nullptr);
 
 /// dump_graph: everything needed to rebuild and re-optimise the graph offline by replaying it
-/// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, loops.csv,
+/// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, floors.csv, loops.csv,
 /// buildings_prior.geojson, origin.txt) plus graph.g2o for inspection.
 MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory);
 
