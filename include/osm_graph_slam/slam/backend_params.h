@@ -40,14 +40,16 @@ struct InformationParams {
   /// scene constrains well (along a square's walls) is held where the fitness model, which only
   /// knows streets, assumes it weak. The Hessian counts neighbouring points as independent, so
   /// the weight is far below 1 (doc/backend.md). 0 = off; keyframes without a Hessian (PCL
-  /// registration, old dumps) get the fitness model alone.
-  double hessian_weight = 0.0;
+  /// registration, old dumps) get the fitness model alone. 0.0025 by default since session 28,
+  /// with the odometry scale and prediction_error_scale 1 (see odometry_scale_window).
+  double hessian_weight = 0.0025;
   /// A keyframe whose match lay an offset e from the motion model's prediction (TrackResult::
   /// prediction_error: the scan was deskewed by a motion that did not happen) gets
   /// (scale * e)(scale * e)^T added to its translation covariance: along e the step is
-  /// uncertain by about that much, whatever fitness and Hessian say. 0 = off (default: neutral
-  /// on the quick matrix, 0.4-1.1 % more ATE on the manoeuvre drives; doc/backend.md).
-  double prediction_error_scale = 0.0;
+  /// uncertain by about that much, whatever fitness and Hessian say. 0 = off (alone: neutral
+  /// on the quick matrix, 0.4-1.1 % more ATE on the manoeuvre drives; doc/backend.md). 1 by
+  /// default since session 28, with the Hessian and the odometry scale.
+  double prediction_error_scale = 1.0;
 };
 
 struct GraphBackendParams {
@@ -213,10 +215,12 @@ struct GraphBackendParams {
   /// estimated with the trajectory (OSM, loops and GNSS observe it): a range bias of the LiDAR
   /// (e.g. a vertical-angle calibration error) makes scan matching a few tenths of a percent
   /// short or long, and without the factor the map evidence has to bend single steps instead.
-  /// 0 = off (odometry edges as measured; default: with nothing else observing it, the floor
-  /// edges pull the scale and a long drive without OSM got 23 % worse; doc/backend.md). 100 m
-  /// is a gain or neutral on the quick matrix and the manoeuvre drives.
-  double odometry_scale_window = 0.0;      ///< [m] of path per scale factor
+  /// 0 = off (odometry edges as measured). Only the horizontal translation is scaled: a
+  /// vertical drift held by the floor edges pulled a scale of all three axes (a 1.5 km drive
+  /// without OSM got 23 % worse, session 27). Default 100 m with hessian_weight 0.0025 and
+  /// prediction_error_scale 1: the real drive's map sharpness +5.4 % -> +0.9 % against the run
+  /// without OSM, the drive matrix within -3.8 .. +0.7 % (doc/backend.md, session 28).
+  double odometry_scale_window = 100.0;    ///< [m] of path per scale factor
   double odometry_scale_std = 0.01;        ///< prior deviation of the first factor from 1
   double odometry_scale_walk_std = 0.002;  ///< deviation of a factor from the previous window's
   bool resolve_overlaps = true;
