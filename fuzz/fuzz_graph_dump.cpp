@@ -1,6 +1,6 @@
 // readGraphDump: the first input byte picks the file that gets the rest of the input
 // (keyframes.csv, segments.csv, loops.csv, origin.txt, initial_heading.txt,
-// buildings_prior.geojson); the others hold valid content.
+// buildings_prior.geojson, floors.csv); the others hold valid content.
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -11,7 +11,9 @@
 namespace {
 
 const char* const kNames[] = {"keyframes.csv", "segments.csv",        "loops.csv",
-                              "origin.txt",    "initial_heading.txt", "buildings_prior.geojson"};
+                              "origin.txt",    "initial_heading.txt", "buildings_prior.geojson",
+                              "floors.csv"};
+constexpr int kFiles = sizeof(kNames) / sizeof(kNames[0]);
 const char* const kValid[] = {
     "# id stamp distance pose(3x4) fitness roll pitch reanchored\n"
     "0 0.0 0.0 1 0 0 0 0 1 0 0 0 0 1 0 0.1 nan nan 0\n"
@@ -23,7 +25,9 @@ const char* const kValid[] = {
     "-1.2219\n",
     "{\"type\":\"FeatureCollection\",\"features\":[{\"type\":\"Feature\",\"properties\":{\"id\":7},"
     "\"geometry\":{\"type\":\"Polygon\",\"coordinates\":[[[8.4228,49.0110],[8.4230,49.0110],"
-    "[8.4230,49.0112],[8.4228,49.0110]]]}}]}\n"};
+    "[8.4230,49.0112],[8.4228,49.0110]]]}}]}\n",
+    "# keyframe_id a b c d\n1 0.01 0 0.9999 1.73\n"};
+static_assert(sizeof(kValid) / sizeof(kValid[0]) == kFiles, "one valid content per file");
 
 }  // namespace
 
@@ -34,8 +38,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::filesystem::create_directories(d);
     return d;
   }();
-  const int target = data[0] % 6;
-  for (int i = 0; i < 6; ++i) {
+  const int target = data[0] % kFiles;
+  for (int i = 0; i < kFiles; ++i) {
     const std::string path = dir + "/" + kNames[i];
     if (i == target) {
       ogs_fuzz::writeFile(path, data + 1, size - 1);
