@@ -106,17 +106,19 @@ bool BackendState::covered(const Eigen::Vector2d& position) const {
 
 std::vector<int> BackendState::fixRobots() {
   std::vector<int> fixed_now;
-  for (const auto& [id, kf] : keyframes) {
-    const int vid = static_cast<int>(id);
-    if (!graph.isFixed(vid)) {
-      graph.setFixed(vid, true);
-      fixed_now.push_back(vid);
-    }
-  }
+  auto fix = [&](int vid) {
+    if (graph.isFixed(vid)) return;
+    graph.setFixed(vid, true);
+    fixed_now.push_back(vid);
+  };
+  for (const auto& [id, kf] : keyframes) fix(static_cast<int>(id));
+  // The odometry's scale belongs to the trajectory: with every pose fixed it has nothing to do.
+  for (const auto& [window, vid] : scale_vertices) fix(vid);
   return fixed_now;
 }
 
-std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start) {
+std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
+                                                 double odometry_scale_window) {
   std::vector<int> fixed_now;
   auto hold = [&](int vid) {
     if (graph.isFixed(vid)) return;
@@ -125,6 +127,15 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start) {
   };
   for (auto it = keyframes.begin(); it != keyframes.end() && it->first < window_start; ++it)
     hold(static_cast<int>(it->first));
+  // Scales of path windows that end before the first free keyframe touch only held poses: a
+  // free one would keep every old odometry edge in the problem (the window would save nothing).
+  if (const auto first = keyframes.lower_bound(window_start);
+      first != keyframes.end() && odometry_scale_window > 0.0 &&
+      std::isfinite(first->second.accum_distance)) {
+    const double free_from = std::floor(first->second.accum_distance / odometry_scale_window);
+    for (const auto& [window, vid] : scale_vertices)
+      if (window < free_from) hold(vid);
+  }
   std::set<int64_t> seen_from_window;
   for (const auto& e : building_edges)
     if (e.keyframe >= window_start) seen_from_window.insert(e.building);

@@ -96,10 +96,12 @@ struct BackendState {
   /// Whether an answered OSM query covers the position.
   bool covered(const Eigen::Vector2d& position) const;
 
-  std::vector<int> fixRobots();  ///< returns the robot vertices it fixed
-  /// Fixes the keyframes before window_start and the buildings no keyframe from window_start on
-  /// observes; returns the vertices it fixed (to free again after the update).
-  std::vector<int> holdOutsideWindow(uint64_t window_start);
+  /// Fixes the keyframes and the odometry scales; returns the vertices it fixed.
+  std::vector<int> fixRobots();
+  /// Fixes the keyframes before window_start, the odometry scales of path windows (of
+  /// odometry_scale_window metres) that end before it, and the buildings no keyframe from
+  /// window_start on observes; returns the vertices it fixed (to free again after the update).
+  std::vector<int> holdOutsideWindow(uint64_t window_start, double odometry_scale_window);
   /// Frees the vertices holdOutsideWindow() fixed, except buildings that must stay at their
   /// prior (the gate may have removed their last observation meanwhile).
   void release(const std::vector<int>& held, const GraphBackendParams& p);

@@ -898,6 +898,31 @@ TEST(GraphBackend, AWindowedUpdateHoldsTheOldKeyframesAndADisagreeingLoopCallsAF
   EXPECT_FALSE(r.window_start);
 }
 
+// A free scale of an old path window would keep every old odometry edge in a windowed update's
+// problem (session 28: the 1.5 km Karlsruhe replay's back-end took 48 % longer with the scale on).
+TEST(GraphBackend, AWindowedUpdateHoldsTheScalesOfOldPathWindows) {
+  constexpr int kN = 40, kWindow = 10;
+  GraphBackendParams params = noOsmKnownHeading();
+  params.initial_yaw = M_PI / 2.0;
+  params.odometry_scale_window = 20.0;  // 3.14 m steps: one scale per 6-7 keyframes
+  params.optimization_window = kWindow;
+  GraphBackend windowed(params);
+  BackendUpdateReport r;
+  for (int i = 0; i < kN; ++i) {
+    windowed.addKeyframe(circleKeyframe(i, kN));
+    r = windowed.update();
+  }
+  ASSERT_TRUE(r.window_start);
+  ASSERT_EQ(windowed.odometryScales().size(), 7u);
+  // Keyframes 30-39 are free (94-123 m): their 10 odometry edges, the walks into the scales of
+  // the path windows 4-6 they lie in, and the 4 older steps of window 4 (80-94 m) that observe
+  // its scale too; nothing older (without holding the old scales: all 39 steps and 6 walks).
+  EXPECT_EQ(r.phase1.num_edges, kWindow + 3 + 4);
+  // A forced update (save_map) frees everything again.
+  r = windowed.update(true);
+  EXPECT_GE(r.phase1.num_edges, kN - 1 + 6);
+}
+
 TEST(PoseGraph, LeavingOutEdgesBetweenFixedVerticesGivesTheSameSolution) {
   auto build = [] {
     PoseGraph g;
