@@ -118,7 +118,7 @@ std::vector<int> BackendState::fixRobots() {
 }
 
 std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
-                                                 double odometry_scale_window) {
+                                                 const GraphBackendParams& p) {
   std::vector<int> fixed_now;
   auto hold = [&](int vid) {
     if (graph.isFixed(vid)) return;
@@ -127,14 +127,21 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
   };
   for (auto it = keyframes.begin(); it != keyframes.end() && it->first < window_start; ++it)
     hold(static_cast<int>(it->first));
-  // Scales of path windows that end before the first free keyframe touch only held poses: a
-  // free one would keep every old odometry edge in the problem (the window would save nothing).
-  if (const auto first = keyframes.lower_bound(window_start);
-      first != keyframes.end() && odometry_scale_window > 0.0 &&
-      std::isfinite(first->second.accum_distance)) {
-    const double free_from = std::floor(first->second.accum_distance / odometry_scale_window);
-    for (const auto& [window, vid] : scale_vertices)
-      if (window < free_from) hold(vid);
+  // Scales and biases of windows that end before the first free keyframe touch only held poses:
+  // a free one would keep every old odometry edge or fix in the problem (the window would save
+  // nothing).
+  auto holdBefore = [&](const std::map<int, int>& windows, double first_free) {
+    if (!std::isfinite(first_free)) return;
+    for (const auto& [window, vid] : windows)
+      if (window < first_free) hold(vid);
+  };
+  if (const auto first = keyframes.lower_bound(window_start); first != keyframes.end()) {
+    if (p.odometry_scale_window > 0.0)
+      holdBefore(scale_vertices,
+                 std::floor(first->second.accum_distance / p.odometry_scale_window));
+    if (gnss_bias_start)
+      holdBefore(gnss_bias_vertices, std::floor((first->second.stamp - *gnss_bias_start) /
+                                                std::max(p.gnss_bias_window, 1e-3)));
   }
   std::set<int64_t> seen_from_window;
   for (const auto& e : building_edges)

@@ -98,10 +98,10 @@ struct BackendState {
 
   /// Fixes the keyframes and the odometry scales; returns the vertices it fixed.
   std::vector<int> fixRobots();
-  /// Fixes the keyframes before window_start, the odometry scales of path windows (of
-  /// odometry_scale_window metres) that end before it, and the buildings no keyframe from
-  /// window_start on observes; returns the vertices it fixed (to free again after the update).
-  std::vector<int> holdOutsideWindow(uint64_t window_start, double odometry_scale_window);
+  /// Fixes the keyframes before window_start, the odometry scales and GNSS biases of windows
+  /// (of path, of time) that end before it, and the buildings no keyframe from window_start on
+  /// observes; returns the vertices it fixed (to free again after the update).
+  std::vector<int> holdOutsideWindow(uint64_t window_start, const GraphBackendParams& p);
   /// Frees the vertices holdOutsideWindow() fixed, except buildings that must stay at their
   /// prior (the gate may have removed their last observation meanwhile).
   void release(const std::vector<int>& held, const GraphBackendParams& p);

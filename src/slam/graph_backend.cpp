@@ -655,8 +655,7 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report,
   const OptimizerOptions& options = params_.optimizer;
   report.window_start = window_start;
   const std::vector<int> held =
-      window_start ? s.holdOutsideWindow(*window_start, params_.odometry_scale_window)
-                   : std::vector<int>{};
+      window_start ? s.holdOutsideWindow(*window_start, params_) : std::vector<int>{};
 
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
   report.phase1 = s.graph.optimize(0, options);

@@ -81,6 +81,33 @@ TEST(GnssPrior, AnEstimatedBiasKeepsTheTrajectoryFromFollowingTheFixesWander) {
   EXPECT_LT(with_bias, independent / 2.0);
 }
 
+// A windowed update holds the GNSS biases of time windows before the window: a free old bias
+// would keep every old fix in the problem.
+TEST(GnssPrior, AWindowedUpdateHoldsTheBiasesOfOldTimeWindows) {
+  GraphBackendParams params = noOsmKnownHeading();
+  params.gnss_prior_std = 1.5;
+  params.gnss_bias_std = 1.0;
+  params.gnss_bias_window = 10.0;
+  params.odometry_scale_window = 0.0;
+  params.optimization_window = 10;
+  GraphBackend backend(params);
+  BackendUpdateReport r;
+  for (uint64_t i = 0; i < 60; ++i) {
+    KeyframeInput kf = straightKeyframe(i);
+    kf.gnss_position = Eigen::Vector2d(2.0 * i, 0.3);
+    backend.addKeyframe(kf);
+    r = backend.update();
+  }
+  ASSERT_TRUE(r.window_start);
+  ASSERT_EQ(*r.window_start, 50u);
+  // Keyframes 50-59 (stamps 51-60 s, bias window 5): 10 odometry edges, 10 fixes and the
+  // Gauss-Markov step into window 5; nothing older (else 59 + 60 + 5 edges).
+  EXPECT_EQ(r.phase1.num_edges, 21);
+  // A forced update (save_map) frees everything again.
+  r = backend.update(true);
+  EXPECT_GE(r.phase1.num_edges, 59 + 60 + 5);
+}
+
 namespace {
 
 /// 300 keyframes 2 m and 1 s apart on level ground (exact odometry). The map origin is the first
