@@ -276,7 +276,7 @@ double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
 
 void Localizer::reset() {
   ukf_ = PoseUkf(params_.ukf);
-  failures_in_row_ = 0;
+  recent_rejections_.clear();
   searching_ = true;
   confirming_ = false;
   recent_fitness_.clear();
@@ -287,7 +287,7 @@ void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
   ukf_.initialize(pose, params_.init_position_std, params_.init_orientation_std,
                   params_.init_velocity_std, params_.init_rate_std);
   last_stamp_ = stamp;
-  failures_in_row_ = 0;
+  recent_rejections_.clear();
   searching_ = false;
   confirming_ = false;
   recent_fitness_.clear();
@@ -550,7 +550,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
     ++stats_.off_map;
     out.status = LocalizationStatus::kOffMap;
     out.covariance = ukf_.poseCovariance();
-    failures_in_row_ = 0;  // nothing to fail against
+    recent_rejections_.clear();  // nothing to fail against
     return out;
   }
 
@@ -602,9 +602,13 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   }
   out.pose = ukf_.pose();
   out.covariance = ukf_.poseCovariance();
-  if (accepted) {
-    failures_in_row_ = 0;
-  } else if (++failures_in_row_ >= params_.divergence_scans) {
+  recent_rejections_.push_back(!accepted);
+  const size_t window =
+      static_cast<size_t>(std::max({params_.divergence_window, params_.divergence_scans, 1}));
+  while (recent_rejections_.size() > window) recent_rejections_.pop_front();
+  const auto rejected = std::count(recent_rejections_.begin(), recent_rejections_.end(), true);
+  if (!accepted && rejected >= params_.divergence_scans) {
+    recent_rejections_.clear();
     out.diverged = true;
     ++stats_.divergences;
     searching_ = true;  // global localisation from the next scan on

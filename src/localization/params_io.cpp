@@ -31,6 +31,7 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("measurement_position_std", p.measurement_position_std);
   r.param("measurement_orientation_std", p.measurement_orientation_std);
   r.param("divergence_scans", p.divergence_scans);
+  r.param("divergence_window", p.divergence_window);
   r.param("off_map_distance", p.off_map_distance);
   r.param("min_points", p.min_points);
   r.param("deskew", p.deskew);

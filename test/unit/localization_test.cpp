@@ -664,6 +664,34 @@ TEST(Localizer, RecoversFromAKidnap) {
   EXPECT_EQ(localizer.stats().divergences, 1u);
 }
 
+// A filter carried to a wrong place may have corrections there accepted and rejected in turn
+// (session 28: a kidnap at rate 1 through ROS took 2.4 s to detect). Every other scan from 32 m
+// ahead: rejections are never 5 in a row, but 5 of the last 10.
+TEST(Localizer, AlternatingRejectionsAreADivergence) {
+  const TownMap& town = townMap();
+  LocalizationParams params = defaultParams();
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 0.8, 0.4, 1.0);
+  const size_t first = 205, start = 20, scans = 40;
+  ASSERT_GT(route.size(), first + scans + 40);
+  auto divergedAt = [&](int window) {
+    params.divergence_window = window;
+    Localizer localizer(params, town.package);
+    const Eigen::Vector3d& p0 = route[first];
+    localizer.setInitialPose(planar(p0.x(), p0.y(), 1.73, p0.z()), 0.0);
+    for (size_t i = 0; i < scans; ++i) {
+      const bool away = i >= start && i % 2 == 1;
+      const Eigen::Vector3d& p = route[first + i + (away ? 40 : 0)];
+      const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 900 + i);
+      if (localizer.process(0.1 * i, cloud).diverged) return static_cast<int>(i);
+    }
+    return -1;
+  };
+  const int in_window = divergedAt(params.divergence_window);
+  EXPECT_GE(in_window, static_cast<int>(start + 2 * params.divergence_scans - 1));
+  EXPECT_LE(in_window, static_cast<int>(start + 2 * params.divergence_window));
+  EXPECT_EQ(divergedAt(0), -1) << "counted in a row, the alternation is never a divergence";
+}
+
 // Far from every keyframe a scan is flagged off the map, not corrected.
 TEST(Localizer, FlagsScansOffTheMap) {
   const TownMap& town = townMap();

@@ -9,6 +9,7 @@
 // only, never corrected against a map that is not there.
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,7 +40,12 @@ struct LocalizationParams {
   double max_correction_angle = 0.15;          ///< [rad]
   double measurement_position_std = 0.05;      ///< [m] of an accepted registration
   double measurement_orientation_std = 0.005;  ///< [rad]
-  int divergence_scans = 5;        ///< failed corrections in a row: re-localise globally
+  /// Diverged (re-localise globally) when divergence_scans of the last divergence_window
+  /// corrections were rejected. A window of divergence_scans or less: rejections in a row. A
+  /// filter carried off to a wrong place has corrections there accepted and rejected in turn,
+  /// which a count in a row misses for seconds (doc/localization.md, session 28).
+  int divergence_scans = 5;
+  int divergence_window = 10;
   double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
   int min_points = 100;            ///< fewer scan points: no correction
   /// Motion compensation of each tracked scan by the filter's predicted motion (scan_deskew.h;
@@ -243,9 +249,9 @@ class Localizer {
   LocalizationStats stats_;
   GlobalLocalizationResult last_global_;
   double last_stamp_ = 0.0;
-  int failures_in_row_ = 0;
-  bool searching_ = true;    ///< waiting for a global localisation
-  bool confirming_ = false;  ///< started from a global answer not yet confirmed
+  std::deque<bool> recent_rejections_;  ///< of the last divergence_window corrections
+  bool searching_ = true;               ///< waiting for a global localisation
+  bool confirming_ = false;             ///< started from a global answer not yet confirmed
   int confirm_wait_ = 0;
   std::vector<double> recent_fitness_;  ///< of the last accepted matches (ring of 20)
   size_t recent_next_ = 0;
