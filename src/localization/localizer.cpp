@@ -603,8 +603,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   out.pose = ukf_.pose();
   out.covariance = ukf_.poseCovariance();
   recent_rejections_.push_back(!accepted);
-  const size_t window =
-      static_cast<size_t>(std::max({params_.divergence_window, params_.divergence_scans, 1}));
+  const size_t window = static_cast<size_t>(params_.effectiveDivergenceWindow());
   while (recent_rejections_.size() > window) recent_rejections_.pop_front();
   const auto rejected = std::count(recent_rejections_.begin(), recent_rejections_.end(), true);
   if (!accepted && rejected >= params_.divergence_scans) {

@@ -239,10 +239,9 @@ class LocalizationNodelet : public nodelet::Nodelet {
                            out.status == LocalizationStatus::kRelocalized;
     publishStatus(msg->header.stamp, out, localized, ms);
     if (out.diverged)
-      NODELET_WARN(
-          "localization: diverged at %.3f (%d of the last %d matches rejected), searching", stamp,
-          localizer_->params().divergence_scans,
-          std::max(localizer_->params().divergence_window, localizer_->params().divergence_scans));
+      NODELET_WARN("localization: diverged at %.3f (%d of the last %d matches rejected), searching",
+                   stamp, localizer_->params().divergence_scans,
+                   localizer_->params().effectiveDivergenceWindow());
     if (out.status == LocalizationStatus::kRelocalized)
       NODELET_INFO("localization: (re-)localised at %.2f %.2f (fitness %.3f)",
                    out.pose.translation().x(), out.pose.translation().y(), out.fitness);

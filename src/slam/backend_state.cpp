@@ -47,10 +47,23 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   return id;
 }
 
+int BackendState::gnssBiasWindow(double stamp, const GraphBackendParams& p) const {
+  const double windows = gnss_bias_start && std::isfinite(stamp)
+                             ? (stamp - *gnss_bias_start) / std::max(p.gnss_bias_window, 1e-3)
+                             : 0.0;
+  return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
+}
+
+int BackendState::odometryScaleWindow(double accum_distance, const GraphBackendParams& p) const {
+  // A non-finite path length (a corrupt message) counts as the first window.
+  const double windows =
+      std::isfinite(accum_distance) ? accum_distance / p.odometry_scale_window : 0.0;
+  return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
+}
+
 int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
   if (!gnss_bias_start) gnss_bias_start = stamp;
-  const double window = std::max(p.gnss_bias_window, 1e-3);
-  const int k = std::max(0, static_cast<int>(std::floor((stamp - *gnss_bias_start) / window)));
+  const int k = gnssBiasWindow(stamp, p);
   const auto found = gnss_bias_vertices.find(k);
   if (found != gnss_bias_vertices.end()) return found->second;
   const int id = GraphBackend::kGnssBiasVertexTop - k;
@@ -66,6 +79,7 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
     // b_k = φ·b_j + w, var(w) = σ²(1 − φ²): the stationary process over the windows between
     // (an outage may skip some).
     const auto& [j, prev] = *std::prev(before);
+    const double window = std::max(p.gnss_bias_window, 1e-3);
     const double phi = p.gnss_bias_tau > 0.0 ? std::exp(-(k - j) * window / p.gnss_bias_tau) : 0.0;
     const Eigen::Vector3d step_var = var * std::max(1.0 - phi * phi, 1e-6);
     graph.addVertexPointXYZ(id, phi * graph.vertexPointXYZ(prev).value_or(Eigen::Vector3d::Zero()));
@@ -76,10 +90,7 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
 }
 
 int BackendState::odometryScaleVertex(double accum_distance, const GraphBackendParams& p) {
-  // A non-finite path length (a corrupt message) counts as the first window.
-  const double windows =
-      std::isfinite(accum_distance) ? accum_distance / p.odometry_scale_window : 0.0;
-  const int k = static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
+  const int k = odometryScaleWindow(accum_distance, p);
   const auto found = scale_vertices.find(k);
   if (found != scale_vertices.end()) return found->second;
   const int id = GraphBackend::kScaleVertexTop - k;
@@ -130,18 +141,14 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
   // Scales and biases of windows that end before the first free keyframe touch only held poses:
   // a free one would keep every old odometry edge or fix in the problem (the window would save
   // nothing).
-  auto holdBefore = [&](const std::map<int, int>& windows, double first_free) {
-    if (!std::isfinite(first_free)) return;
+  auto holdBefore = [&](const std::map<int, int>& windows, int first_free) {
     for (const auto& [window, vid] : windows)
       if (window < first_free) hold(vid);
   };
   if (const auto first = keyframes.lower_bound(window_start); first != keyframes.end()) {
     if (p.odometry_scale_window > 0.0)
-      holdBefore(scale_vertices,
-                 std::floor(first->second.accum_distance / p.odometry_scale_window));
-    if (gnss_bias_start)
-      holdBefore(gnss_bias_vertices, std::floor((first->second.stamp - *gnss_bias_start) /
-                                                std::max(p.gnss_bias_window, 1e-3)));
+      holdBefore(scale_vertices, odometryScaleWindow(first->second.accum_distance, p));
+    holdBefore(gnss_bias_vertices, gnssBiasWindow(first->second.stamp, p));
   }
   std::set<int64_t> seen_from_window;
   for (const auto& e : building_edges)

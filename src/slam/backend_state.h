@@ -85,6 +85,10 @@ struct BackendState {
   int buildingVertex(BuildingState& b, const GraphBackendParams& p);
   /// Where a building is expected before anything observed it: its prior moved by the datum.
   Pose2 predictedPose(const BuildingState& b, const GraphBackendParams& p) const;
+  /// Index of the GNSS bias window holding stamp (0 before the first fix or for a bad stamp).
+  int gnssBiasWindow(double stamp, const GraphBackendParams& p) const;
+  /// Index of the odometry scale's path window holding accum_distance (0 for a bad length).
+  int odometryScaleWindow(double accum_distance, const GraphBackendParams& p) const;
   /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
   /// and tied to the previous window's by the Gauss-Markov process.
   int gnssBiasVertex(double stamp, const GraphBackendParams& p);

@@ -46,6 +46,10 @@ struct LocalizationParams {
   /// which a count in a row misses for seconds (doc/localization.md, session 28).
   int divergence_scans = 5;
   int divergence_window = 10;
+  /// The window actually used: never shorter than divergence_scans.
+  int effectiveDivergenceWindow() const {
+    return std::max({divergence_window, divergence_scans, 1});
+  }
   double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
   int min_points = 100;            ///< fewer scan points: no correction
   /// Motion compensation of each tracked scan by the filter's predicted motion (scan_deskew.h;

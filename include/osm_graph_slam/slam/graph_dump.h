@@ -1,7 +1,7 @@
 #pragma once
 // Reading a dump_graph directory back and replaying it into a GraphBackend: the back-end's
-// inputs (keyframes, segments, floors, loops, buildings, origin) without the front-end, so that back-end
-// parameters can be compared on the same drive in seconds (tools/replay_backend).
+// inputs (keyframes, segments, floors, loops, buildings, origin) without the front-end, so that
+// back-end parameters can be compared on the same drive in seconds (tools/replay_backend).
 #include <optional>
 #include <string>
 #include <vector>
