@@ -240,6 +240,46 @@ void Localizer::learnOverlapLimit() {
   stats_.global_overlap_learn_ms = msSince(t0);
 }
 
+PlaceFit measurePlaceFit(const PointCloud& cloud, const Eigen::Isometry3d& pose,
+                         const PointCloudConstPtr& map_region, const Eigen::Vector2d& centre,
+                         double radius, double inlier_distance, double structure_z) {
+  PlaceFit out;
+  const double max_d2 = inlier_distance * inlier_distance;
+  out.structure_cost = max_d2;
+  if (!map_region || map_region->empty()) return out;
+  pcl::KdTreeFLANN<PointT> tree;
+  tree.setInputCloud(map_region);
+  PointCloud aligned;
+  pcl::transformPointCloud(cloud, aligned, pose.matrix().cast<float>());
+  std::vector<int> idx(1);
+  std::vector<float> d2(1);
+  const double inside2 = std::pow(std::max(0.0, radius - 1.0), 2);
+  size_t considered = 0, inliers = 0, structure = 0, structure_inliers = 0;
+  double cost = 0.0, structure_cost = 0.0;
+  for (size_t i = 0; i < aligned.size(); ++i) {
+    const auto& p = aligned[i];
+    if (std::pow(p.x - centre.x(), 2) + std::pow(p.y - centre.y(), 2) > inside2) continue;
+    ++considered;
+    const bool found = tree.nearestKSearch(p, 1, idx, d2) > 0;
+    const bool inlier = found && d2[0] <= max_d2;
+    const double truncated = inlier ? double(d2[0]) : max_d2;
+    inliers += inlier ? 1 : 0;
+    cost += truncated;
+    if (cloud[i].z > structure_z) {
+      ++structure;
+      structure_inliers += inlier ? 1 : 0;
+      structure_cost += truncated;
+    }
+  }
+  if (considered == 0) return out;
+  out.overlap = double(inliers) / double(considered);
+  out.structure_overlap = structure == 0 ? 0.0 : double(structure_inliers) / double(structure);
+  // A scan of bare ground has nothing else to tell the place by: all its points then.
+  out.structure_cost =
+      structure == 0 ? cost / double(considered) : structure_cost / double(structure);
+  return out;
+}
+
 double Localizer::ownPlaceOverlap(size_t index) const {
   // Its own place, seen without its own points (another pass sees the place from elsewhere),
   // mapped by keyframes thinned to kOwnSpacing (a map of every keyframe per sample costs
@@ -264,7 +304,7 @@ double Localizer::ownPlaceOverlap(size_t index) const {
   const PointCloudPtr target =
       MapGrid(buildMapCloud(others, params_.map_voxel_size), 10.0).crop(centre, radius);
   if (target->size() < static_cast<size_t>(params_.min_points)) return -1.0;
-  return overlapAt(*kf.cloud, kf.pose, target, centre, radius).first;
+  return overlapAt(*kf.cloud, kf.pose, target, centre, radius).overlap;
 }
 
 double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
@@ -332,7 +372,8 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     if (!registerAtPlace(cloud, coarse_source, c, record) || record.overlap < overlap_limit_)
       continue;
     record.outcome = "passed";
-    const double score = record.fitness / record.overlap;
+    // The ground fits anywhere: places are told apart by how much of the structure they explain.
+    const double score = record.structure_cost;
     passed.push_back({record.pose, score});
     if (score < best_score) {
       best_score = score;
@@ -383,6 +424,8 @@ bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
   record.descriptor_distance = place.descriptor_distance;
   record.outcome = "coarse_failed";
   impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
+  // The coarse step only brings the fine one closer: one that ran out of iterations (a guess
+  // metres off) still hands over its guess, and the fine fit, fitness and overlap decide.
   const RegistrationResult coarse = impl_->coarse->align(coarse_source, place.guess);
   if (!coarse.converged) return false;
   const PointCloudPtr target = impl_->grid->crop(centre, radius);
@@ -392,41 +435,20 @@ bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
   record.fitness = fine.fitness;
   record.outcome = fine.converged ? "fitness" : "fine_failed";
   if (!fine.converged || fine.fitness > params_.global_max_fitness) return false;
-  std::tie(record.overlap, record.structure_overlap) =
-      overlapAt(*cloud, fine.transform, target, centre, radius);
+  const PlaceFit fit = overlapAt(*cloud, fine.transform, target, centre, radius);
+  record.overlap = fit.overlap;
+  record.structure_overlap = fit.structure_overlap;
+  record.structure_cost = fit.structure_cost;
   record.outcome = "overlap";
   return true;
 }
 
-std::pair<double, double> Localizer::overlapAt(const PointCloud& cloud,
-                                               const Eigen::Isometry3d& pose,
-                                               const PointCloudConstPtr& target,
-                                               const Eigen::Vector2d& centre, double radius) const {
-  pcl::KdTreeFLANN<PointT> tree;
-  tree.setInputCloud(target);
-  PointCloud aligned;
-  pcl::transformPointCloud(cloud, aligned, pose.matrix().cast<float>());
-  std::vector<int> idx(1);
-  std::vector<float> d2(1);
-  const float max_d2 =
-      static_cast<float>(params_.global_overlap_distance * params_.global_overlap_distance);
-  // Only points inside the cropped map region can have a map point near them.
-  const double inside2 = std::pow(std::max(0.0, radius - 1.0), 2);
-  size_t considered = 0, inliers = 0, structure = 0, structure_inliers = 0;
-  const double structure_z = params_.global_structure_height - map_->scan_context.sensor_height;
-  for (size_t i = 0; i < aligned.size(); ++i) {
-    const auto& p = aligned[i];
-    if (std::pow(p.x - centre.x(), 2) + std::pow(p.y - centre.y(), 2) > inside2) continue;
-    ++considered;
-    const bool is_structure = cloud[i].z > structure_z;  // base_link: above the ground
-    structure += is_structure ? 1 : 0;
-    if (tree.nearestKSearch(p, 1, idx, d2) > 0 && d2[0] <= max_d2) {
-      ++inliers;
-      structure_inliers += is_structure ? 1 : 0;
-    }
-  }
-  return {considered == 0 ? 0.0 : double(inliers) / double(considered),
-          structure == 0 ? 0.0 : double(structure_inliers) / double(structure)};
+PlaceFit Localizer::overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& pose,
+                              const PointCloudConstPtr& target, const Eigen::Vector2d& centre,
+                              double radius) const {
+  return measurePlaceFit(
+      cloud, pose, target, centre, radius, params_.global_overlap_distance,
+      params_.global_structure_height - map_->scan_context.sensor_height);  // base_link z
 }
 
 std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPtr& cloud) {
@@ -555,6 +577,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   }
 
   bool accepted = false;
+  PointCloudConstPtr scan = cloud;  // deskewed by the predicted motion when tracked
   if (cloud && cloud->size() >= static_cast<size_t>(params_.min_points)) {
     t0 = Clock::now();
     const Eigen::Vector2d centre = predicted.translation().head<2>();
@@ -567,9 +590,8 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       stats_.local_map_ms += msSince(t0);
       t0 = Clock::now();
     }
-    const PointCloudConstPtr scan =
-        params_.deskew ? deskewedCopy(*cloud, params_.sensor_to_base, out.motion, dt, params_.sweep)
-                       : cloud;
+    if (params_.deskew)
+      scan = deskewedCopy(*cloud, params_.sensor_to_base, out.motion, dt, params_.sweep);
     const PointCloudConstPtr source =
         params_.scan_voxel_size > 0.0 ? voxelDownsample(scan, params_.scan_voxel_size) : scan;
     const RegistrationResult r = impl_->tracker->align(source, predicted);
@@ -618,7 +640,9 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
     out.status = LocalizationStatus::kUninitialized;
     ++stats_.uninitialized;
     if (accepted && ++confirm_wait_ >= params_.global_confirm_after) {
-      const GlobalLocalizationResult g = globalLocalize(cloud);
+      // Independent of the tracked pose, but on the scan deskewed by the tracked motion: a raw
+      // scan in a turn is smeared by degrees and its answer lands a metre off.
+      const GlobalLocalizationResult g = globalLocalize(scan);
       if (g.success) {
         const Eigen::Isometry3d d = out.pose.inverse() * g.pose;
         if (d.translation().norm() < 1.0 && rotationAngle(d.linear()) < 2.0 * M_PI / 180.0) {

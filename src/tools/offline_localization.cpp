@@ -87,7 +87,7 @@ void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocaliz
         << c.source << ' ' << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' '
         << c.overlap << ' ' << c.structure_overlap << ' ' << c.pose.translation().x() << ' '
         << c.pose.translation().y() << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error
-        << '\n';
+        << ' ' << c.structure_cost << '\n';
   }
 }
 
@@ -253,7 +253,8 @@ int main(int argc, char** argv) {
   global_log << std::setprecision(15)
              << "# stamp result keyframe source descriptor_distance outcome fitness overlap "
                 "structure_overlap x y yaw "
-                "error_m error_yaw_deg (one line per place tried; result: the attempt's answer)\n";
+                "error_m error_yaw_deg structure_cost (one line per place tried; result: the "
+                "attempt's answer)\n";
   bool last_relocalization_correct = false;
   // Kidnapping (--kidnap-at N): from drive scan N on, the scans are skipped until the vehicle is
   // --kidnap-distance (50 m) from where it was (straight line, by the truth); later stamps are

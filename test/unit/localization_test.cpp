@@ -585,6 +585,40 @@ TEST(Localizer, OverlapLimitRule) {
   EXPECT_DOUBLE_EQ(learnOverlapLimitFrom(own, {}, 0.6, 0.01).limit, 0.6);
 }
 
+// A scan slid 3 m along a street of posts: the ground still fits (the overall overlap hardly
+// drops), the posts do not. The structure cost is what tells the slide from the right place.
+TEST(PlaceFit, TheGroundDoesNotTellPlacesApart) {
+  auto map = std::make_shared<PointCloud>();
+  auto add = [&](float x, float y, float z) { map->push_back(PointT(x, y, z)); };
+  for (float x = -25.f; x <= 25.f; x += 0.25f)
+    for (float y = -10.f; y <= 10.f; y += 0.25f) add(x, y, 0.f);  // ground
+  for (float x = -24.f; x <= 24.f; x += 6.f)                      // posts along y = 6 m
+    for (float z = 0.25f; z <= 4.f; z += 0.25f)
+      for (int k = 0; k < 8; ++k)
+        add(x + 0.3f * std::cos(k * 0.785f), 6.f + 0.3f * std::sin(k * 0.785f), z);
+  const PointCloud& scan = *map;  // the scan is the map seen from the origin
+  const Eigen::Vector2d centre(0, 0);
+  const PlaceFit right =
+      measurePlaceFit(scan, Eigen::Isometry3d::Identity(), map, centre, 22.0, 0.6, 0.5);
+  Eigen::Isometry3d slid = Eigen::Isometry3d::Identity();
+  slid.translation().x() = 3.0;
+  const PlaceFit wrong = measurePlaceFit(scan, slid, map, centre, 22.0, 0.6, 0.5);
+  EXPECT_NEAR(right.overlap, 1.0, 1e-9);
+  EXPECT_NEAR(right.structure_cost, 0.0, 1e-6);
+  EXPECT_GT(wrong.overlap, 0.9);                  // the ground: 93 % of the points
+  EXPECT_LT(wrong.structure_overlap, 0.05);       // every post 3 m from the nearest one
+  EXPECT_NEAR(wrong.structure_cost, 0.36, 0.02);  // truncated at 0.6^2
+  // A scan of ground alone: its points are all it has.
+  PointCloud ground;
+  for (const auto& p : scan.points)
+    if (p.z < 0.1f) ground.push_back(p);
+  Eigen::Isometry3d lifted = Eigen::Isometry3d::Identity();
+  lifted.translation().z() = 0.3;
+  EXPECT_NEAR(measurePlaceFit(ground, lifted, map, centre, 22.0, 0.6, 0.5).structure_cost, 0.09,
+              1e-3);
+  EXPECT_DOUBLE_EQ(measurePlaceFit(scan, slid, nullptr, centre, 22.0, 0.6, 0.5).structure_cost,
+                   0.36);
+}
 // The overlap limit is learnt from the map's own places (registered without their own points)
 // and the other places Scan Context proposes for them: between the fixed floor and what the own
 // places reach, and the search applies it to every candidate.

@@ -98,8 +98,8 @@ struct LocalizationParams {
   double global_structure_height = 0.5;
   double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
   double global_voxel_size = 1.0;                 ///< [m] coarse source/target voxel
-  /// Another candidate more than 2 m away scoring (fitness / overlap) within this factor of the
-  /// best makes the answer ambiguous: refused.
+  /// Another candidate more than 2 m away whose structure cost (GlobalCandidate) is within this
+  /// factor of the best's makes the answer ambiguous: refused.
   double global_ambiguity_ratio = 1.5;
   /// A global answer is confirmed by a second, independent one this many scans later (tracked in
   /// between) that agrees within 1 m and 2 deg; until then the scans are not reported localised.
@@ -139,6 +139,10 @@ struct GlobalCandidate {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< after registration
   double fitness = -1.0, overlap = 0.0;
   double structure_overlap = 0.0;  ///< the overlap of the points above the ground only
+  /// Mean truncated squared distance [m^2] of the points above the ground to the map (each
+  /// min(d^2, global_overlap_distance^2)): how well the place explains what tells places apart;
+  /// the global search ranks places by it and refuses one with a rival close in it.
+  double structure_cost = -1.0;
 };
 
 struct GlobalLocalizationResult {
@@ -182,6 +186,18 @@ struct OverlapLimit {
 };
 OverlapLimit learnOverlapLimitFrom(std::vector<double> own, std::vector<double> impostor,
                                    double min_overlap, double rate);
+
+/// How a scan registered at a place agrees with the map there.
+struct PlaceFit {
+  double overlap = 0.0;            ///< fraction of the points within inlier_distance of the map
+  double structure_overlap = 0.0;  ///< the same of the points above structure_z (not the ground)
+  double structure_cost = 0.0;     ///< GlobalCandidate::structure_cost
+};
+/// Of the points of cloud (base_link) at pose that lie inside the map region (centre, radius - 1
+/// m: only they can have a map point near them); structure: cloud z > structure_z.
+PlaceFit measurePlaceFit(const PointCloud& cloud, const Eigen::Isometry3d& pose,
+                         const PointCloudConstPtr& map_region, const Eigen::Vector2d& centre,
+                         double radius, double inlier_distance, double structure_z);
 
 class Localizer {
  public:
@@ -239,11 +255,9 @@ class Localizer {
   /// fitness test.
   bool registerAtPlace(const PointCloudConstPtr& cloud, const PointCloudConstPtr& coarse_source,
                        const Place& place, GlobalCandidate& record) const;
-  /// Of the cloud's points at pose inside the map region (centre, radius): the fraction within
-  /// global_overlap_distance of target, and the same of the structure points.
-  std::pair<double, double> overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& pose,
-                                      const PointCloudConstPtr& target,
-                                      const Eigen::Vector2d& centre, double radius) const;
+  PlaceFit overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& pose,
+                     const PointCloudConstPtr& target, const Eigen::Vector2d& centre,
+                     double radius) const;
   double descriptor_limit_ = 0.6;  ///< learnt at construction
   double overlap_limit_ = 0.6;     ///< learnt at construction
   LocalizationParams params_;
