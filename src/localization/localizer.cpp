@@ -99,6 +99,8 @@ struct Localizer::Impl {
   PointCloudPtr coarse_map;  ///< at global_voxel_size
   std::unique_ptr<MapGrid> grid, coarse_grid;
   std::unique_ptr<Registration> tracker;       ///< scan-to-local-map
+  std::unique_ptr<Registration> odometry;      ///< scan-to-previous-scan, off the map
+  PointCloudConstPtr previous_scan;            ///< the last matchable scan (odometry target)
   std::unique_ptr<Registration> coarse, fine;  ///< global localisation
   PointCloudPtr local_map;
   Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
@@ -122,6 +124,7 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
   impl_->grid = std::make_unique<MapGrid>(impl_->map, 10.0);
   impl_->coarse_grid = std::make_unique<MapGrid>(impl_->coarse_map, 10.0);
   impl_->tracker = createRegistration(params_.registration);
+  impl_->odometry = createRegistration(params_.registration);
   RegistrationParams coarse = params_.registration;
   coarse.max_correspondence_distance = params_.global_coarse_max_correspondence;
   impl_->coarse = createRegistration(coarse);
@@ -316,6 +319,7 @@ double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
 
 void Localizer::reset() {
   ukf_ = PoseUkf(params_.ukf);
+  impl_->previous_scan.reset();
   recent_rejections_.clear();
   searching_ = true;
   confirming_ = false;
@@ -327,6 +331,7 @@ void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
   ukf_.initialize(pose, params_.init_position_std, params_.init_orientation_std,
                   params_.init_velocity_std, params_.init_rate_std);
   last_stamp_ = stamp;
+  impl_->previous_scan.reset();
   recent_rejections_.clear();
   searching_ = false;
   confirming_ = false;
@@ -519,6 +524,41 @@ std::vector<Localizer::Place> Localizer::scanContextPlaces(const ScanContext& qu
   return by_descriptor;
 }
 
+PointCloudConstPtr Localizer::deskewedScan(const PointCloudConstPtr& cloud,
+                                           const Eigen::Isometry3d& motion, double dt) const {
+  return params_.deskew ? deskewedCopy(*cloud, params_.sensor_to_base, motion, dt, params_.sweep)
+                        : cloud;
+}
+
+PointCloudConstPtr Localizer::reducedScan(const PointCloudConstPtr& scan) const {
+  return params_.scan_voxel_size > 0.0 ? voxelDownsample(scan, params_.scan_voxel_size) : scan;
+}
+
+bool Localizer::carryByScanOdometry(const PointCloudConstPtr& cloud,
+                                    const Eigen::Isometry3d& before,
+                                    const Eigen::Isometry3d& predicted_motion, double dt) {
+  if (!cloud || cloud->size() < static_cast<size_t>(params_.min_points)) {
+    impl_->previous_scan.reset();  // a gap: the next step has nothing to register against
+    return false;
+  }
+  const PointCloudConstPtr source = reducedScan(deskewedScan(cloud, predicted_motion, dt));
+  const PointCloudConstPtr target = impl_->previous_scan;
+  impl_->previous_scan = source;
+  if (!target) return false;
+  impl_->odometry->setTarget(target);
+  const RegistrationResult r = impl_->odometry->align(source, predicted_motion);
+  const Eigen::Isometry3d delta = predicted_motion.inverse() * r.transform;
+  // The same gates as a map correction: a step that jumps from the prediction is not trusted.
+  if (!r.converged || r.fitness > params_.max_fitness ||
+      delta.translation().norm() > params_.max_correction_trans ||
+      rotationAngle(delta.linear()) > params_.max_correction_angle)
+    return false;
+  ukf_.correct(before * r.transform, params_.off_map_step_position_std,
+               params_.off_map_step_orientation_std);
+  ++stats_.off_map_odometry;
+  return true;
+}
+
 LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cloud,
                                       const std::optional<Eigen::Vector3d>& gyro) {
   LocalizationOutput out;
@@ -571,6 +611,11 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   if (out.distance_to_map > params_.off_map_distance) {
     ++stats_.off_map;
     out.status = LocalizationStatus::kOffMap;
+    if (params_.off_map_odometry && carryByScanOdometry(cloud, before, out.motion, dt)) {
+      out.pose = ukf_.pose();
+      out.motion = before.inverse() * out.pose;
+      out.distance_to_map = distanceToMap(out.pose.translation());
+    }
     out.covariance = ukf_.poseCovariance();
     recent_rejections_.clear();  // nothing to fail against
     return out;
@@ -590,10 +635,9 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       stats_.local_map_ms += msSince(t0);
       t0 = Clock::now();
     }
-    if (params_.deskew)
-      scan = deskewedCopy(*cloud, params_.sensor_to_base, out.motion, dt, params_.sweep);
-    const PointCloudConstPtr source =
-        params_.scan_voxel_size > 0.0 ? voxelDownsample(scan, params_.scan_voxel_size) : scan;
+    scan = deskewedScan(cloud, out.motion, dt);
+    const PointCloudConstPtr source = reducedScan(scan);
+    impl_->previous_scan = source;  // the first step off the map registers against it
     const RegistrationResult r = impl_->tracker->align(source, predicted);
     stats_.registration_ms += msSince(t0);
     out.fitness = r.converged ? r.fitness : -1.0;

@@ -33,6 +33,9 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("divergence_scans", p.divergence_scans);
   r.param("divergence_window", p.divergence_window);
   r.param("off_map_distance", p.off_map_distance);
+  r.param("off_map_odometry", p.off_map_odometry);
+  r.param("off_map_step_position_std", p.off_map_step_position_std);
+  r.param("off_map_step_orientation_std", p.off_map_step_orientation_std);
   r.param("min_points", p.min_points);
   r.param("deskew", p.deskew);
   r.param("sweep_period", p.sweep.period);

@@ -312,7 +312,8 @@ int main(int argc, char** argv) {
               << "offline_localization: --initial-pose truth: the drive has no ground truth\n";
           return 1;
         }
-        localizer.setInitialPose(*truth, scan.stamp);
+        // Where the vehicle is on the map: with --map-truth, past the map's own absolute error.
+        localizer.setInitialPose(truth_to_map ? *truth_to_map * *truth : *truth, scan.stamp);
       } else if (!initial.empty()) {
         double x, y, yaw;
         char c;
@@ -418,9 +419,9 @@ int main(int argc, char** argv) {
   j << std::setprecision(6) << "{\"map\": \"" << args["map"] << "\", \"scans\": " << scans
     << ", \"skipped\": " << skipped << ", \"localized\": " << estimate.size()
     << ", \"tracking\": " << s.tracking << ", \"predicted\": " << s.predicted
-    << ", \"off_map\": " << s.off_map << ", \"not_localized\": " << s.uninitialized
-    << ", \"relocalized\": " << s.relocalizations << ", \"divergences\": " << s.divergences
-    << ", \"global_attempts\": " << s.global_attempts
+    << ", \"off_map\": " << s.off_map << ", \"off_map_odometry\": " << s.off_map_odometry
+    << ", \"not_localized\": " << s.uninitialized << ", \"relocalized\": " << s.relocalizations
+    << ", \"divergences\": " << s.divergences << ", \"global_attempts\": " << s.global_attempts
     << ", \"global_failures\": " << s.global_failures
     << ", \"global_descriptor_limit\": " << s.global_descriptor_limit
     << ", \"global_impostor_pairs\": " << s.global_impostor_pairs
@@ -459,6 +460,7 @@ int main(int argc, char** argv) {
         << (wall_s > 0 ? scans / wall_s / 10.0 : 0.0) << " real time)\n"
         << "  localized " << estimate.size() << " (tracking " << s.tracking << ", predicted "
         << s.predicted << ", re-localized " << s.relocalizations << "), off map " << s.off_map
+        << " (" << s.off_map_odometry << " carried by scan-to-scan registration)"
         << ", not localized " << s.uninitialized << ", divergences " << s.divergences << "\n"
         << "  per scan [ms]: input " << input_ms * per_scan << ", prefilter "
         << (prefilter_ahead ? "(ahead, on the reading thread) " : "") << prefilter_ms * per_scan

@@ -738,3 +738,55 @@ TEST(Localizer, FlagsScansOffTheMap) {
   EXPECT_GT(out.distance_to_map, 20.0);
   EXPECT_EQ(localizer.stats().off_map, 1u);
 }
+
+// A drive that starts 42 m before the mapped part of the town (the map keeps the keyframes from
+// 42 m along the loop to 60 m before its end): off the map the pose is carried by scan-to-scan
+// registration, and the filter tracks once the map begins. Without it the filter, started with an
+// unknown velocity, stays where it started and never reaches the map.
+TEST(Localizer, ReachesTheMapFromAStartOffIt) {
+  const TownMap& town = townMap();
+  auto partial = std::make_shared<MapPackage>(*town.package);
+  // The loop closes at the start: drop its first 42 m and its last 60 m.
+  partial->keyframes.erase(partial->keyframes.end() - 20, partial->keyframes.end());
+  partial->keyframes.erase(partial->keyframes.begin(), partial->keyframes.begin() + 14);
+  auto map = std::make_shared<PointCloud>();
+  for (const MapKeyframe& kf : partial->keyframes) {
+    PointCloud in_map;
+    pcl::transformPointCloud(*kf.cloud, in_map, kf.pose.matrix().cast<float>());
+    *map += in_map;
+  }
+  partial->map_cloud = map;
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 0.8, 0.0, 0.0);
+  for (const bool odometry : {true, false}) {
+    LocalizationParams params = trackingParams();
+    params.off_map_odometry = odometry;
+    Localizer localizer(params, partial);
+    const Eigen::Vector3d& p0 = route.front();
+    localizer.setInitialPose(planar(p0.x(), p0.y(), 1.73, p0.z()), 0.0);
+    int off_map = 0, tracked_late = 0;
+    double max_error_late = 0.0;
+    for (size_t i = 0; i < 120; ++i) {
+      const Eigen::Vector3d& p = route[i];
+      const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 300 + i);
+      const LocalizationOutput out = localizer.process(0.1 * i, cloud, Eigen::Vector3d::Zero());
+      off_map += out.status == LocalizationStatus::kOffMap ? 1 : 0;
+      if (i < 60) continue;  // 48 m along: on the map for 20 scans
+      tracked_late += out.status == LocalizationStatus::kTracking ? 1 : 0;
+      const Eigen::Isometry3d truth = planar(p.x(), p.y(), 1.73, p.z());
+      max_error_late =
+          std::max(max_error_late, (out.pose.translation() - truth.translation()).head<2>().norm());
+    }
+    std::cout << (odometry ? "with" : "without") << " scan-to-scan odometry: " << off_map
+              << " scans off the map (" << localizer.stats().off_map_odometry
+              << " carried), tracked " << tracked_late << " of the last 60, max error "
+              << max_error_late << " m\n";
+    if (odometry) {
+      EXPECT_GT(off_map, 20);
+      EXPECT_GE(localizer.stats().off_map_odometry, size_t(off_map - 2));
+      EXPECT_GE(tracked_late, 58);
+      EXPECT_LT(max_error_late, 0.3);
+    } else {
+      EXPECT_EQ(tracked_late, 0);
+    }
+  }
+}

@@ -51,7 +51,13 @@ struct LocalizationParams {
     return std::max({divergence_window, divergence_scans, 1});
   }
   double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
-  int min_points = 100;            ///< fewer scan points: no correction
+  /// Off the map the pose is carried by scan-to-scan registration (LiDAR odometry), each step an
+  /// update of this noise; false: by the motion model alone (a filter started off the map with
+  /// an unknown velocity then never reaches the map).
+  bool off_map_odometry = true;
+  double off_map_step_position_std = 0.05;     ///< [m] per scan-to-scan step
+  double off_map_step_orientation_std = 0.01;  ///< [rad]
+  int min_points = 100;                        ///< fewer scan points: no correction
   /// Motion compensation of each tracked scan by the filter's predicted motion (scan_deskew.h;
   /// as the SLAM tracker does, so that scans and map agree). sensor_to_base: the LiDAR mounting.
   bool deskew = true;
@@ -160,6 +166,7 @@ struct GlobalLocalizationResult {
 
 struct LocalizationStats {
   size_t scans = 0, tracking = 0, predicted = 0, off_map = 0, uninitialized = 0;
+  size_t off_map_odometry = 0;  ///< off-map scans carried by scan-to-scan registration
   size_t relocalizations = 0, global_attempts = 0, global_failures = 0, divergences = 0;
   size_t global_ambiguous = 0;      ///< of the failures: refused as ambiguous
   size_t global_disagreements = 0;  ///< a confirming answer disagreed: searched again
@@ -258,6 +265,15 @@ class Localizer {
   PlaceFit overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& pose,
                      const PointCloudConstPtr& target, const Eigen::Vector2d& centre,
                      double radius) const;
+  /// Off the map: the filter's step from before (predicted_motion over dt) corrected by
+  /// registering the scan against the previous one. True: an update was made.
+  bool carryByScanOdometry(const PointCloudConstPtr& cloud, const Eigen::Isometry3d& before,
+                           const Eigen::Isometry3d& predicted_motion, double dt);
+  /// The scan deskewed by motion over dt (when deskew is on).
+  PointCloudConstPtr deskewedScan(const PointCloudConstPtr& cloud, const Eigen::Isometry3d& motion,
+                                  double dt) const;
+  /// ... reduced to scan_voxel_size for matching.
+  PointCloudConstPtr reducedScan(const PointCloudConstPtr& scan) const;
   double descriptor_limit_ = 0.6;  ///< learnt at construction
   double overlap_limit_ = 0.6;     ///< learnt at construction
   LocalizationParams params_;
