@@ -105,7 +105,14 @@ struct Localizer::Impl {
   PointCloudPtr local_map;
   Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
   std::vector<Eigen::Vector2d> keyframe_xy;
-  Eigen::MatrixXf ring_keys;                      ///< one column per keyframe
+  Eigen::MatrixXf ring_keys;  ///< one column per keyframe, then one per side view
+  /// Scan Context of a keyframe's cloud seen from a point beside it (global_side_view_offsets).
+  struct SideView {
+    int keyframe = 0;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< the viewpoint (map)
+    ScanContext descriptor;
+  };
+  std::vector<SideView> side_views;
   std::unique_ptr<LandmarkLoopSource> landmarks;  ///< geometric_hierarchy / combined
 };
 
@@ -141,15 +148,22 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
   }
   learnDescriptorLimit();
   const size_t n = map_->keyframes.size();
-  impl_->ring_keys.resize(n > 0 ? map_->keyframes.front().descriptor.ring_key.size() : 0, n);
+  addSideViews();
+  const size_t views = impl_->side_views.size();
+  impl_->ring_keys.resize(n > 0 ? map_->keyframes.front().descriptor.ring_key.size() : 0,
+                          n + views);
+  auto set_key = [&](size_t col, const ScanContext& d) {
+    if (d.ring_key.size() == impl_->ring_keys.rows())
+      impl_->ring_keys.col(col) = d.ring_key;
+    else
+      impl_->ring_keys.col(col).setConstant(1e3f);
+  };
   for (size_t i = 0; i < n; ++i) {
     const MapKeyframe& kf = map_->keyframes[i];
     impl_->keyframe_xy.push_back(kf.pose.translation().head<2>());
-    if (kf.descriptor.ring_key.size() == impl_->ring_keys.rows())
-      impl_->ring_keys.col(i) = kf.descriptor.ring_key;
-    else
-      impl_->ring_keys.col(i).setConstant(1e3f);
+    set_key(i, kf.descriptor);
   }
+  for (size_t v = 0; v < views; ++v) set_key(n + v, impl_->side_views[v].descriptor);
   learnOverlapLimit();  // needs the ring keys
 }
 
@@ -164,6 +178,26 @@ double quantile(std::vector<double>& values, double q) {
   return values[k];
 }
 }  // namespace
+
+void Localizer::addSideViews() {
+  // Scan Context changes quickly with a sideways offset (a place entered from another lane, a
+  // corner cut differently): each keyframe's cloud is also described as seen from points beside
+  // it, so that a scan taken there still finds the keyframe. The registration checks as usual.
+  const double d = params_.global_side_view_offset;
+  if (d <= 0.0) return;
+  for (size_t i = 0; i < map_->keyframes.size(); ++i) {
+    const MapKeyframe& kf = map_->keyframes[i];
+    if (!kf.cloud || kf.cloud->empty()) continue;
+    for (const double side : {-d, d}) {
+      Impl::SideView& v = impl_->side_views.emplace_back();
+      v.keyframe = static_cast<int>(i);
+      v.pose = kf.pose * Eigen::Translation3d(0.0, side, 0.0);
+      PointCloud shifted(*kf.cloud);
+      for (auto& p : shifted.points) p.y -= static_cast<float>(side);
+      v.descriptor = computeScanContext(shifted, map_->scan_context);
+    }
+  }
+}
 
 void Localizer::learnDescriptorLimit() {
   // Distances between descriptors of different places of this map: what a wrong candidate
@@ -497,25 +531,35 @@ std::vector<Localizer::Place> Localizer::scanContextPlaces(const ScanContext& qu
                                                            double away_distance) const {
   // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
   const int n = static_cast<int>(map_->keyframes.size());
+  const int columns = static_cast<int>(impl_->ring_keys.cols());
   std::vector<std::pair<float, int>> by_ring;
-  by_ring.reserve(n);
+  by_ring.reserve(columns);
+  auto keyframe_of = [&](int col) { return col < n ? col : impl_->side_views[col - n].keyframe; };
   if (query.ring_key.size() == impl_->ring_keys.rows())
-    for (int i = 0; i < n; ++i)
-      if (!away_from || (impl_->keyframe_xy[i] - *away_from).norm() >= away_distance)
-        by_ring.emplace_back((impl_->ring_keys.col(i) - query.ring_key).squaredNorm(), i);
-  const int k = std::min<int>(params_.global_ring_key_candidates, by_ring.size());
+    for (int c = 0; c < columns; ++c)
+      if (!away_from || (impl_->keyframe_xy[keyframe_of(c)] - *away_from).norm() >= away_distance)
+        by_ring.emplace_back((impl_->ring_keys.col(c) - query.ring_key).squaredNorm(), c);
+  // global_ring_key_candidates keyframes' worth of views: side views must not crowd out the
+  // keyframes themselves.
+  const int views_per_keyframe = n > 0 ? (columns + n - 1) / n : 1;
+  const int k =
+      std::min<int>(params_.global_ring_key_candidates * views_per_keyframe, by_ring.size());
   std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());
   std::vector<Place> by_descriptor;
   for (int i = 0; i < k; ++i) {
-    const int index = by_ring[i].second;
-    const MapKeyframe& kf = map_->keyframes[index];
-    const ScanContextMatch m = matchScanContexts(query, kf.descriptor, map_->scan_context);
+    const int col = by_ring[i].second;
+    const bool side = col >= n;
+    const Eigen::Isometry3d& view_pose =
+        side ? impl_->side_views[col - n].pose : map_->keyframes[col].pose;
+    const ScanContext& descriptor =
+        side ? impl_->side_views[col - n].descriptor : map_->keyframes[col].descriptor;
+    const ScanContextMatch m = matchScanContexts(query, descriptor, map_->scan_context);
     if (m.distance > descriptor_limit_) continue;
     Place& p = by_descriptor.emplace_back();
-    p.index = index;
-    p.guess = kf.pose;
+    p.index = keyframe_of(col);
+    p.guess = view_pose;
     p.guess.linear() =
-        kf.pose.linear() * Eigen::AngleAxisd(m.yaw, Eigen::Vector3d::UnitZ()).matrix();
+        view_pose.linear() * Eigen::AngleAxisd(m.yaw, Eigen::Vector3d::UnitZ()).matrix();
     p.descriptor_distance = m.distance;
   }
   std::sort(by_descriptor.begin(), by_descriptor.end(), [](const Place& a, const Place& b) {

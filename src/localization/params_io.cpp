@@ -65,6 +65,7 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_coarse_max_correspondence", p.global_coarse_max_correspondence);
   r.param("global_voxel_size", p.global_voxel_size);
   r.param("global_ambiguity_ratio", p.global_ambiguity_ratio);
+  r.param("global_side_view_offset", p.global_side_view_offset);
   r.param("global_confirm_after", p.global_confirm_after);
 }
 

@@ -790,3 +790,39 @@ TEST(Localizer, ReachesTheMapFromAStartOffIt) {
     }
   }
 }
+
+// Scans 7 m beside the map drive's path (the town's streets are 23 m wide), away from the facade
+// street, default (learnt) limits: Scan Context of the keyframes alone rarely finds them; the
+// keyframes' side views (global_side_view_offset) do, and no answer is wrong either way.
+TEST(Localizer, SideViewsFindScansBesideTheMappedPath) {
+  const TownMap& town = townMap();
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 13.7, 1.1, 7.0);
+  int correct[2] = {0, 0}, wrong[2] = {0, 0}, tried = 0;
+  for (const double side : {0.0, 6.0}) {
+    LocalizationParams params = defaultParams();
+    params.global_side_view_offset = side;
+    Localizer localizer(params, town.package);
+    tried = 0;
+    for (size_t i = 0; i < route.size(); ++i) {
+      const Eigen::Vector3d& p = route[i];
+      if (p.y() < 10.0 && p.x() > 10.0 && p.x() < 150.0) continue;  // the facade street
+      ++tried;
+      const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 700 + i);
+      const GlobalLocalizationResult g = localizer.globalLocalize(cloud);
+      if (!g.success) continue;
+      const Eigen::Isometry3d truth = planar(p.x(), p.y(), 1.73, p.z());
+      const double e = (g.pose.translation() - truth.translation()).head<2>().norm();
+      const bool right = e < 0.5 && yawError(g.pose, truth) < 2.0 * kDeg;
+      (right ? correct : wrong)[side > 0.0]++;
+      if (!right)
+        std::cout << "side views " << side << ": wrong answer at (" << p.transpose() << "), " << e
+                  << " m off\n";
+    }
+  }
+  std::cout << "7 m beside the path, " << tried << " scans: " << correct[0] << " correct, "
+            << wrong[0] << " wrong from the keyframes; " << correct[1] << " correct, " << wrong[1]
+            << " wrong with 6 m side views\n";
+  EXPECT_GE(correct[1], 0.65 * tried);  // measured 20 of 28 (keyframes alone: 1)
+  EXPECT_GE(correct[1], correct[0] + 10);
+  EXPECT_EQ(wrong[0] + wrong[1], 0);
+}

@@ -101,6 +101,11 @@ struct LocalizationParams {
   int global_overlap_impostor_places = 2;
   /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
   /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
+  /// [m] each map keyframe's cloud is also described (Scan Context) as seen from this far to its
+  /// left and right, so that a scan taken off the map drive's path (another lane, a corner cut
+  /// differently) still finds the keyframe; the ring-key search then keeps
+  /// global_ring_key_candidates keyframes' worth of views. 0: off.
+  double global_side_view_offset = 6.0;
   double global_structure_height = 0.5;
   double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
   double global_voxel_size = 1.0;                 ///< [m] coarse source/target voxel
@@ -250,6 +255,8 @@ class Localizer {
                                        double away_distance) const;
   /// The first places of the list 5 m apart from each other, at most max_places.
   std::vector<Place> distinctPlaces(const std::vector<Place>& places, int max_places) const;
+  /// Side views of every keyframe (global_side_view_offset): its cloud described from beside it.
+  void addSideViews();
   void learnDescriptorLimit();
   void learnOverlapLimit();
   /// The overlap of map keyframe index at its own place without its own points (-1: no map
