@@ -257,9 +257,9 @@ void Localizer::learnOverlapLimit() {
     if (own_overlap >= 0.0) own.push_back(own_overlap);
     // The other places Scan Context proposes for it.
     const PointCloudPtr coarse_source = voxelize(kf.cloud, params_.global_voxel_size);
-    const std::vector<Place> places =
-        distinctPlaces(scanContextPlaces(kf.descriptor, &centre, params_.global_impostor_distance),
-                       params_.global_overlap_impostor_places);
+    const std::vector<Place> places = distinctPlaces(
+        scanContextPlaces(kf.descriptor, &centre, params_.global_impostor_distance, false),
+        params_.global_overlap_impostor_places);
     for (const Place& place : places) {
       GlobalCandidate record;
       if (registerAtPlace(kf.cloud, coarse_source, place, record))
@@ -389,15 +389,38 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     ++stats_.global_failures;
     return result;
   }
-  const std::vector<Place> places = candidatePlaces(cloud);
-  if (places.empty()) {
-    result.message = params_.global_method == "geometric_hierarchy"
-                         ? "no map keyframe with a matching landmark layout"
-                         : "no keyframe with a similar Scan Context or landmark layout";
-    stats_.global_ms += msSince(t0);
-    ++stats_.global_failures;
-    return result;
+  // The keyframes first; their side views only when no keyframe's place passes (a scan off the
+  // map drive's path): searching every view at once tripled the registrations of a search and
+  // made re-localisation at real time slower than the drive (localization.test at rate 1).
+  bool ambiguous = verifyPlaces(cloud, candidatePlaces(cloud), result);
+  if (!result.success && !ambiguous && !impl_->side_views.empty() &&
+      params_.global_method != "geometric_hierarchy") {
+    const std::vector<Place> side = distinctPlaces(
+        scanContextPlaces(computeScanContext(*cloud, map_->scan_context), nullptr, 0.0, true),
+        params_.global_candidates);
+    ambiguous = verifyPlaces(cloud, side, result);
+    stats_.global_by_side_view += result.success ? 1 : 0;
   }
+  if (!result.success) {
+    ++stats_.global_failures;
+    stats_.global_ambiguous += ambiguous ? 1 : 0;
+    if (result.candidates_tried == 0)
+      result.message = params_.global_method == "geometric_hierarchy"
+                           ? "no map keyframe with a matching landmark layout"
+                           : "no keyframe with a similar Scan Context or landmark layout";
+    else if (!ambiguous)
+      result.message = "no candidate passed registration (" +
+                       std::to_string(result.candidates_tried) + " tried)";
+  } else if (result.source == "geometric_hierarchy") {
+    ++stats_.global_by_hierarchy;
+  }
+  stats_.global_ms += msSince(t0);
+  return result;
+}
+
+bool Localizer::verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<Place>& places,
+                             GlobalLocalizationResult& result) {
+  if (places.empty()) return false;
   const PointCloudPtr coarse_source = voxelize(cloud, params_.global_voxel_size);
   struct Passed {
     Eigen::Isometry3d pose;
@@ -429,27 +452,14 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
   // makes the answer ambiguous; no answer is better than a wrong one.
   for (const Passed& p : passed) {
     if (!result.success) break;
-    if ((p.pose.translation() - result.pose.translation()).norm() > 2.0 &&
-        p.score < params_.global_ambiguity_ratio * best_score) {
+    const double apart = (p.pose.translation() - result.pose.translation()).norm();
+    if (apart > 2.0 && p.score < params_.global_ambiguity_ratio * best_score) {
       result.success = false;
-      result.message = "ambiguous: two places " +
-                       std::to_string((p.pose.translation() - result.pose.translation()).norm()) +
-                       " m apart fit alike";
-      ++stats_.global_failures;
-      ++stats_.global_ambiguous;
-      stats_.global_ms += msSince(t0);
-      return result;
+      result.message = "ambiguous: two places " + std::to_string(apart) + " m apart fit alike";
+      return true;
     }
   }
-  if (!result.success) {
-    result.message =
-        "no candidate passed registration (" + std::to_string(result.candidates_tried) + " tried)";
-    ++stats_.global_failures;
-  } else if (result.source == "geometric_hierarchy") {
-    ++stats_.global_by_hierarchy;
-  }
-  stats_.global_ms += msSince(t0);
-  return result;
+  return false;
 }
 
 bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
@@ -522,26 +532,27 @@ std::vector<Localizer::Place> Localizer::distinctPlaces(const std::vector<Place>
 void Localizer::addScanContextPlaces(const PointCloudConstPtr& cloud,
                                      std::vector<Place>& places) const {
   const std::vector<Place> found =
-      scanContextPlaces(computeScanContext(*cloud, map_->scan_context), nullptr, 0.0);
+      scanContextPlaces(computeScanContext(*cloud, map_->scan_context), nullptr, 0.0, false);
   places.insert(places.end(), found.begin(), found.end());
 }
 
 std::vector<Localizer::Place> Localizer::scanContextPlaces(const ScanContext& query,
                                                            const Eigen::Vector2d* away_from,
-                                                           double away_distance) const {
+                                                           double away_distance,
+                                                           bool side_views) const {
   // 1. Ring-key retrieval (rotation invariant), 2. Scan Context distance and yaw.
   const int n = static_cast<int>(map_->keyframes.size());
-  const int columns = static_cast<int>(impl_->ring_keys.cols());
+  const int begin = side_views ? n : 0;
+  const int end = side_views ? static_cast<int>(impl_->ring_keys.cols()) : n;
   std::vector<std::pair<float, int>> by_ring;
-  by_ring.reserve(columns);
+  by_ring.reserve(end - begin);
   auto keyframe_of = [&](int col) { return col < n ? col : impl_->side_views[col - n].keyframe; };
   if (query.ring_key.size() == impl_->ring_keys.rows())
-    for (int c = 0; c < columns; ++c)
+    for (int c = begin; c < end; ++c)
       if (!away_from || (impl_->keyframe_xy[keyframe_of(c)] - *away_from).norm() >= away_distance)
         by_ring.emplace_back((impl_->ring_keys.col(c) - query.ring_key).squaredNorm(), c);
-  // global_ring_key_candidates keyframes' worth of views: side views must not crowd out the
-  // keyframes themselves.
-  const int views_per_keyframe = n > 0 ? (columns + n - 1) / n : 1;
+  // global_ring_key_candidates keyframes' worth of views.
+  const int views_per_keyframe = n > 0 ? std::max(1, (end - begin + n - 1) / n) : 1;
   const int k =
       std::min<int>(params_.global_ring_key_candidates * views_per_keyframe, by_ring.size());
   std::partial_sort(by_ring.begin(), by_ring.begin() + k, by_ring.end());

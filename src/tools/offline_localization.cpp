@@ -423,6 +423,7 @@ int main(int argc, char** argv) {
     << ", \"not_localized\": " << s.uninitialized << ", \"relocalized\": " << s.relocalizations
     << ", \"divergences\": " << s.divergences << ", \"global_attempts\": " << s.global_attempts
     << ", \"global_failures\": " << s.global_failures
+    << ", \"global_by_side_view\": " << s.global_by_side_view
     << ", \"global_descriptor_limit\": " << s.global_descriptor_limit
     << ", \"global_impostor_pairs\": " << s.global_impostor_pairs
     << ", \"global_overlap_limit\": " << s.global_overlap_limit

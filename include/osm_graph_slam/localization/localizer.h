@@ -103,8 +103,8 @@ struct LocalizationParams {
   /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
   /// [m] each map keyframe's cloud is also described (Scan Context) as seen from this far to its
   /// left and right, so that a scan taken off the map drive's path (another lane, a corner cut
-  /// differently) still finds the keyframe; the ring-key search then keeps
-  /// global_ring_key_candidates keyframes' worth of views. 0: off.
+  /// differently) still finds the keyframe. Searched only when no keyframe's place passes
+  /// (global_ring_key_candidates keyframes' worth of views). 0: off.
   double global_side_view_offset = 6.0;
   double global_structure_height = 0.5;
   double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
@@ -180,6 +180,7 @@ struct LocalizationStats {
   double global_descriptor_limit = 0.0;  ///< the learnt Scan Context limit (see params)
   size_t global_impostor_pairs = 0;      ///< the pairs it was learnt from
   size_t global_by_hierarchy = 0;        ///< global answers whose place the hierarchy proposed
+  size_t global_by_side_view = 0;        ///< global answers from a keyframe's side view
   double global_overlap_limit = 0.0;     ///< the learnt overlap limit (see params)
   size_t global_overlap_own = 0;         ///< own places it was learnt from
   size_t global_overlap_impostors = 0;   ///< impostor places that passed the fitness test
@@ -250,9 +251,12 @@ class Localizer {
   std::vector<Place> candidatePlaces(const PointCloudConstPtr& cloud);
   void addScanContextPlaces(const PointCloudConstPtr& cloud, std::vector<Place>& places) const;
   /// The keyframes whose Scan Context is under the limit, nearest first (only those at least
-  /// away_distance from away_from, when given).
+  /// away_distance from away_from, when given); with side_views their side views instead. The
+  /// overlap limit is learnt from the keyframes' own proposals only: side views propose more
+  /// impostors, and a limit from the few that pass fitness rose above a correct place's overlap
+  /// of a drive with another sensor (localization.test).
   std::vector<Place> scanContextPlaces(const ScanContext& query, const Eigen::Vector2d* away_from,
-                                       double away_distance) const;
+                                       double away_distance, bool side_views) const;
   /// The first places of the list 5 m apart from each other, at most max_places.
   std::vector<Place> distinctPlaces(const std::vector<Place>& places, int max_places) const;
   /// Side views of every keyframe (global_side_view_offset): its cloud described from beside it.
@@ -264,6 +268,10 @@ class Localizer {
   double ownPlaceOverlap(size_t index) const;
   /// [m] the map region a global candidate is registered against.
   double globalSearchRadius() const { return std::min(params_.local_map_radius, 50.0); }
+  /// Registers the cloud at each place and keeps the best by structure cost in result (appends
+  /// to its candidates). True: refused as ambiguous (result.success false).
+  bool verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<Place>& places,
+                    GlobalLocalizationResult& result);
   /// Coarse, then fine registration of the cloud at the place; fills the record's pose, fitness,
   /// overlap and outcome (up to "overlap": the limit is the caller's). True: it passed the
   /// fitness test.
