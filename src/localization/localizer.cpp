@@ -106,7 +106,7 @@ struct Localizer::Impl {
   Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
   std::vector<Eigen::Vector2d> keyframe_xy;
   Eigen::MatrixXf ring_keys;  ///< one column per keyframe, then one per side view
-  /// Scan Context of a keyframe's cloud seen from a point beside it (global_side_view_offsets).
+  /// Scan Context of a keyframe's cloud seen from a point beside it (global_side_view_offset).
   struct SideView {
     int keyframe = 0;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< the viewpoint (map)
