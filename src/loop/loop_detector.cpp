@@ -388,8 +388,12 @@ std::optional<DetectedLoop> LoopDetector::fineStage(
     return rejectCandidate(outcome, "refinement", stats_.rejected_refinement);
   }
   start = Clock::now();
+  // The fine stage already indexed the target: measure the overlap on its tree.
+  const std::optional<double> overlap =
+      fine_registration_->overlap(*query.cloud, fine.transform, params_.overlap_distance);
   outcome.overlap =
-      overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
+      overlap ? *overlap
+              : overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
   stats_.overlap_ms += msSince(start);
   if (outcome.overlap < params_.min_overlap) {
     return rejectCandidate(outcome, "overlap", stats_.rejected_overlap);

@@ -5,6 +5,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Cholesky>
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <nanoflann.hpp>
 #include <unordered_map>
 #include <vector>
@@ -194,6 +196,32 @@ class FastGicp : public Registration {
       arena_.execute([&] { target_ = prepare(target, params_.k_correspondences, epsilon()); });
     }
     if (voxelized_ && target_->tree) buildVoxels(*target_, params_.vgicp_resolution);
+  }
+
+  std::optional<double> overlap(const PointCloud& source, const Eigen::Isometry3d& transform,
+                                double max_distance) const override {
+    if (!target_ || !target_->tree || source.empty()) return std::nullopt;
+    const Eigen::Affine3f t = transform.cast<float>();
+    const float max_sq = static_cast<float>(max_distance * max_distance);
+    size_t inliers = 0;
+    arena_.execute([&] {
+      inliers = tbb::parallel_reduce(
+          tbb::blocked_range<size_t>(0, source.size(), 1024), size_t(0),
+          [&](const tbb::blocked_range<size_t>& r, size_t count) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+              const Eigen::Vector3f p = source.points[i].getVector3fMap();
+              if (!p.allFinite()) continue;
+              const Eigen::Vector3f q = t * p;
+              uint32_t index = 0;
+              float dist_sq = 0.0f;
+              if (target_->tree->knnSearch(q.data(), 1, &index, &dist_sq) == 1 && dist_sq <= max_sq)
+                ++count;
+            }
+            return count;
+          },
+          std::plus<size_t>());
+    });
+    return double(inliers) / double(source.size());
   }
 
   RegistrationResult align(const PointCloudConstPtr& source,
@@ -420,7 +448,7 @@ class FastGicp : public Registration {
 
   RegistrationParams params_;
   bool voxelized_ = false;
-  tbb::task_arena arena_;
+  mutable tbb::task_arena arena_;  // execute() is not const; overlap() runs in it too
   std::shared_ptr<PreparedCloud> target_;
   std::shared_ptr<PreparedCloud> last_source_;
 };

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
@@ -56,6 +57,15 @@ class Registration {
   /// returns converged = false with a message instead.
   virtual RegistrationResult align(const PointCloudConstPtr& source,
                                    const Eigen::Isometry3d& guess) = 0;
+  /// Fraction of source's points (all of them count; non-finite ones never match) that lie within
+  /// max_distance of the current target once moved by transform, measured on the index the
+  /// back-end already keeps for the target; nullopt when it keeps none (the caller measures).
+  virtual std::optional<double> overlap(const PointCloud& source,
+                                        const Eigen::Isometry3d& transform,
+                                        double max_distance) const {
+    (void)source, (void)transform, (void)max_distance;
+    return std::nullopt;
+  }
 };
 
 /// Creates the back-end named by params.method; throws std::invalid_argument for an unknown name.
