@@ -615,7 +615,8 @@ bool Localizer::carryByScanOdometry(const PointCloudConstPtr& cloud,
 }
 
 LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cloud,
-                                      const std::optional<Eigen::Vector3d>& gyro) {
+                                      const std::optional<Eigen::Vector3d>& gyro,
+                                      const std::optional<Eigen::Vector3d>& accel) {
   LocalizationOutput out;
   ++stats_.scans;
   // Not started (no initial pose) or diverged: global localisation on this scan.
@@ -626,7 +627,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
       out.status = LocalizationStatus::kUninitialized;
       if (ukf_.initialized()) {  // diverged: keep predicting, flagged as not localised
         const Eigen::Isometry3d before = ukf_.pose();
-        ukf_.predict(stamp - last_stamp_, gyro);
+        ukf_.predict(stamp - last_stamp_, gyro, accel);
         out.motion = before.inverse() * ukf_.pose();
         last_stamp_ = stamp;
         out.pose = ukf_.pose();
@@ -656,7 +657,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   auto t0 = Clock::now();
   const Eigen::Isometry3d before = ukf_.pose();
   const double dt = stamp - last_stamp_;
-  ukf_.predict(dt, gyro);
+  ukf_.predict(dt, gyro, accel);
   last_stamp_ = stamp;
   const Eigen::Isometry3d predicted = ukf_.pose();
   out.motion = before.inverse() * predicted;

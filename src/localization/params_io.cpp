@@ -12,6 +12,12 @@ void readParams(const ParamReader& r, PoseUkfParams& p) {
   r.param("angular_rate_noise", p.angular_rate_noise);
   r.param("gyro_bias_noise", p.gyro_bias_noise);
   r.param("gyro_noise", p.gyro_noise);
+  r.param("use_accelerometer", p.use_accelerometer);
+  r.param("accel_noise", p.accel_noise);
+  r.param("accel_velocity_noise", p.accel_velocity_noise);
+  r.param("accel_bias_noise", p.accel_bias_noise);
+  r.param("accel_bias_std", p.accel_bias_std);
+  r.param("gravity", p.gravity);
   r.param("alpha", p.alpha);
   r.param("beta", p.beta);
   r.param("kappa", p.kappa);

@@ -43,6 +43,7 @@ void PoseUkf::initialize(const Eigen::Isometry3d& pose, double position_std, dou
   cov_.diagonal().segment<3>(6).setConstant(velocity_std * velocity_std);
   cov_.diagonal().segment<3>(9).setConstant(rate_std * rate_std);
   cov_.diagonal().segment<3>(12).setConstant(0.01 * 0.01);
+  cov_.diagonal().segment<3>(15).setConstant(params_.accel_bias_std * params_.accel_bias_std);
   initialized_ = true;
 }
 
@@ -60,6 +61,7 @@ PoseUkfState PoseUkf::boxPlus(const PoseUkfState& x, const Vector& d) const {
   y.velocity += d.segment<3>(6);
   y.angular_rate += d.segment<3>(9);
   y.gyro_bias += d.segment<3>(12);
+  y.accel_bias += d.segment<3>(15);
   return y;
 }
 
@@ -70,6 +72,7 @@ PoseUkf::Vector PoseUkf::boxMinus(const PoseUkfState& a, const PoseUkfState& b) 
   d.segment<3>(6) = a.velocity - b.velocity;
   d.segment<3>(9) = a.angular_rate - b.angular_rate;
   d.segment<3>(12) = a.gyro_bias - b.gyro_bias;
+  d.segment<3>(15) = a.accel_bias - b.accel_bias;
   return d;
 }
 
@@ -107,14 +110,27 @@ PoseUkfState PoseUkf::weightedMean(const std::vector<PoseUkfState>& points) cons
   return mean;
 }
 
-void PoseUkf::predict(double dt, const std::optional<Eigen::Vector3d>& gyro) {
+void PoseUkf::predict(double dt, const std::optional<Eigen::Vector3d>& gyro,
+                      const std::optional<Eigen::Vector3d>& accel_in) {
   if (!initialized_ || !(dt > 0.0)) return;
+  const bool accel = params_.use_accelerometer && accel_in.has_value();
+  const Eigen::Vector3d specific_force = accel ? *accel_in : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d gravity(0.0, 0.0, -params_.gravity);
   std::vector<PoseUkfState> points = sigmaPoints(state_, cov_);
   for (auto& x : points) {
     const Eigen::Vector3d rate = gyro ? Eigen::Vector3d(*gyro - x.gyro_bias) : x.angular_rate;
     const Eigen::Quaterniond half = x.orientation * so3Exp(0.5 * dt * rate);
-    x.position += half * (x.velocity * dt);
-    x.orientation = (x.orientation * so3Exp(dt * rate)).normalized();
+    const Eigen::Quaterniond end = (x.orientation * so3Exp(dt * rate)).normalized();
+    if (accel) {
+      // Constant map-frame acceleration over the interval, at the mid-interval attitude.
+      const Eigen::Vector3d v0 = x.orientation * x.velocity;
+      const Eigen::Vector3d a = half * (specific_force - x.accel_bias) + gravity;
+      x.position += v0 * dt + 0.5 * dt * dt * a;
+      x.velocity = end.conjugate() * (v0 + dt * a);
+    } else {
+      x.position += half * (x.velocity * dt);  // a car's velocity turns with it
+    }
+    x.orientation = end;
     if (gyro) x.angular_rate = rate;
   }
   const PoseUkfState mean = weightedMean(points);
@@ -129,9 +145,12 @@ void PoseUkf::predict(double dt, const std::optional<Eigen::Vector3d>& gyro) {
   // With a gyro the orientation follows its integrated noise (plus unmodelled motion).
   q.segment<3>(3).setConstant(sq(params_.orientation_noise) * dt +
                               (gyro ? sq(params_.gyro_noise * dt) : 0.0));
-  q.segment<3>(6).setConstant(sq(params_.velocity_noise) * dt);
+  q.segment<3>(6).setConstant(accel ? sq(params_.accel_noise * dt) +
+                                          sq(params_.accel_velocity_noise) * dt
+                                    : sq(params_.velocity_noise) * dt);
   q.segment<3>(9).setConstant(gyro ? sq(params_.gyro_noise) : sq(params_.angular_rate_noise) * dt);
   q.segment<3>(12).setConstant(sq(params_.gyro_bias_noise) * dt);
+  q.segment<3>(15).setConstant(sq(params_.accel_bias_noise) * dt);
   cov.diagonal() += q;
   state_ = mean;
   cov_ = 0.5 * (cov + cov.transpose());

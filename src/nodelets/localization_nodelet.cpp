@@ -1,6 +1,6 @@
 // LocalizationNodelet: localisation on a saved map package (ART-SLAM LOC, doc/localization.md).
-//   filtered_points (base_link) + imu/data (gyro) -> Localizer (pose UKF + scan-to-map
-//   registration, global re-localisation) -> odom (base_link in map, with covariance),
+//   filtered_points (base_link) + imu/data (gyro, accelerometer) -> Localizer (pose UKF +
+//   scan-to-map registration, global re-localisation) -> odom (base_link in map, with covariance),
 //   localization/status (every scan), TF map -> odom (and odom -> base_link from the filter's own
 //   dead reckoning unless another odometry publishes it), localization/map_points (latched).
 //   initialpose (rviz "2D Pose Estimate", PoseWithCovarianceStamped in the map frame) restarts the
@@ -38,9 +38,9 @@
 namespace osm_graph_slam {
 namespace {
 
-/// Body rates between two scans: the mean of the gyro readings in (from, to], or the reading
-/// nearest to `to` within max_gap when none fell in the interval.
-class GyroBuffer {
+/// One IMU quantity (body rates, specific force) between two scans: the mean of the readings in
+/// (from, to], or the reading nearest to `to` within max_gap when none fell in the interval.
+class ImuReadingBuffer {
  public:
   void add(double stamp, const Eigen::Vector3d& rate) {
     readings_.emplace_back(stamp, rate);
@@ -169,8 +169,14 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
     // The IMU's frame is taken to be base_link (kitti2bag and mulran2bag mount it there).
     const auto& w = msg->angular_velocity;
+    const auto& a = msg->linear_acceleration;
+    const double stamp = msg->header.stamp.toSec();
     std::lock_guard<std::mutex> lock(mutex_);
-    gyro_.add(msg->header.stamp.toSec(), Eigen::Vector3d(w.x, w.y, w.z));
+    // REP-145: a covariance starting with -1 marks a quantity the IMU does not give.
+    if (msg->angular_velocity_covariance[0] != -1.0)
+      gyro_.add(stamp, Eigen::Vector3d(w.x, w.y, w.z));
+    if (msg->linear_acceleration_covariance[0] != -1.0)
+      accel_.add(stamp, Eigen::Vector3d(a.x, a.y, a.z));
   }
 
   void onInitialPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
@@ -215,21 +221,23 @@ class LocalizationNodelet : public nodelet::Nodelet {
       odom_to_base_ = Eigen::Isometry3d::Identity();
       last_scan_stamp_.reset();
     }
-    std::optional<Eigen::Vector3d> gyro;
+    std::optional<Eigen::Vector3d> gyro, accel;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (pending_initial_) {
         localizer_->setInitialPose(*pending_initial_, stamp);
         pending_initial_.reset();
       }
-      if (node_params_.use_imu)
-        gyro = gyro_.meanBetween(last_scan_stamp_.value_or(stamp - 0.1), stamp,
-                                 node_params_.imu_max_gap);
+      if (node_params_.use_imu) {
+        const double from = last_scan_stamp_.value_or(stamp - 0.1);
+        gyro = gyro_.meanBetween(from, stamp, node_params_.imu_max_gap);
+        accel = accel_.meanBetween(from, stamp, node_params_.imu_max_gap);
+      }
     }
     if (mount_)
       if (const auto mount = mount_->get()) localizer_->setSensorToBase(*mount);
     const auto t0 = std::chrono::steady_clock::now();
-    const LocalizationOutput out = localizer_->process(stamp, cloud, gyro);
+    const LocalizationOutput out = localizer_->process(stamp, cloud, gyro, accel);
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     last_scan_stamp_ = stamp;
@@ -325,8 +333,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::optional<Eigen::Isometry3d> pending_initial_;
   std::optional<double> last_scan_stamp_;
   Eigen::Isometry3d odom_to_base_ = Eigen::Isometry3d::Identity();
-  std::mutex mutex_;  ///< gyro_ and pending_initial_ (callbacks may run on several threads)
-  GyroBuffer gyro_;
+  std::mutex mutex_;  ///< the IMU buffers and pending_initial_ (callbacks run on several threads)
+  ImuReadingBuffer gyro_, accel_;
   ros::Publisher status_pub_, odom_pub_, map_pub_;
   ros::Subscriber cloud_sub_, imu_sub_, initial_sub_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;

@@ -75,6 +75,7 @@ class KittiRawSource : public DriveSource {
       scan.roll_pitch = Eigen::Vector2d(r.roll, r.pitch);
       scan.orientation = Eigen::Quaterniond(oxtsPose(r, *enu_).linear());
       scan.angular_velocity = Eigen::Vector3d(r.wx, r.wy, r.wz);
+      scan.linear_acceleration = Eigen::Vector3d(r.ax, r.ay, r.az);
     }
     // simulate_urban's exact records: the truth in the frame of the (measured) first fix.
     if (!drive_.truth_oxts_files.empty()) {

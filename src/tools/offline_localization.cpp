@@ -341,8 +341,9 @@ int main(int argc, char** argv) {
     const size_t global_attempts_before = localizer.stats().global_attempts;
     t0 = Clock::now();
     const LocalizationOutput out =
-        localizer.process(scan.stamp, filtered.cloud,
-                          use_imu ? scan.angular_velocity : std::optional<Eigen::Vector3d>());
+        use_imu ? localizer.process(scan.stamp, filtered.cloud, scan.angular_velocity,
+                                    scan.linear_acceleration)
+                : localizer.process(scan.stamp, filtered.cloud);
     localize_ms += msSince(t0);
 
     if (localizer.stats().global_attempts > global_attempts_before)

@@ -135,6 +135,53 @@ TEST(PoseUkf, ConstantRateModelWithoutGyro) {
   EXPECT_LT((ukf.pose().translation() - circlePose(21.0).translation()).norm(), 0.3);
 }
 
+// A straight drive that speeds up, cruises and brakes to a stop; the accelerometer reads the
+// specific force (gravity up) with a bias and noise. Pose corrections stop for the 2 s of braking
+// (every match rejected): with the accelerometer the prediction follows the braking car, with the
+// constant-velocity model it overshoots by metres. The bias along the drive is recovered.
+TEST(PoseUkf, AccelerometerCarriesTheBrakingThroughMissedCorrections) {
+  const auto acceleration = [](double t) { return t < 6.0 ? 1.5 : t < 10.0 ? 0.0 : -3.0; };
+  const Eigen::Vector3d bias(0.08, -0.05, 0.03);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> pos(0.0, 0.05), ang(0.0, 0.3 * kDeg), accel_noise(0.0, 0.05);
+  const auto run = [&](bool use_accelerometer, Eigen::Vector3d* bias_estimate) {
+    PoseUkfParams params;
+    params.use_accelerometer = use_accelerometer;
+    PoseUkf ukf(params);
+    ukf.initialize(planar(0.2, -0.1, 0.0, 0.0), 0.3, 0.02, 1.0, 0.1);
+    double x = 0.0, v = 0.0, error_after_gap = 0.0;
+    for (int k = 1; k <= 125; ++k) {
+      double a_mean = 0.0;
+      for (int step = 0; step < 100; ++step) {  // the truth, integrated at 1 ms
+        const double a = v > 0.0 || acceleration(0.1 * (k - 1) + 0.001 * step) > 0.0
+                             ? acceleration(0.1 * (k - 1) + 0.001 * step)
+                             : 0.0;
+        x += v * 0.001 + 0.5 * a * 1e-6;
+        v = std::max(0.0, v + a * 0.001);
+        a_mean += a / 100.0;
+      }
+      const Eigen::Vector3d force =
+          Eigen::Vector3d(a_mean, 0.0, 9.81) + bias +
+          Eigen::Vector3d(accel_noise(rng), accel_noise(rng), accel_noise(rng));
+      ukf.predict(0.1, Eigen::Vector3d::Zero(), force);
+      const double t = 0.1 * k;
+      if (t > 10.45 && t < 12.45) continue;  // braking: no correction
+      if (k == 125) error_after_gap = std::abs(ukf.pose().translation().x() - x);
+      Eigen::Isometry3d measured = planar(x, 0.0, 0.0, 0.0);
+      measured.translation() += Eigen::Vector3d(pos(rng), pos(rng), pos(rng));
+      measured.linear() = so3Exp(Eigen::Vector3d(ang(rng), ang(rng), ang(rng))).matrix();
+      if (k == 104) *bias_estimate = ukf.state().accel_bias;
+      ukf.correct(measured, 0.05, 0.3 * kDeg);
+    }
+    return error_after_gap;
+  };
+  Eigen::Vector3d bias_with, bias_without;
+  const double with = run(true, &bias_with), without = run(false, &bias_without);
+  EXPECT_LT(with, 0.25) << "2 s of braking predicted from the accelerometer";
+  EXPECT_GT(without, 3.0) << "the constant-velocity model overshoots the stop";
+  EXPECT_NEAR(bias_with.x(), bias.x(), 0.05);
+}
+
 TEST(PoseUkf, MahalanobisFlagsAnOutlier) {
   PoseUkf ukf;
   ukf.initialize(planar(0, 0, 0, 0), 0.1, 0.01, 0.1, 0.1);

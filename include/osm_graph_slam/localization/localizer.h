@@ -223,9 +223,11 @@ class Localizer {
   /// Starts the filter at a known pose (rviz /initialpose, --initial-pose).
   void setInitialPose(const Eigen::Isometry3d& pose, double stamp);
 
-  /// One prefiltered scan in base_link at stamp; gyro = body rates at that time, if any.
+  /// One prefiltered scan in base_link at stamp; gyro = body rates and accel = specific force
+  /// (gravity included) in base_link since the last scan, if the drive has an IMU.
   LocalizationOutput process(double stamp, const PointCloudConstPtr& cloud,
-                             const std::optional<Eigen::Vector3d>& gyro = std::nullopt);
+                             const std::optional<Eigen::Vector3d>& gyro = std::nullopt,
+                             const std::optional<Eigen::Vector3d>& accel = std::nullopt);
 
   /// Where is this scan on the map, with no prior (exposed for tests and the global tool).
   GlobalLocalizationResult globalLocalize(const PointCloudConstPtr& cloud);

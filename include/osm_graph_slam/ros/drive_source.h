@@ -28,8 +28,10 @@ struct DriveScan {
   std::optional<Eigen::Vector2d> roll_pitch;        ///< base_link in ENU
   std::optional<Eigen::Quaterniond> orientation;    ///< base_link in ENU (INS / IMU), if any
   std::optional<Eigen::Vector3d> angular_velocity;  ///< base_link body rates [rad/s] (gyro), if any
-  std::optional<Eigen::Isometry3d> truth;           ///< base_link in ENU at the first fix
-  std::optional<Eigen::Vector2d> gnss;              ///< the GNSS fix in the same frame
+  /// base_link specific force [m/s²] (accelerometer, gravity included), if any
+  std::optional<Eigen::Vector3d> linear_acceleration;
+  std::optional<Eigen::Isometry3d> truth;  ///< base_link in ENU at the first fix
+  std::optional<Eigen::Vector2d> gnss;     ///< the GNSS fix in the same frame
   std::optional<double> gnss_std;  ///< [m] its horizontal deviation, when the receiver reports it
   std::optional<double> gnss_altitude;  ///< [m] the fix's up in the same frame
   /// Set by a ScanPrefetcher's prepare step (offline_slam: the prefilter, run on the reading
