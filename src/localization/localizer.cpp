@@ -98,9 +98,17 @@ struct Localizer::Impl {
   PointCloudPtr map;         ///< at map_voxel_size
   PointCloudPtr coarse_map;  ///< at global_voxel_size
   std::unique_ptr<MapGrid> grid, coarse_grid;
-  std::unique_ptr<Registration> tracker;       ///< scan-to-local-map
-  std::unique_ptr<Registration> odometry;      ///< scan-to-previous-scan, off the map
-  PointCloudConstPtr previous_scan;            ///< the last matchable scan (odometry target)
+  std::unique_ptr<Registration> tracker;   ///< scan-to-local-map
+  std::unique_ptr<Registration> odometry;  ///< scan-to-previous-scan, off the map
+  PointCloudConstPtr previous_scan;        ///< the last matchable scan (odometry target)
+  struct GnssFix {
+    double stamp = 0.0;
+    Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+    double std = 0.0;
+  };
+  std::optional<GnssFix> gnss;  ///< the latest setGnssFix
+  double gnss_checked_stamp = -1.0;
+  int gnss_disagreements = 0;  ///< fixes in a row that contradicted the tracked pose
   std::unique_ptr<Registration> coarse, fine;  ///< global localisation
   PointCloudPtr local_map;
   Eigen::Vector2d local_centre = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
@@ -361,7 +369,33 @@ void Localizer::reset() {
   recent_next_ = 0;
 }
 
+void Localizer::setGnssFix(double stamp, const Eigen::Vector2d& xy, double std) {
+  if (!xy.allFinite()) return;
+  impl_->gnss = Impl::GnssFix{stamp, xy, std::isfinite(std) ? std::max(0.0, std) : 0.0};
+}
+
+const Eigen::Vector2d* Localizer::recentGnssFix(double stamp, double* limit) const {
+  const auto& fix = impl_->gnss;
+  const bool georeferenced = map_->has_origin;
+  if (!fix || !georeferenced || params_.gnss_check_distance <= 0.0 ||
+      std::abs(stamp - fix->stamp) > params_.gnss_max_age)
+    return nullptr;
+  *limit = std::max(params_.gnss_check_distance, 5.0 * fix->std);
+  return &fix->xy;
+}
+
+bool Localizer::gnssContradictsTracking(const Eigen::Isometry3d& pose, double stamp) {
+  double limit = 0.0;
+  const Eigen::Vector2d* fix = recentGnssFix(stamp, &limit);
+  if (!fix || impl_->gnss->stamp == impl_->gnss_checked_stamp) return false;
+  impl_->gnss_checked_stamp = impl_->gnss->stamp;
+  const bool far = (pose.translation().head<2>() - *fix).norm() > limit;
+  impl_->gnss_disagreements = far ? impl_->gnss_disagreements + 1 : 0;
+  return impl_->gnss_disagreements >= std::max(1, params_.gnss_check_fixes);
+}
+
 void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
+  impl_->gnss_disagreements = 0;
   ukf_.initialize(pose, params_.init_position_std, params_.init_orientation_std,
                   params_.init_velocity_std, params_.init_rate_std);
   last_stamp_ = stamp;
@@ -621,7 +655,13 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   ++stats_.scans;
   // Not started (no initial pose) or diverged: global localisation on this scan.
   if (searching_) {
-    const GlobalLocalizationResult g = globalLocalize(cloud);
+    GlobalLocalizationResult g = globalLocalize(cloud);
+    double gnss_limit = 0.0;
+    const Eigen::Vector2d* fix = recentGnssFix(stamp, &gnss_limit);
+    if (g.success && fix && (g.pose.translation().head<2>() - *fix).norm() > gnss_limit) {
+      g.success = false;  // a look-alike place far from where the receiver says we are
+      ++stats_.global_gnss_refusals;
+    }
     if (!g.success) {
       ++stats_.uninitialized;
       out.status = LocalizationStatus::kUninitialized;
@@ -728,8 +768,12 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   const size_t window = static_cast<size_t>(params_.effectiveDivergenceWindow());
   while (recent_rejections_.size() > window) recent_rejections_.pop_front();
   const auto rejected = std::count(recent_rejections_.begin(), recent_rejections_.end(), true);
-  if (!accepted && rejected >= params_.divergence_scans) {
+  const bool gnss_diverged = gnssContradictsTracking(out.pose, stamp);
+  if ((!accepted && rejected >= params_.divergence_scans) || gnss_diverged) {
     recent_rejections_.clear();
+    impl_->gnss_disagreements = 0;
+    stats_.gnss_divergences += gnss_diverged ? 1 : 0;
+    out.diverged_by_gnss = gnss_diverged;
     out.diverged = true;
     ++stats_.divergences;
     searching_ = true;  // global localisation from the next scan on

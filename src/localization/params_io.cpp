@@ -38,6 +38,9 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("measurement_orientation_std", p.measurement_orientation_std);
   r.param("divergence_scans", p.divergence_scans);
   r.param("divergence_window", p.divergence_window);
+  r.param("gnss_check_distance", p.gnss_check_distance);
+  r.param("gnss_check_fixes", p.gnss_check_fixes);
+  r.param("gnss_max_age", p.gnss_max_age);
   r.param("off_map_distance", p.off_map_distance);
   r.param("off_map_odometry", p.off_map_odometry);
   r.param("off_map_step_position_std", p.off_map_step_position_std);

@@ -11,6 +11,7 @@
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
+#include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
@@ -18,6 +19,7 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -28,6 +30,7 @@
 #include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/params_io.h"
+#include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
@@ -150,6 +153,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
     }
     cloud_sub_ = nh.subscribe("filtered_points", 5, &LocalizationNodelet::onCloud, this);
     imu_sub_ = nh.subscribe("imu/data", 1000, &LocalizationNodelet::onImu, this);
+    if (node_params_.use_gnss && map_)
+      gnss_sub_ = nh.subscribe("gps/fix", 10, &LocalizationNodelet::onGnssFix, this);
     initial_sub_ = nh.subscribe("initialpose", 2, &LocalizationNodelet::onInitialPose, this);
   }
 
@@ -177,6 +182,20 @@ class LocalizationNodelet : public nodelet::Nodelet {
       gyro_.add(stamp, Eigen::Vector3d(w.x, w.y, w.z));
     if (msg->linear_acceleration_covariance[0] != -1.0)
       accel_.add(stamp, Eigen::Vector3d(a.x, a.y, a.z));
+  }
+
+  /// A fix in the map's ENU frame: checks the tracked pose and global answers, never corrects.
+  void onGnssFix(const sensor_msgs::NavSatFixConstPtr& msg) {
+    if (msg->status.status < sensor_msgs::NavSatStatus::STATUS_FIX ||
+        !std::isfinite(msg->latitude) || !std::isfinite(msg->longitude))
+      return;
+    if (!map_enu_) map_enu_.emplace(map_->origin_lat, map_->origin_lon, map_->origin_alt);
+    const Eigen::Vector3d enu = map_enu_->toEnu(msg->latitude, msg->longitude, msg->altitude);
+    double std = 0.0;
+    if (msg->position_covariance_type != sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN)
+      std = std::sqrt(std::max(msg->position_covariance[0], msg->position_covariance[4]));
+    std::lock_guard<std::mutex> lock(mutex_);
+    pending_gnss_ = GnssFix{msg->header.stamp.toSec(), enu.head<2>(), std};
   }
 
   void onInitialPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
@@ -228,6 +247,10 @@ class LocalizationNodelet : public nodelet::Nodelet {
         localizer_->setInitialPose(*pending_initial_, stamp);
         pending_initial_.reset();
       }
+      if (pending_gnss_) {
+        localizer_->setGnssFix(pending_gnss_->stamp, pending_gnss_->xy, pending_gnss_->std);
+        pending_gnss_.reset();
+      }
       if (node_params_.use_imu) {
         const double from = last_scan_stamp_.value_or(stamp - 0.1);
         gyro = gyro_.meanBetween(from, stamp, node_params_.imu_max_gap);
@@ -246,7 +269,12 @@ class LocalizationNodelet : public nodelet::Nodelet {
                            out.status == LocalizationStatus::kPredicted ||
                            out.status == LocalizationStatus::kRelocalized;
     publishStatus(msg->header.stamp, out, localized, ms);
-    if (out.diverged)
+    if (out.diverged && out.diverged_by_gnss)
+      NODELET_WARN(
+          "localization: diverged at %.3f (%d GNSS fixes in a row more than %.1f m "
+          "from the tracked pose), searching",
+          stamp, localizer_->params().gnss_check_fixes, localizer_->params().gnss_check_distance);
+    else if (out.diverged)
       NODELET_WARN("localization: diverged at %.3f (%d of the last %d matches rejected), searching",
                    stamp, localizer_->params().divergence_scans,
                    localizer_->params().effectiveDivergenceWindow());
@@ -333,10 +361,18 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::optional<Eigen::Isometry3d> pending_initial_;
   std::optional<double> last_scan_stamp_;
   Eigen::Isometry3d odom_to_base_ = Eigen::Isometry3d::Identity();
-  std::mutex mutex_;  ///< the IMU buffers and pending_initial_ (callbacks run on several threads)
+  /// The IMU buffers, pending_initial_ and pending_gnss_ (callbacks run on several threads).
+  std::mutex mutex_;
   ImuReadingBuffer gyro_, accel_;
+  struct GnssFix {
+    double stamp;
+    Eigen::Vector2d xy;
+    double std;
+  };
+  std::optional<GnssFix> pending_gnss_;  ///< the newest fix, handed over with the next scan
+  std::optional<EnuConverter> map_enu_;  ///< the map package's ENU origin
   ros::Publisher status_pub_, odom_pub_, map_pub_;
-  ros::Subscriber cloud_sub_, imu_sub_, initial_sub_;
+  ros::Subscriber cloud_sub_, imu_sub_, initial_sub_, gnss_sub_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

@@ -60,6 +60,7 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("publish_odom_tf", p.publish_odom_tf);
   r.param("use_imu", p.use_imu);
   r.param("imu_max_gap", p.imu_max_gap);
+  r.param("use_gnss", p.use_gnss);
   r.param("map_points_voxel", p.map_points_voxel);
   r.param("warn_throttle_period", p.warn_throttle_period);
   r.param("map_dir", p.map_dir);

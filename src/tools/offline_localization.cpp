@@ -4,14 +4,17 @@
 //   offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)
 //                        --output DIR [--initial-pose x,y,yaw | --initial-pose truth | --global]
 //                        [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]
+//                        [--no-gnss]
 //                        [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]
 //                        [--cloud-topic T ...]   (bag topics as offline_slam)
 //
 // The map frame is the map package's ENU origin; the drive's own origin (its first fix) is
 // carried over through lat/lon. Without --initial-pose or --global the first GNSS fix and the IMU
-// heading start the filter. Writes trajectory_tum.txt (every localised scan, map frame),
-// ground_truth_tum.txt (the truth at the same stamps), off_map_tum.txt (flagged scans, predicted
-// only), status.csv (per scan), timing.json / timing.txt; --json prints the report.
+// heading start the filter. The drive's GNSS fixes check the tracked pose and global answers
+// (gnss_check_distance; never a correction) unless --no-gnss. Writes trajectory_tum.txt (every
+// localised scan, map frame), ground_truth_tum.txt (the truth at the same stamps),
+// off_map_tum.txt (flagged scans, predicted only), status.csv (per scan), timing.json /
+// timing.txt; --json prints the report.
 // --map-truth: the ground truth of the map's keyframes (offline_slam's ground_truth_tum.txt): the
 // report then also gives the error relative to the map (the truth moved by the rigid transform
 // that best aligns the map's keyframes to their truth), which separates the localiser's error
@@ -54,7 +57,8 @@ int usage(const std::string& why) {
             << "usage: offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR]\n"
                "       | --bag FILE.bag) --output DIR\n"
                "       [--initial-pose x,y,yaw | --initial-pose truth | --global]\n"
-               "       [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]\n"
+               "       [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu] "
+               "[--no-gnss]\n"
                "       [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]\n"
                "       [--cloud-topic T] [--gps-topic T]\n"
                "       [--imu-topic T]"
@@ -119,13 +123,15 @@ struct RunErrors {
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::map<std::string, std::string> args;
-  bool json = false, use_imu = true, global = false;
+  bool json = false, use_imu = true, use_gnss = true, global = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--json") {
       json = true;
     } else if (a == "--no-imu") {
       use_imu = false;
+    } else if (a == "--no-gnss") {
+      use_gnss = false;
     } else if (a == "--global") {
       global = true;
     } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
@@ -268,6 +274,11 @@ int main(int argc, char** argv) {
   double kidnap_detected_s = -1.0, kidnap_recovered_s = -1.0;
   size_t kidnap_skipped = 0;
   bool kidnap_recovered_correct = false;
+  // Where the vehicle landed: its distance to the nearest map keyframe then, and the drive time
+  // until it first came within kKidnapOnMap of one (a landing off the mapped path cannot be
+  // re-localised before).
+  constexpr double kKidnapOnMap = 10.0;
+  double kidnap_landing_distance = -1.0, kidnap_on_map_s = -1.0;
   DriveScan scan;
   const auto t_run = Clock::now();
   for (size_t i = 0; i < n; ++i) {
@@ -339,6 +350,11 @@ int main(int argc, char** argv) {
         scan.filtered ? std::move(*scan.filtered) : prefilter.filter(*scan.cloud);
     prefilter_ms += scan.filtered ? scan.prepare_ms : msSince(t0);
     const size_t global_attempts_before = localizer.stats().global_attempts;
+    if (use_gnss && scan.gnss)
+      localizer.setGnssFix(
+          scan.stamp,
+          (drive_to_map * Eigen::Vector3d(scan.gnss->x(), scan.gnss->y(), 0.0)).head<2>(),
+          scan.gnss_std.value_or(0.0));
     t0 = Clock::now();
     const LocalizationOutput out =
         use_imu ? localizer.process(scan.stamp, filtered.cloud, scan.angular_velocity,
@@ -390,6 +406,12 @@ int main(int argc, char** argv) {
       off_map.push_back({scan.stamp, out.pose});
     }
     if (kidnapped) {
+      if (truth && kidnap_on_map_s < 0.0) {
+        const double d =
+            localizer.distanceToMap((truth_to_map ? *truth_to_map * *truth : *truth).translation());
+        if (kidnap_landing_distance < 0.0) kidnap_landing_distance = d;
+        if (d <= kKidnapOnMap) kidnap_on_map_s = scan.stamp - kidnap_stamp;
+      }
       if (out.diverged && kidnap_detected_s < 0.0) kidnap_detected_s = scan.stamp - kidnap_stamp;
       if (out.status == LocalizationStatus::kRelocalized && kidnap_detected_s >= 0.0 &&
           kidnap_recovered_s < 0.0) {
@@ -425,6 +447,10 @@ int main(int argc, char** argv) {
     << ", \"divergences\": " << s.divergences << ", \"global_attempts\": " << s.global_attempts
     << ", \"global_failures\": " << s.global_failures
     << ", \"global_by_side_view\": " << s.global_by_side_view
+    << ", \"gnss_used\": " << (use_gnss ? "true" : "false")
+    << ", \"gnss_divergences\": " << s.gnss_divergences
+    << ", \"global_gnss_refusals\": " << s.global_gnss_refusals
+
     << ", \"global_descriptor_limit\": " << s.global_descriptor_limit
     << ", \"global_impostor_pairs\": " << s.global_impostor_pairs
     << ", \"global_overlap_limit\": " << s.global_overlap_limit
@@ -438,6 +464,8 @@ int main(int argc, char** argv) {
   if (kidnap_at >= 0)
     j << ", \"kidnap\": {\"at_scan\": " << kidnap_at << ", \"jump_m\": " << kidnap_jump
       << ", \"skipped_scans\": " << kidnap_skipped
+      << ", \"landing_distance_to_map_m\": " << kidnap_landing_distance
+      << ", \"within_10m_of_map_after_s\": " << kidnap_on_map_s
       << ", \"detected_after_s\": " << kidnap_detected_s
       << ", \"recovered_after_s\": " << kidnap_recovered_s
       << ", \"recovered_correct\": " << (kidnap_recovered_correct ? "true" : "false") << "}";
@@ -480,8 +508,10 @@ int main(int argc, char** argv) {
         << " points (loaded in " << load_ms << " ms, localizer ready in " << init_ms << " ms)\n";
   if (kidnap_at >= 0)
     table << std::setprecision(2) << "  kidnap at scan " << kidnap_at << " (" << kidnap_jump
-          << " m, " << kidnap_skipped << " scans skipped): detected after " << kidnap_detected_s
-          << " s, re-localised after " << kidnap_recovered_s << " s of drive ("
+          << " m, " << kidnap_skipped << " scans skipped, landed " << kidnap_landing_distance
+          << " m from the map, within " << kKidnapOnMap << " m of it after " << kidnap_on_map_s
+          << " s): detected after " << kidnap_detected_s << " s, re-localised after "
+          << kidnap_recovered_s << " s of drive ("
           << (kidnap_recovered_correct ? "correct" : "WRONG or none") << ")\n";
   if (tracking_error.n)
     table << std::setprecision(3) << "  error while tracking: mean "

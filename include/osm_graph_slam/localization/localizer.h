@@ -50,6 +50,15 @@ struct LocalizationParams {
   int effectiveDivergenceWindow() const {
     return std::max({divergence_window, divergence_scans, 1});
   }
+  /// GNSS as a consistency check (setGnssFix; never a correction): gnss_check_fixes fixes in a
+  /// row farther than gnss_check_distance (or 5 of their reported deviations) from the tracked
+  /// pose are a divergence, and a global answer that far from the latest fix is refused. A
+  /// filter carried to a look-alike street fits there nearly as well as on its own (fitness
+  /// 1.5x), which the fitness tests miss for seconds; a consumer receiver is never 10 m off for
+  /// half a second in a row. 0: off. Only for a map package with an ENU origin.
+  double gnss_check_distance = 10.0;  ///< [m] the fix's error plus the map's own GNSS offset
+  int gnss_check_fixes = 5;
+  double gnss_max_age = 1.0;       ///< [s] an older fix (scan time) is not used
   double off_map_distance = 20.0;  ///< [m] farther from every keyframe: off the map
   /// Off the map the pose is carried by scan-to-scan registration (LiDAR odometry), each step an
   /// update of this noise; false: by the motion model alone (a filter started off the map with
@@ -132,9 +141,10 @@ struct LocalizationOutput {
   LocalizationStatus status = LocalizationStatus::kUninitialized;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< base_link in map
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  double fitness = -1.0;         ///< of this scan's registration (-1: none)
-  double distance_to_map = 0.0;  ///< [m] to the nearest keyframe (2D)
-  bool diverged = false;         ///< the filter was declared diverged on this scan
+  double fitness = -1.0;          ///< of this scan's registration (-1: none)
+  double distance_to_map = 0.0;   ///< [m] to the nearest keyframe (2D)
+  bool diverged = false;          ///< the filter was declared diverged on this scan
+  bool diverged_by_gnss = false;  ///< ... because GNSS fixes contradicted it (gnss_check_distance)
   /// The filter's predicted motion since the previous scan's estimate (base_link frame): a
   /// continuous dead reckoning without the map's corrections (the nodelet's odom frame).
   /// Identity when nothing was predicted (not started, or started on this scan).
@@ -175,6 +185,8 @@ struct LocalizationStats {
   size_t relocalizations = 0, global_attempts = 0, global_failures = 0, divergences = 0;
   size_t global_ambiguous = 0;      ///< of the failures: refused as ambiguous
   size_t global_disagreements = 0;  ///< a confirming answer disagreed: searched again
+  size_t gnss_divergences = 0;      ///< divergences declared by the GNSS check
+  size_t global_gnss_refusals = 0;  ///< global answers refused: too far from the GNSS fix
   double registration_ms = 0.0, local_map_ms = 0.0, global_ms = 0.0, filter_ms = 0.0;
   size_t local_map_builds = 0;
   double global_descriptor_limit = 0.0;  ///< the learnt Scan Context limit (see params)
@@ -222,6 +234,10 @@ class Localizer {
 
   /// Starts the filter at a known pose (rviz /initialpose, --initial-pose).
   void setInitialPose(const Eigen::Isometry3d& pose, double stamp);
+
+  /// A GNSS fix in the map frame (x, y) with its horizontal deviation (0: unknown): checks the
+  /// tracked pose and global answers on the scans up to gnss_max_age later (gnss_check_distance).
+  void setGnssFix(double stamp, const Eigen::Vector2d& xy, double std = 0.0);
 
   /// One prefiltered scan in base_link at stamp; gyro = body rates and accel = specific force
   /// (gravity included) in base_link since the last scan, if the drive has an IMU.
@@ -289,6 +305,10 @@ class Localizer {
   /// The scan deskewed by motion over dt (when deskew is on).
   PointCloudConstPtr deskewedScan(const PointCloudConstPtr& cloud, const Eigen::Isometry3d& motion,
                                   double dt) const;
+  /// The latest GNSS fix, if recent at stamp and the check is on (null otherwise).
+  const Eigen::Vector2d* recentGnssFix(double stamp, double* limit) const;
+  /// Counts a recent fix that contradicts the tracked pose (each fix once). True: diverged.
+  bool gnssContradictsTracking(const Eigen::Isometry3d& pose, double stamp);
   /// ... reduced to scan_voxel_size for matching.
   PointCloudConstPtr reducedScan(const PointCloudConstPtr& scan) const;
   double descriptor_limit_ = 0.6;  ///< learnt at construction

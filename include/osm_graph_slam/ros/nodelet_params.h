@@ -74,6 +74,7 @@ struct LocalizationNodeletParams {
   bool publish_odom_tf = true;
   bool use_imu = true;
   double imu_max_gap = 0.2;           ///< [s]
+  bool use_gnss = true;               ///< gps/fix checks the pose (gnss_check_distance)
   double map_points_voxel = 0.5;      ///< [m]
   double warn_throttle_period = 5.0;  ///< [s]
   std::string map_dir;
