@@ -367,6 +367,7 @@ void Localizer::reset() {
   confirming_ = false;
   recent_fitness_.clear();
   recent_next_ = 0;
+  impl_->gnss_disagreements = 0;
 }
 
 void Localizer::setGnssFix(double stamp, const Eigen::Vector2d& xy, double std) {
@@ -660,6 +661,8 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
     const Eigen::Vector2d* fix = recentGnssFix(stamp, &gnss_limit);
     if (g.success && fix && (g.pose.translation().head<2>() - *fix).norm() > gnss_limit) {
       g.success = false;  // a look-alike place far from where the receiver says we are
+      g.message = "refused: farther than " + std::to_string(gnss_limit) + " m from the GNSS fix";
+      last_global_ = g;  // the attempt's log shows the refusal
       ++stats_.global_gnss_refusals;
     }
     if (!g.success) {
