@@ -14,7 +14,9 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/voxel_filter.h"
+#include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/cell_key.h"
+#include "osm_graph_slam/localization/osm_wall_matcher.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
 
@@ -122,13 +124,17 @@ struct Localizer::Impl {
   };
   std::vector<SideView> side_views;
   std::unique_ptr<LandmarkLoopSource> landmarks;  ///< geometric_hierarchy / combined
+  std::unique_ptr<OsmWallMatcher> walls;          ///< enableOsmWalls
+  std::vector<Eigen::Vector2d> osm_path_centres;  ///< wall search centres without a fix
+  double scan_stamp = 0.0;                        ///< of the scan being processed (GNSS age)
 };
 
 /// A map keyframe to register the scan against, with the initial guess of the scan's pose.
 struct Localizer::Place {
   int index = 0;  ///< map keyframe
   Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
-  double descriptor_distance = -1.0;  ///< Scan Context's (-1: a hierarchy place)
+  double descriptor_distance = -1.0;  ///< Scan Context's (-1: a hierarchy or walls place)
+  double wall_fitness = 0.0;          ///< the line matcher's (osm_walls)
   const char* source = "scan_context";
 };
 
@@ -436,6 +442,10 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     ambiguous = verifyPlaces(cloud, side, result);
     stats_.global_by_side_view += result.success ? 1 : 0;
   }
+  if (!result.success && !ambiguous && impl_->walls) {
+    ambiguous = verifyPlaces(cloud, osmWallPlaces(cloud), result);
+    stats_.global_by_osm_walls += result.success ? 1 : 0;
+  }
   if (!result.success) {
     ++stats_.global_failures;
     stats_.global_ambiguous += ambiguous ? 1 : 0;
@@ -462,17 +472,21 @@ bool Localizer::verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<
     double score;
   };
   std::vector<Passed> passed;
+  std::vector<size_t> fitting_walls;  ///< osm_walls places that passed the fitness test
+  size_t best = 0;
   double best_score = std::numeric_limits<double>::infinity();
   for (const Place& c : places) {
     ++result.candidates_tried;
     GlobalCandidate& record = result.candidates.emplace_back();
-    if (!registerAtPlace(cloud, coarse_source, c, record) || record.overlap < overlap_limit_)
-      continue;
+    const bool fits = registerAtPlace(cloud, coarse_source, c, record);
+    if (fits && record.source == "osm_walls") fitting_walls.push_back(result.candidates.size() - 1);
+    if (!fits || record.overlap < overlap_limit_) continue;
     record.outcome = "passed";
     // The ground fits anywhere: places are told apart by how much of the structure they explain.
     const double score = record.structure_cost;
     passed.push_back({record.pose, score});
     if (score < best_score) {
+      best = result.candidates.size() - 1;
       best_score = score;
       result.success = true;
       result.pose = record.pose;
@@ -494,6 +508,28 @@ bool Localizer::verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<
       return true;
     }
   }
+  return result.success && wallsAmbiguous(result, best, fitting_walls);
+}
+
+bool Localizer::wallsAmbiguous(GlobalLocalizationResult& result, size_t best,
+                               const std::vector<size_t>& fitting) const {
+  // A walls place has no descriptor behind it: the walls and the registration must both single
+  // it out. Another place the registration fits (its overlap may be low: a scan off the map
+  // drive's path sees what the map never saw) whose walls score within the matcher's ambiguity
+  // margin makes the answer ambiguous (repeated buildings along a street or a town).
+  const GlobalCandidate& winner = result.candidates[best];
+  if (winner.source != "osm_walls") return false;
+  const double margin = impl_->walls->matcher().params().initial_ambiguity_margin;
+  for (size_t i : fitting) {
+    const GlobalCandidate& other = result.candidates[i];
+    const double apart = (other.pose.translation() - winner.pose.translation()).head<2>().norm();
+    if (i == best || apart <= 2.0 || std::abs(other.wall_fitness - winner.wall_fitness) > margin)
+      continue;
+    result.success = false;
+    result.message = "ambiguous: the walls of two places " + std::to_string(apart) +
+                     " m apart match alike and both register";
+    return true;
+  }
   return false;
 }
 
@@ -506,6 +542,7 @@ bool Localizer::registerAtPlace(const PointCloudConstPtr& cloud,
   record.keyframe_id = kf.id;
   record.source = place.source;
   record.descriptor_distance = place.descriptor_distance;
+  record.wall_fitness = place.wall_fitness;
   record.outcome = "coarse_failed";
   impl_->coarse->setTarget(impl_->coarse_grid->crop(centre, radius));
   // The coarse step only brings the fine one closer: one that ran out of iterations (a guess
@@ -549,6 +586,91 @@ std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPt
   if (params_.global_method != "geometric_hierarchy") addScanContextPlaces(cloud, places);
   // Close keyframes give the same answer: keep places 5 m apart, at most global_candidates.
   return distinctPlaces(places, params_.global_candidates);
+}
+
+size_t Localizer::enableOsmWalls(const WallPointExtractorParams& walls,
+                                 const LineSegmentExtractorParams& segments,
+                                 const LineMatcherParams& matcher) {
+  if (!params_.global_osm_walls || map_->buildings.empty()) return 0;
+  LineMatcherParams m = matcher;
+  m.initial_max_translation = params_.global_osm_search_radius;
+  m.min_fitness = params_.global_osm_min_fitness;
+  m.min_matched_segments = params_.global_osm_min_matched;
+  impl_->walls = std::make_unique<OsmWallMatcher>(map_->buildings, walls, segments, m);
+  // Centres along the map drive's path, each keyframe within global_osm_spacing of one.
+  auto& centres = impl_->osm_path_centres;
+  centres.clear();
+  const double spacing = std::max(1.0, params_.global_osm_spacing);
+  for (const Eigen::Vector2d& xy : impl_->keyframe_xy) {
+    bool covered = false;
+    for (const Eigen::Vector2d& c : centres) covered = covered || (c - xy).norm() < spacing;
+    if (!covered) centres.push_back(xy);
+  }
+  return map_->buildings.size();
+}
+
+std::vector<Eigen::Vector2d> Localizer::osmSearchCentres(const Eigen::Vector2d* fix,
+                                                        double fix_limit) const {
+  if (!fix) return impl_->osm_path_centres;
+  // The fix, and the path's centres from which a place within the fix's limit is searched: the
+  // walls seen from where the map drive was match better than those seen from a fix metres off.
+  std::vector<Eigen::Vector2d> centres{*fix};
+  for (const Eigen::Vector2d& c : impl_->osm_path_centres)
+    if ((c - *fix).norm() <= fix_limit + params_.global_osm_search_radius) centres.push_back(c);
+  return centres;
+}
+
+std::vector<Localizer::Place> Localizer::osmWallPlaces(const PointCloudConstPtr& cloud) {
+  const auto t0 = Clock::now();
+  ++stats_.global_osm_searches;
+  const OsmWallMatcher& walls = *impl_->walls;
+  const std::vector<LineSegment2> scan_walls = walls.scanWalls(*cloud);
+  struct Hypothesis {
+    Pose2 pose;
+    double fitness;
+  };
+  std::vector<Hypothesis> found;
+  double fix_limit = 0.0;
+  const Eigen::Vector2d* fix = recentGnssFix(impl_->scan_stamp, &fix_limit);
+  if (static_cast<int>(scan_walls.size()) >= params_.global_osm_min_segments) {
+    for (const Eigen::Vector2d& centre : osmSearchCentres(fix, fix_limit)) {
+      const std::vector<LineSegment2> map_walls =
+          walls.wallsSeenFrom(centre, params_.global_osm_wall_radius);
+      if (map_walls.empty()) continue;
+      const LineMatchResult m =
+          walls.matcher().matchGlobal(scan_walls, map_walls, Pose2(centre.x(), centre.y(), 0.0),
+                                      /*rotation_unbounded=*/true);
+      if (m.success && (!fix || (m.transform.translation() - *fix).norm() <= fix_limit))
+        found.push_back({m.transform, m.fitness});
+    }
+  }
+  std::sort(found.begin(), found.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.fitness > b.fitness; });
+  // Neighbouring centres find the same walls: keep hypotheses 2 m apart, best first.
+  std::vector<Place> places;
+  for (const Hypothesis& h : found) {
+    if (static_cast<int>(places.size()) >= params_.global_candidates) break;
+    bool near = false;
+    for (const Place& p : places)
+      near = near || (p.guess.translation().head<2>() - h.pose.translation()).norm() < 2.0;
+    if (near) continue;
+    // The nearest keyframe gives the map region, the height and the slope.
+    size_t nearest = 0;
+    for (size_t i = 1; i < impl_->keyframe_xy.size(); ++i)
+      if ((impl_->keyframe_xy[i] - h.pose.translation()).squaredNorm() <
+          (impl_->keyframe_xy[nearest] - h.pose.translation()).squaredNorm())
+        nearest = i;
+    const Eigen::Isometry3d& kf = map_->keyframes[nearest].pose;
+    const Eigen::Vector2d rp = rollPitchOf(Eigen::Matrix3d(kf.linear()));
+    Place& p = places.emplace_back();
+    p.index = static_cast<int>(nearest);
+    p.guess.linear() = rotationFromRollPitchYaw(rp.x(), rp.y(), h.pose.theta);
+    p.guess.translation() << h.pose.x, h.pose.y, kf.translation().z();
+    p.wall_fitness = h.fitness;
+    p.source = "osm_walls";
+  }
+  stats_.global_osm_ms += msSince(t0);
+  return places;
 }
 
 std::vector<Localizer::Place> Localizer::distinctPlaces(const std::vector<Place>& places,
@@ -655,6 +777,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   LocalizationOutput out;
   ++stats_.scans;
   // Not started (no initial pose) or diverged: global localisation on this scan.
+  impl_->scan_stamp = stamp;
   if (searching_) {
     GlobalLocalizationResult g = globalLocalize(cloud);
     double gnss_limit = 0.0;

@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <set>
 
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
-#include "osm_graph_slam/common/polygon2d.h"
-#include "osm_graph_slam/lines/line_geometry.h"
+#include "osm_graph_slam/localization/osm_wall_matcher.h"
 #include "osm_graph_slam/slam/information.h"
 
 namespace osm_graph_slam {
@@ -71,33 +69,8 @@ const char* toString(OsmLocalizationStatus status) {
 }
 
 struct OsmLocalizer::Impl {
-  Impl(std::vector<Building> b, const WallPointExtractorParams& w,
-       const LineSegmentExtractorParams& s, const LineMatcherParams& m)
-      : buildings(std::move(b)), walls(w), segments(s), matcher(m) {}
-  std::vector<Building> buildings;
-  WallPointExtractor walls;
-  LineSegmentExtractor segments;
-  LineMatcher matcher;
-
-  std::vector<LineSegment2> wallSegments(const PointCloud& cloud) const {
-    return segments.extract(*walls.extract(cloud));
-  }
-  /// The walls a sensor at p can see (facing it, in range, not hidden by other buildings):
-  /// matching against every wall around would count the unseen ones as unmatched.
-  std::vector<LineSegment2> segmentsSeenFrom(const Eigen::Vector2d& p, double radius) const {
-    std::vector<const Building*> near;
-    std::vector<const Polygon2*> occluders;
-    for (const Building& b : buildings)
-      if (distanceToPolygon(p, b.outline_enu) <= radius) {
-        near.push_back(&b);
-        occluders.push_back(&b.outline_enu);
-      }
-    std::vector<LineSegment2> out;
-    for (const Building* b : near)
-      for (size_t w : visibleWalls(b->outline_enu, p, radius, occluders))
-        if (w < b->segments.size()) out.push_back(b->segments[w]);
-    return out;
-  }
+  explicit Impl(OsmWallMatcher w) : walls(std::move(w)) {}
+  OsmWallMatcher walls;
 };
 
 OsmLocalizer::OsmLocalizer(const OsmLocalizerParams& params, std::vector<Building> buildings,
@@ -105,25 +78,17 @@ OsmLocalizer::OsmLocalizer(const OsmLocalizerParams& params, std::vector<Buildin
                            const LineSegmentExtractorParams& segments,
                            const LineMatcherParams& matcher)
     : params_(params),
-      impl_(std::make_unique<Impl>(std::move(buildings), walls, segments,
-                                   withThresholds(matcher, params))) {}
+      impl_(std::make_unique<Impl>(OsmWallMatcher(std::move(buildings), walls, segments,
+                                                   withThresholds(matcher, params)))) {}
 
 OsmLocalizer::~OsmLocalizer() = default;
 
 size_t OsmLocalizer::addBuildings(std::vector<Building> buildings) {
-  std::set<int64_t> held;
-  for (const Building& b : impl_->buildings) held.insert(b.id);
-  size_t added = 0;
-  for (Building& b : buildings) {
-    if (!held.insert(b.id).second) continue;
-    impl_->buildings.push_back(std::move(b));
-    ++added;
-  }
-  return added;
+  return impl_->walls.addBuildings(std::move(buildings));
 }
 
 size_t OsmLocalizer::numBuildings() const {
-  return impl_->buildings.size();
+  return impl_->walls.numBuildings();
 }
 
 void OsmLocalizer::initialize(const Eigen::Vector3d& pose, double position_std, double yaw_std) {
@@ -233,7 +198,7 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
   out.osm_attempted = true;
   ++stats_.osm_attempts;
   auto t0 = Clock::now();
-  const std::vector<LineSegment2> scan_segments = impl_->wallSegments(*cloud);
+  const std::vector<LineSegment2> scan_segments = impl_->walls.scanWalls(*cloud);
   stats_.walls_ms += msSince(t0);
   if (static_cast<int>(scan_segments.size()) < params_.min_segments) {
     out.osm_outcome = "few_segments";
@@ -244,14 +209,14 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
   // map's offset (a map drawn 2 m east of the world shows the vehicle 2 m east too).
   const Pose2 guess(state_(kX) + state_(kDx), state_(kY) + state_(kDy), state_(kYaw));
   const std::vector<LineSegment2> map_segments =
-      impl_->segmentsSeenFrom(guess.translation(), params_.query_radius);
+      impl_->walls.wallsSeenFrom(guess.translation(), params_.query_radius);
   if (map_segments.empty()) {
     out.osm_outcome = "no_buildings";
     ++stats_.osm_no_buildings;
     return;
   }
   t0 = Clock::now();
-  const LineMatchResult match = impl_->matcher.matchGlobal(scan_segments, map_segments, guess);
+  const LineMatchResult match = impl_->walls.matcher().matchGlobal(scan_segments, map_segments, guess);
   stats_.matching_ms += msSince(t0);
   out.osm_fitness = match.fitness;
   if (!match.success) {
@@ -268,7 +233,7 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
   // Information of the pose from the walls' pinning point (as the back-end's global priors).
   const Eigen::Matrix3d info =
       leverInformation(scaledInformation(match.information, params_.osm_std_xy, params_.osm_std_yaw,
-                                         impl_->matcher.params()),
+                                         impl_->walls.matcher().params()),
                        match.matched_centre - match.transform.translation());
   Eigen::Matrix<double, 3, kN> H = Eigen::Matrix<double, 3, kN>::Zero();
   H(0, kX) = H(1, kY) = H(2, kYaw) = 1.0;
@@ -288,12 +253,12 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
 bool OsmLocalizer::tryStartWithoutHeading(const PointCloudConstPtr& cloud,
                                           const Eigen::Vector2d& fix, double std) {
   if (!cloud) return false;
-  const std::vector<LineSegment2> scan_segments = impl_->wallSegments(*cloud);
+  const std::vector<LineSegment2> scan_segments = impl_->walls.scanWalls(*cloud);
   if (static_cast<int>(scan_segments.size()) < params_.min_segments) return false;
-  const std::vector<LineSegment2> map_segments = impl_->segmentsSeenFrom(fix, params_.query_radius);
+  const std::vector<LineSegment2> map_segments = impl_->walls.wallsSeenFrom(fix, params_.query_radius);
   if (map_segments.empty()) return false;
   const LineMatchResult match =
-      impl_->matcher.matchGlobal(scan_segments, map_segments, Pose2(fix.x(), fix.y(), 0.0), true);
+      impl_->walls.matcher().matchGlobal(scan_segments, map_segments, Pose2(fix.x(), fix.y(), 0.0), true);
   if (!match.success || match.fitness < params_.min_fitness ||
       match.matched_segments < params_.min_matched)
     return false;

@@ -75,6 +75,13 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_voxel_size", p.global_voxel_size);
   r.param("global_ambiguity_ratio", p.global_ambiguity_ratio);
   r.param("global_side_view_offset", p.global_side_view_offset);
+  r.param("global_osm_walls", p.global_osm_walls);
+  r.param("global_osm_search_radius", p.global_osm_search_radius);
+  r.param("global_osm_spacing", p.global_osm_spacing);
+  r.param("global_osm_wall_radius", p.global_osm_wall_radius);
+  r.param("global_osm_min_segments", p.global_osm_min_segments);
+  r.param("global_osm_min_fitness", p.global_osm_min_fitness);
+  r.param("global_osm_min_matched", p.global_osm_min_matched);
   r.param("global_confirm_after", p.global_confirm_after);
 }
 

@@ -34,6 +34,7 @@
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/ros/wall_matching_params.h"
 #include "osm_graph_slam/ros/sensor_mount_lookup.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
@@ -113,6 +114,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
         try {
           localizer_ = std::make_unique<Localizer>(params, map);
           map_ = map;
+          enableOsmWalls();
         } catch (const std::exception& e) {
           NODELET_ERROR("localization: %s", e.what());
         }
@@ -156,6 +158,19 @@ class LocalizationNodelet : public nodelet::Nodelet {
     if (node_params_.use_gnss && map_)
       gnss_sub_ = nh.subscribe("gps/fix", 10, &LocalizationNodelet::onGnssFix, this);
     initial_sub_ = nh.subscribe("initialpose", 2, &LocalizationNodelet::onInitialPose, this);
+  }
+
+  /// Global localisation also searches the map package's buildings with the scan's walls
+  /// (global_osm_walls), with the SLAM pipeline's wall extraction and line matcher.
+  void enableOsmWalls() {
+    bool found = false;
+    const WallMatchingParams w = readWallMatchingParams(node_params_.line_extraction_ns,
+                                                        node_params_.line_matcher_ns, &found);
+    const size_t buildings = localizer_->enableOsmWalls(w.walls, w.segments, w.matcher);
+    if (buildings == 0) return;
+    NODELET_INFO("localization: global search also matches the scan's walls with %zu buildings "
+                 "of the map package%s",
+                 buildings, found ? "" : " (wall and matcher parameters: built-in defaults)");
   }
 
   void publishMapPoints() {

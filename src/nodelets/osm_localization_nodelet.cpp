@@ -24,8 +24,6 @@
 #include <mutex>
 #include <optional>
 
-#include "osm_graph_slam/cloud/params_io.h"
-#include "osm_graph_slam/lines/params_io.h"
 #include "osm_graph_slam/localization/osm_localizer.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -33,6 +31,7 @@
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/ros/wall_matching_params.h"
 #include "osm_graph_slam/slam/sensor_inputs.h"
 
 namespace osm_graph_slam {
@@ -45,17 +44,15 @@ class OsmLocalizationNodelet : public nodelet::Nodelet {
     readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
     OsmLocalizerParams params;
     readParams(RosParamReader(pnh), params);
-    // Walls, segments and the matcher are the SLAM pipeline's (config/line_extraction.yaml,
-    // config/graph_backend.yaml line_matcher), read where the launch file loaded them.
-    const RosParamReader lines{ros::NodeHandle(node_params_.line_extraction_ns)};
-    WallPointExtractorParams walls;
-    readParams(PrefixedParamReader(lines, "wall"), walls);
-    LineSegmentExtractorParams segments;
-    readParams(PrefixedParamReader(lines, "segments"), segments);
-    LineMatcherParams matcher;
-    readParams(RosParamReader(ros::NodeHandle(node_params_.line_matcher_ns)), matcher);
-    localizer_ =
-        std::make_unique<OsmLocalizer>(params, std::vector<Building>{}, walls, segments, matcher);
+    bool found = false;
+    const WallMatchingParams w = readWallMatchingParams(node_params_.line_extraction_ns,
+                                                        node_params_.line_matcher_ns, &found);
+    if (!found)
+      NODELET_WARN("osm_localization: no wall extraction / line matcher parameters under %s and "
+                   "%s (config/line_extraction.yaml, graph_backend.yaml); using built-in defaults",
+                   node_params_.line_extraction_ns.c_str(), node_params_.line_matcher_ns.c_str());
+    localizer_ = std::make_unique<OsmLocalizer>(params, std::vector<Building>{}, w.walls,
+                                                w.segments, w.matcher);
 
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("osm_localization/odom", 10);
     pose_pub_ = nh.advertise<geometry_msgs::PoseStamped>("osm_localization/pose", 10);

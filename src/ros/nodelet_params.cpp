@@ -65,6 +65,8 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("warn_throttle_period", p.warn_throttle_period);
   r.param("map_dir", p.map_dir);
   r.param("osm_file", p.osm_file);
+  r.param("line_extraction_ns", p.line_extraction_ns);
+  r.param("line_matcher_ns", p.line_matcher_ns);
 }
 
 void readParams(const ParamReader& r, OsmLocalizationNodeletParams& p) {

@@ -4,14 +4,16 @@
 //   offline_localization --map DIR (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag)
 //                        --output DIR [--initial-pose x,y,yaw | --initial-pose truth | --global]
 //                        [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu]
-//                        [--no-gnss]
+//                        [--no-gnss] [--no-osm-walls]
 //                        [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]
 //                        [--cloud-topic T ...]   (bag topics as offline_slam)
 //
 // The map frame is the map package's ENU origin; the drive's own origin (its first fix) is
 // carried over through lat/lon. Without --initial-pose or --global the first GNSS fix and the IMU
 // heading start the filter. The drive's GNSS fixes check the tracked pose and global answers
-// (gnss_check_distance; never a correction) unless --no-gnss. Writes trajectory_tum.txt (every
+// (gnss_check_distance; never a correction) unless --no-gnss. Global localisation also searches
+// the map package's buildings with the scan's walls (global_osm_walls) unless --no-osm-walls.
+// Writes trajectory_tum.txt (every
 // localised scan, map frame), ground_truth_tum.txt (the truth at the same stamps),
 // off_map_tum.txt (flagged scans, predicted only), status.csv (per scan), timing.json /
 // timing.txt; --json prints the report.
@@ -58,7 +60,7 @@ int usage(const std::string& why) {
                "       | --bag FILE.bag) --output DIR\n"
                "       [--initial-pose x,y,yaw | --initial-pose truth | --global]\n"
                "       [--config OVERRIDES.yaml] [--max-scans N] [--start-scan N] [--no-imu] "
-               "[--no-gnss]\n"
+               "[--no-gnss] [--no-osm-walls]\n"
                "       [--map-truth GT_TUM] [--kidnap-at N [--kidnap-distance M]] [--json]\n"
                "       [--cloud-topic T] [--gps-topic T]\n"
                "       [--imu-topic T]"
@@ -123,7 +125,7 @@ struct RunErrors {
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::map<std::string, std::string> args;
-  bool json = false, use_imu = true, use_gnss = true, global = false;
+  bool json = false, use_imu = true, use_gnss = true, global = false, osm_walls = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--json") {
@@ -132,6 +134,8 @@ int main(int argc, char** argv) {
       use_imu = false;
     } else if (a == "--no-gnss") {
       use_gnss = false;
+    } else if (a == "--no-osm-walls") {
+      osm_walls = false;
     } else if (a == "--global") {
       global = true;
     } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
@@ -222,6 +226,9 @@ int main(int argc, char** argv) {
 
   const auto t_init = Clock::now();
   Localizer localizer(params, map);
+  const size_t wall_buildings =
+      osm_walls ? localizer.enableOsmWalls(pipeline.wall, pipeline.segments, pipeline.backend.matcher)
+                : 0;
   const double init_ms = msSince(t_init);
 
   std::string initial = args.count("initial-pose") ? args["initial-pose"] : "";
@@ -447,6 +454,10 @@ int main(int argc, char** argv) {
     << ", \"divergences\": " << s.divergences << ", \"global_attempts\": " << s.global_attempts
     << ", \"global_failures\": " << s.global_failures
     << ", \"global_by_side_view\": " << s.global_by_side_view
+    << ", \"osm_wall_buildings\": " << wall_buildings
+    << ", \"global_osm_searches\": " << s.global_osm_searches
+    << ", \"global_by_osm_walls\": " << s.global_by_osm_walls
+    << ", \"global_osm_ms\": " << s.global_osm_ms
     << ", \"gnss_used\": " << (use_gnss ? "true" : "false")
     << ", \"gnss_divergences\": " << s.gnss_divergences
     << ", \"global_gnss_refusals\": " << s.global_gnss_refusals

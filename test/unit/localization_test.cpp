@@ -923,3 +923,67 @@ TEST(Localizer, SideViewsFindScansBesideTheMappedPath) {
   EXPECT_GE(correct[1], correct[0] + 10);
   EXPECT_EQ(wrong[0] + wrong[1], 0);
 }
+
+namespace {
+
+/// The town's boxes as OSM buildings (outline and walls in the map frame).
+std::vector<Building> townBuildings(const SyntheticWorld& world) {
+  std::vector<Building> out;
+  for (const SyntheticBox& box : world.boxes) {
+    Building b;
+    b.id = static_cast<int64_t>(out.size() + 1);
+    const Eigen::Rotation2Dd r(box.yaw);
+    for (const Eigen::Vector2d& c : {Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, -1),
+                                     Eigen::Vector2d(1, 1), Eigen::Vector2d(-1, 1)})
+      b.outline_enu.push_back(box.center + r * c.cwiseProduct(box.half_size));
+    b.segments = polygonSegments(b.outline_enu);
+    out.push_back(std::move(b));
+  }
+  return out;
+}
+
+}  // namespace
+
+// Item 3b: scans 7 m beside the map drive's path with the side views off, where the keyframes'
+// Scan Contexts find 1 of 28 (SideViewsFindScansBesideTheMappedPath, same scans): matching the
+// scan's walls with the package's buildings, along the whole path or only around a GNSS fix 3 m
+// off, finds most, and no answer is wrong (the town repeats its buildings: refused instead).
+TEST(Localizer, OsmWallsFindScansBesideTheMappedPath) {
+  const TownMap& town = townMap();
+  auto package = std::make_shared<MapPackage>(*town.package);
+  package->buildings = townBuildings(town.world);
+  const auto route = loopTownRoute(160.0, 100.0, 0.0, 13.7, 1.1, 7.0);
+  LocalizationParams params = defaultParams();
+  params.global_side_view_offset = 0.0;
+  Localizer localizer(params, package);
+  EXPECT_EQ(localizer.enableOsmWalls({}, {}, {}), package->buildings.size());
+  int correct[2] = {0, 0}, wrong[2] = {0, 0}, by_walls[2] = {0, 0}, tried = 0;
+  for (const bool around_fix : {false, true}) {
+    tried = 0;
+    for (size_t i = 0; i < route.size(); ++i) {
+      const Eigen::Vector3d& p = route[i];
+      if (p.y() < 10.0 && p.x() > 10.0 && p.x() < 150.0) continue;  // the facade street
+      ++tried;
+      if (around_fix) localizer.setGnssFix(0.0, p.head<2>() + Eigen::Vector2d(2.0, -2.2), 1.5);
+      const auto cloud = simulateSyntheticScan(town.world, p.head<2>(), p.z(), town.lidar, 700 + i);
+      const GlobalLocalizationResult g = localizer.globalLocalize(cloud);
+      if (!g.success) continue;
+      const Eigen::Isometry3d truth = planar(p.x(), p.y(), 1.73, p.z());
+      const double e = (g.pose.translation() - truth.translation()).head<2>().norm();
+      const bool right = e < 0.5 && yawError(g.pose, truth) < 2.0 * kDeg;
+      (right ? correct : wrong)[around_fix]++;
+      by_walls[around_fix] += g.source == std::string("osm_walls") ? 1 : 0;
+      if (!right)
+        std::cout << "wrong answer at (" << p.transpose() << "), " << e << " m off, from "
+                  << g.source << (around_fix ? " (around the fix)" : "") << "\n";
+    }
+  }
+  std::cout << "7 m beside the path, " << tried << " scans, no side views: " << correct[0]
+            << " correct (" << by_walls[0] << " by the walls) searching along the path, "
+            << correct[1] << " (" << by_walls[1] << ") around a GNSS fix; wrong " << wrong[0]
+            << " / " << wrong[1] << "; " << localizer.stats().global_osm_ms / (2 * tried)
+            << " ms of wall matching per search\n";
+  EXPECT_EQ(wrong[0] + wrong[1], 0);
+  EXPECT_GE(by_walls[0], 0.65 * tried);  // measured 24 of 28
+  EXPECT_GE(by_walls[1], 0.65 * tried);  // measured 25
+}

@@ -18,6 +18,9 @@
 
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/cloud/scan_deskew.h"
+#include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/lines/line_matcher.h"
+#include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/pose_ukf.h"
 #include "osm_graph_slam/loop/landmark_loop_source.h"
@@ -108,13 +111,26 @@ struct LocalizationParams {
   /// global_min_overlap alone.
   int global_overlap_samples = 30;
   int global_overlap_impostor_places = 2;
-  /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
-  /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
   /// [m] each map keyframe's cloud is also described (Scan Context) as seen from this far to its
   /// left and right, so that a scan taken off the map drive's path (another lane, a corner cut
   /// differently) still finds the keyframe. Searched only when no keyframe's place passes
   /// (global_ring_key_candidates keyframes' worth of views). 0: off.
   double global_side_view_offset = 6.0;
+  /// OSM walls (enableOsmWalls; OSM-SLAM §5.1): when neither the keyframes nor their side views
+  /// give a place, the scan's wall segments are matched (line matcher, heading unbounded) with
+  /// the map package's buildings around the GNSS fix, or without a fix around points of the map
+  /// drive's path global_osm_spacing apart; the best matches become places for the same
+  /// registration, tests and ambiguity check. Places are where the walls are, not where the map
+  /// drive's keyframes looked from.
+  bool global_osm_walls = true;
+  double global_osm_search_radius = 10.0;  ///< [m] translation searched around each centre
+  double global_osm_spacing = 15.0;        ///< [m] between centres along the path (no fix)
+  double global_osm_wall_radius = 45.0;    ///< [m] walls seen within this of a centre are matched
+  int global_osm_min_segments = 3;         ///< fewer wall segments in the scan: no search
+  double global_osm_min_fitness = -100.0;  ///< line matcher fitness of a place at least
+  int global_osm_min_matched = 2;          ///< matched wall segments of a place at least
+  /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
+  /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
   double global_structure_height = 0.5;
   double global_coarse_max_correspondence = 4.0;  ///< [m] first, coarse registration
   double global_voxel_size = 1.0;                 ///< [m] coarse source/target voxel
@@ -154,8 +170,9 @@ struct LocalizationOutput {
 /// One place global localisation considered (for diagnosis and tests).
 struct GlobalCandidate {
   uint64_t keyframe_id = 0;
-  std::string source = "scan_context";  ///< or geometric_hierarchy
-  double descriptor_distance = 1.0;     ///< Scan Context (-1: a hierarchy candidate)
+  std::string source = "scan_context";  ///< or geometric_hierarchy, side_view, osm_walls
+  double descriptor_distance = 1.0;     ///< Scan Context (-1: a hierarchy or walls candidate)
+  double wall_fitness = 0.0;            ///< the line matcher's (osm_walls candidates)
   std::string outcome;  ///< coarse_failed | fine_failed | fitness | overlap | passed
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< after registration
   double fitness = -1.0, overlap = 0.0;
@@ -193,6 +210,9 @@ struct LocalizationStats {
   size_t global_impostor_pairs = 0;      ///< the pairs it was learnt from
   size_t global_by_hierarchy = 0;        ///< global answers whose place the hierarchy proposed
   size_t global_by_side_view = 0;        ///< global answers from a keyframe's side view
+  size_t global_by_osm_walls = 0;        ///< global answers whose place the OSM walls proposed
+  size_t global_osm_searches = 0;        ///< searches that matched the walls (the fallback ran)
+  double global_osm_ms = 0.0;            ///< of which wall extraction and matching
   double global_overlap_limit = 0.0;     ///< the learnt overlap limit (see params)
   size_t global_overlap_own = 0;         ///< own places it was learnt from
   size_t global_overlap_impostors = 0;   ///< impostor places that passed the fitness test
@@ -245,6 +265,13 @@ class Localizer {
                              const std::optional<Eigen::Vector3d>& gyro = std::nullopt,
                              const std::optional<Eigen::Vector3d>& accel = std::nullopt);
 
+  /// Lets global localisation search the map package's buildings with the scan's walls
+  /// (global_osm_walls): extraction and matcher parameters are the SLAM pipeline's. Returns the
+  /// number of buildings (0: the package has none, nothing changes).
+  size_t enableOsmWalls(const WallPointExtractorParams& walls,
+                        const LineSegmentExtractorParams& segments,
+                        const LineMatcherParams& matcher);
+
   /// Where is this scan on the map, with no prior (exposed for tests and the global tool).
   GlobalLocalizationResult globalLocalize(const PointCloudConstPtr& cloud);
 
@@ -275,6 +302,11 @@ class Localizer {
   /// of a drive with another sensor (localization.test).
   std::vector<Place> scanContextPlaces(const ScanContext& query, const Eigen::Vector2d* away_from,
                                        double away_distance, bool side_views) const;
+  /// Places from the scan's walls matched with the buildings (global_osm_walls), best first.
+  std::vector<Place> osmWallPlaces(const PointCloudConstPtr& cloud);
+  /// Where the wall search looks: points along the map drive's path, only those near the GNSS
+  /// fix (and the fix) when there is a recent one.
+  std::vector<Eigen::Vector2d> osmSearchCentres(const Eigen::Vector2d* fix, double fix_limit) const;
   /// The first places of the list 5 m apart from each other, at most max_places.
   std::vector<Place> distinctPlaces(const std::vector<Place>& places, int max_places) const;
   /// Side views of every keyframe (global_side_view_offset): its cloud described from beside it.
@@ -290,6 +322,10 @@ class Localizer {
   /// to its candidates). True: refused as ambiguous (result.success false).
   bool verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<Place>& places,
                     GlobalLocalizationResult& result);
+  /// A walls place (result.candidates[best]) with a rival among the fitting walls places: the
+  /// answer is refused (result.success false). True: ambiguous.
+  bool wallsAmbiguous(GlobalLocalizationResult& result, size_t best,
+                      const std::vector<size_t>& fitting) const;
   /// Coarse, then fine registration of the cloud at the place; fills the record's pose, fitness,
   /// overlap and outcome (up to "overlap": the limit is the caller's). True: it passed the
   /// fitness test.

@@ -79,6 +79,10 @@ struct LocalizationNodeletParams {
   double warn_throttle_period = 5.0;  ///< [s]
   std::string map_dir;
   std::string osm_file;
+  /// Where the SLAM pipeline's wall/segment and line-matcher parameters were loaded (global
+  /// search by the OSM walls; launch/localization.launch loads them as osm_localization.launch).
+  std::string line_extraction_ns = "/line_extraction";
+  std::string line_matcher_ns = "/graph_backend/line_matcher";
 };
 
 struct OsmLocalizationNodeletParams {
