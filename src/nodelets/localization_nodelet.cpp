@@ -26,6 +26,8 @@
 #include <optional>
 
 #include "osm_graph_slam/LocalizationReport.h"
+#include "osm_graph_slam/common/attitude.h"
+#include "osm_graph_slam/common/imu_reading_buffer.h"
 #include "osm_graph_slam/localization/localizer.h"
 #include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
@@ -40,38 +42,6 @@
 #include "osm_graph_slam/slam/map_export.h"
 
 namespace osm_graph_slam {
-namespace {
-
-/// One IMU quantity (body rates, specific force) between two scans: the mean of the readings in
-/// (from, to], or the reading nearest to `to` within max_gap when none fell in the interval.
-class ImuReadingBuffer {
- public:
-  void add(double stamp, const Eigen::Vector3d& rate) {
-    readings_.emplace_back(stamp, rate);
-    while (!readings_.empty() && readings_.front().first < stamp - 5.0) readings_.pop_front();
-  }
-  std::optional<Eigen::Vector3d> meanBetween(double from, double to, double max_gap) const {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    int count = 0;
-    std::optional<Eigen::Vector3d> nearest;
-    double nearest_gap = max_gap;
-    for (const auto& [stamp, rate] : readings_) {
-      if (stamp > from && stamp <= to) sum += rate, ++count;
-      if (std::abs(stamp - to) <= nearest_gap) nearest_gap = std::abs(stamp - to), nearest = rate;
-    }
-    if (count > 0) return sum / count;
-    return nearest;
-  }
-
- private:
-  std::deque<std::pair<double, Eigen::Vector3d>> readings_;
-};
-
-double yawOf(const Eigen::Matrix3d& r) {
-  return std::atan2(r(1, 0), r(0, 0));
-}
-
-}  // namespace
 
 class LocalizationNodelet : public nodelet::Nodelet {
  private:
@@ -378,7 +348,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
   Eigen::Isometry3d odom_to_base_ = Eigen::Isometry3d::Identity();
   /// The IMU buffers, pending_initial_ and pending_gnss_ (callbacks run on several threads).
   std::mutex mutex_;
-  ImuReadingBuffer gyro_, accel_;
+  ImuReadingBuffer gyro_{5.0}, accel_{5.0};  ///< the last 5 s
   struct GnssFix {
     double stamp;
     Eigen::Vector2d xy;

@@ -53,17 +53,31 @@ struct BagDriveReader::Impl {
   size_t num_clouds = 0;
   std::vector<BagFix> fixes;
   std::map<int64_t, Eigen::Quaterniond> imu;  ///< orientation of the IMU frame in ENU
+  /// Body rates and specific force in the IMU frame (REP-145: a quantity whose covariance
+  /// starts with -1 is not given and not kept).
+  std::vector<std::pair<int64_t, Eigen::Vector3d>> gyro, accel;
   std::string imu_frame;
   std::map<int64_t, Eigen::Isometry3d> ground_truth;
   std::vector<StaticEdge> static_tf;
 
   void readSmallTopics();
+  void addImuRates(const sensor_msgs::Imu& msg);
   void addStaticTf(const tf2_msgs::TFMessage& msg);
 };
 
 void BagDriveReader::Impl::addStaticTf(const tf2_msgs::TFMessage& msg) {
   for (const auto& t : msg.transforms)
     static_tf.push_back({t.header.frame_id, t.child_frame_id, fromTransformMsg(t.transform)});
+}
+
+void BagDriveReader::Impl::addImuRates(const sensor_msgs::Imu& msg) {
+  const int64_t stamp = static_cast<int64_t>(msg.header.stamp.toNSec());
+  const auto& w = msg.angular_velocity;
+  const auto& a = msg.linear_acceleration;
+  if (msg.angular_velocity_covariance[0] != -1.0) gyro.emplace_back(stamp, Eigen::Vector3d(w.x, w.y, w.z));
+  if (msg.linear_acceleration_covariance[0] != -1.0)
+    accel.emplace_back(stamp, Eigen::Vector3d(a.x, a.y, a.z));
+  if (imu_frame.empty()) imu_frame = msg.header.frame_id;
 }
 
 void BagDriveReader::Impl::readSmallTopics() {
@@ -79,6 +93,7 @@ void BagDriveReader::Impl::readSmallTopics() {
         fixes.push_back({static_cast<int64_t>(fix->header.stamp.toNSec()), fix->latitude,
                          fix->longitude, fix->altitude, navSatFixStd(*fix)});
     } else if (auto imu_msg = m.instantiate<sensor_msgs::Imu>()) {
+      addImuRates(*imu_msg);
       const auto& o = imu_msg->orientation;
       Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
       // REP-145: orientation_covariance[0] = -1 means no orientation estimate.
@@ -149,6 +164,18 @@ std::vector<std::pair<int64_t, Eigen::Quaterniond>> BagDriveReader::orientations
   out.reserve(impl_->imu.size());
   for (const auto& [stamp_ns, q] : impl_->imu)
     out.emplace_back(stamp_ns, base_T_imu ? (q * imu_T_base).normalized() : q);
+  return out;
+}
+
+std::vector<BagImuReading> BagDriveReader::imuRates(bool accelerations) const {
+  // Vectors turn with the mounting: v_base = R_base_imu * v_imu (the lever arm of the
+  // accelerometer is ignored: centripetal terms of a few cm are below its noise).
+  const std::optional<Eigen::Isometry3d> base_T_imu = baseToFrame(impl_->imu_frame);
+  const Eigen::Matrix3d R =
+      base_T_imu ? Eigen::Matrix3d(base_T_imu->linear()) : Eigen::Matrix3d::Identity();
+  std::vector<BagImuReading> out;
+  for (const auto& [stamp_ns, v] : accelerations ? impl_->accel : impl_->gyro)
+    out.push_back({stamp_ns, R * v});
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "osm_graph_slam/common/attitude.h"
+#include "osm_graph_slam/common/imu_reading_buffer.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -113,6 +114,10 @@ class BagSource : public DriveSource {
       inputs_.addFix({static_cast<double>(f.stamp_ns) * 1e-9, f.lat, f.lon, f.alt, f.std_xy});
     for (const auto& [stamp_ns, q] : reader_.orientations())
       inputs_.addOrientation(static_cast<double>(stamp_ns) * 1e-9, q);
+    for (const BagImuReading& r : reader_.imuRates(false))
+      gyro_.add(static_cast<double>(r.stamp_ns) * 1e-9, r.value);
+    for (const BagImuReading& r : reader_.imuRates(true))
+      accel_.add(static_cast<double>(r.stamp_ns) * 1e-9, r.value);
     // The sensor mounting from tf_static: base_link -> the first cloud's frame.
     pending_ = reader_.nextCloud();
     if (pending_) {
@@ -145,6 +150,11 @@ class BagSource : public DriveSource {
       scan.roll_pitch = Eigen::Vector2d(a->roll, a->pitch);
       scan.orientation = a->orientation;
     }
+    // The IMU between the previous scan and this one (as the localization nodelet takes it).
+    const double from = previous_stamp_.value_or(scan.stamp - 0.1);
+    scan.angular_velocity = gyro_.meanBetween(from, scan.stamp, kImuMaxGap);
+    scan.linear_acceleration = accel_.meanBetween(from, scan.stamp, kImuMaxGap);
+    previous_stamp_ = scan.stamp;
     scan.truth = reader_.groundTruthAt(c->stamp_ns);
     // The pipeline anchors its first keyframe here, whichever cloud that is.
     if (const auto f = inputs_.fixAt(scan.stamp)) {
@@ -162,10 +172,15 @@ class BagSource : public DriveSource {
     return params;
   }
 
+  /// [s] no IMU reading this close to a scan: none for it (the nodelet's imu_max_gap).
+  static constexpr double kImuMaxGap = 0.2;
+
   BagDriveReader reader_;
   SensorInputs inputs_;
   std::optional<EnuConverter> enu_;
   std::optional<BagCloud> pending_;
+  ImuReadingBuffer gyro_, accel_;  ///< the whole bag, base_link
+  std::optional<double> previous_stamp_;
 };
 
 /// A folder of KITTI .bin scans with one georeference for the first scan and no IMU: stamps at

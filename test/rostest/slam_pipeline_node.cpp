@@ -33,6 +33,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <vector>
 
 #include "osm_graph_slam/BuildingArray.h"
@@ -429,11 +430,20 @@ TEST_F(SlamPipeline, Drive) {
       P->bad_input_path_messages = in.locked([&] { return size_t(in.path_messages); });
     }
   }
-  // Let the back-end catch up: every keyframe in the path, and no new path for two periods.
-  const size_t n_kf = in.locked([&] { return in.keyframes.size(); });
-  ASSERT_TRUE(waitFor(
-      [&] { return in.locked([&] { return in.path && in.path->poses.size() == n_kf; }); }, 120.0))
-      << "slam/path never held all " << n_kf << " keyframes";
+  // Let the back-end catch up: every keyframe in the path, and no new path for two periods. The
+  // keyframes are counted inside the wait: the last one may arrive after its scan's status.
+  const bool caught_up = waitFor(
+      [&] {
+        return in.locked([&] { return in.path && in.path->poses.size() == in.keyframes.size(); });
+      },
+      120.0);
+  ASSERT_TRUE(caught_up) << in.locked([&] {
+    std::ostringstream why;
+    why << "slam/path never held all " << in.keyframes.size() << " keyframes: the last of "
+        << in.path_messages << " paths held " << (in.path ? in.path->poses.size() : 0)
+        << ", published " << (ros::WallTime::now() - in.last_path_time).toSec() << " s ago";
+    return why.str();
+  });
   double period = 3.0;
   P->nh->param("/graph_backend/optimization_period", period, period);
   waitFor(

@@ -127,6 +127,13 @@ TEST_F(OfflineSlamBag, ReaderGivesTheDrivesFramesAttitudeAndTruth) {
   EXPECT_NEAR(a->roll, first.roll, 1e-12);
   EXPECT_NEAR(a->pitch, first.pitch, 1e-12);
   const auto seconds = [](int64_t ns) { return static_cast<double>(ns) * 1e-9; };
+  // Body rates and specific force in base_link (the IMU is base_link in KITTI), as OXTS gave them.
+  const std::vector<BagImuReading> gyro = reader.imuRates(false), accel = reader.imuRates(true);
+  ASSERT_EQ(gyro.size(), size_t(kScans));
+  ASSERT_EQ(accel.size(), size_t(kScans));
+  EXPECT_LT((gyro.front().value - Eigen::Vector3d(first.wx, first.wy, first.wz)).norm(), 1e-9);
+  EXPECT_LT((accel.front().value - Eigen::Vector3d(first.ax, first.ay, first.az)).norm(), 1e-9);
+  EXPECT_GT(accel.front().value.z(), 9.0) << "gravity is in the specific force";
 
   // Clouds in stamp order, bit-exact copies of the .bin scans, with IMU and truth at each stamp.
   size_t n = 0;

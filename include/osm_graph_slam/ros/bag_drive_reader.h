@@ -30,6 +30,12 @@ struct BagFix {
   double std_xy = 0.0;  ///< [m] from the message's covariance (0: unknown)
 };
 
+/// One IMU vector (body rate or specific force) in base_link.
+struct BagImuReading {
+  int64_t stamp_ns = 0;
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();
+};
+
 /// One cloud of the bag: cloud is null (and error says why) for a malformed message.
 struct BagCloud {
   int64_t stamp_ns = 0;
@@ -57,6 +63,9 @@ class BagDriveReader {
   /// Every IMU orientation as base_link in ENU (the static base_link -> IMU frame rotation
   /// applied), in stamp order.
   std::vector<std::pair<int64_t, Eigen::Quaterniond>> orientations() const;
+  /// Every IMU body rate (accelerations = false) or specific force (true) in base_link, in the
+  /// bag's order; readings whose covariance says the IMU does not give them are left out.
+  std::vector<BagImuReading> imuRates(bool accelerations) const;
   /// Ground-truth pose nearest to stamp (within max_dt).
   std::optional<Eigen::Isometry3d> groundTruthAt(int64_t stamp_ns, double max_dt = 0.05) const;
   /// base_link -> frame from tf_static (chains of static transforms are followed); identity
