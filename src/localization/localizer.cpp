@@ -481,6 +481,13 @@ bool Localizer::verifyPlaces(const PointCloudConstPtr& cloud, const std::vector<
     const bool fits = registerAtPlace(cloud, coarse_source, c, record);
     if (fits && record.source == "osm_walls") fitting_walls.push_back(result.candidates.size() - 1);
     if (!fits || record.overlap < overlap_limit_) continue;
+    // A walls place was proposed by 2D lines only: its structure (above the ground) must be
+    // explained in 3D too, the ground alone fits a slab of street turned by 90 degrees.
+    if (record.source == "osm_walls" &&
+        record.structure_overlap < params_.global_osm_min_structure_overlap) {
+      record.outcome = "structure";
+      continue;
+    }
     record.outcome = "passed";
     // The ground fits anywhere: places are told apart by how much of the structure they explain.
     const double score = record.structure_cost;

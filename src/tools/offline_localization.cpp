@@ -81,7 +81,7 @@ double yawOfPose(const Eigen::Isometry3d& pose) {
 void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocalizationResult& g,
                       const std::optional<Eigen::Isometry3d>& truth) {
   if (g.candidates.empty())
-    log << stamp << ' ' << (g.success ? "success" : "failure") << " - - - none - - - - - - - -\n";
+    log << stamp << ' ' << (g.success ? "success" : "failure") << " - - - none - - - - - - - - -\n";
   for (const GlobalCandidate& c : g.candidates) {
     double e = std::nan(""), yaw_error = std::nan("");
     if (truth) {
@@ -93,7 +93,7 @@ void logGlobalAttempt(std::ostringstream& log, double stamp, const GlobalLocaliz
         << c.source << ' ' << c.descriptor_distance << ' ' << c.outcome << ' ' << c.fitness << ' '
         << c.overlap << ' ' << c.structure_overlap << ' ' << c.pose.translation().x() << ' '
         << c.pose.translation().y() << ' ' << yawOfPose(c.pose) << ' ' << e << ' ' << yaw_error
-        << ' ' << c.structure_cost << '\n';
+        << ' ' << c.structure_cost << ' ' << c.wall_fitness << '\n';
   }
 }
 
@@ -266,7 +266,8 @@ int main(int argc, char** argv) {
   global_log << std::setprecision(15)
              << "# stamp result keyframe source descriptor_distance outcome fitness overlap "
                 "structure_overlap x y yaw "
-                "error_m error_yaw_deg structure_cost (one line per place tried; result: the "
+                "error_m error_yaw_deg structure_cost wall_fitness (one line per place tried; "
+                "result: the "
                 "attempt's answer)\n";
   bool last_relocalization_correct = false;
   // Kidnapping (--kidnap-at N): from drive scan N on, the scans are skipped until the vehicle is

@@ -129,6 +129,10 @@ struct LocalizationParams {
   int global_osm_min_segments = 3;         ///< fewer wall segments in the scan: no search
   double global_osm_min_fitness = -100.0;  ///< line matcher fitness of a place at least
   int global_osm_min_matched = 2;          ///< matched wall segments of a place at least
+  /// A walls place passes only if this fraction of its structure points (above the ground) lies
+  /// within global_overlap_distance of the map as well (Karlsruhe pair: right walls places
+  /// 0.73-0.92, Scan Context's right places >= 0.66; a street turned by 90 deg: 0.28).
+  double global_osm_min_structure_overlap = 0.5;
   /// [m] above the ground (the map's Scan Context sensor_height below base_link): structure
   /// points, whose overlap is reported (diagnosis; the ground fits any flat place)
   double global_structure_height = 0.5;
@@ -173,7 +177,8 @@ struct GlobalCandidate {
   std::string source = "scan_context";  ///< or geometric_hierarchy, side_view, osm_walls
   double descriptor_distance = 1.0;     ///< Scan Context (-1: a hierarchy or walls candidate)
   double wall_fitness = 0.0;            ///< the line matcher's (osm_walls candidates)
-  std::string outcome;  ///< coarse_failed | fine_failed | fitness | overlap | passed
+  /// coarse_failed | fine_failed | fitness | overlap | structure (osm_walls) | passed
+  std::string outcome;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< after registration
   double fitness = -1.0, overlap = 0.0;
   double structure_overlap = 0.0;  ///< the overlap of the points above the ground only
