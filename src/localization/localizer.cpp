@@ -617,7 +617,7 @@ size_t Localizer::enableOsmWalls(const WallPointExtractorParams& walls,
 }
 
 std::vector<Eigen::Vector2d> Localizer::osmSearchCentres(const Eigen::Vector2d* fix,
-                                                        double fix_limit) const {
+                                                         double fix_limit) const {
   if (!fix) return impl_->osm_path_centres;
   // The fix, and the path's centres from which a place within the fix's limit is searched: the
   // walls seen from where the map drive was match better than those seen from a fix metres off.

@@ -79,7 +79,7 @@ OsmLocalizer::OsmLocalizer(const OsmLocalizerParams& params, std::vector<Buildin
                            const LineMatcherParams& matcher)
     : params_(params),
       impl_(std::make_unique<Impl>(OsmWallMatcher(std::move(buildings), walls, segments,
-                                                   withThresholds(matcher, params)))) {}
+                                                  withThresholds(matcher, params)))) {}
 
 OsmLocalizer::~OsmLocalizer() = default;
 
@@ -216,7 +216,8 @@ void OsmLocalizer::correctOsm(const PointCloudConstPtr& cloud, OsmLocalizationOu
     return;
   }
   t0 = Clock::now();
-  const LineMatchResult match = impl_->walls.matcher().matchGlobal(scan_segments, map_segments, guess);
+  const LineMatchResult match =
+      impl_->walls.matcher().matchGlobal(scan_segments, map_segments, guess);
   stats_.matching_ms += msSince(t0);
   out.osm_fitness = match.fitness;
   if (!match.success) {
@@ -255,10 +256,11 @@ bool OsmLocalizer::tryStartWithoutHeading(const PointCloudConstPtr& cloud,
   if (!cloud) return false;
   const std::vector<LineSegment2> scan_segments = impl_->walls.scanWalls(*cloud);
   if (static_cast<int>(scan_segments.size()) < params_.min_segments) return false;
-  const std::vector<LineSegment2> map_segments = impl_->walls.wallsSeenFrom(fix, params_.query_radius);
+  const std::vector<LineSegment2> map_segments =
+      impl_->walls.wallsSeenFrom(fix, params_.query_radius);
   if (map_segments.empty()) return false;
-  const LineMatchResult match =
-      impl_->walls.matcher().matchGlobal(scan_segments, map_segments, Pose2(fix.x(), fix.y(), 0.0), true);
+  const LineMatchResult match = impl_->walls.matcher().matchGlobal(
+      scan_segments, map_segments, Pose2(fix.x(), fix.y(), 0.0), true);
   if (!match.success || match.fitness < params_.min_fitness ||
       match.matched_segments < params_.min_matched)
     return false;

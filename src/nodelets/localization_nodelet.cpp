@@ -36,8 +36,8 @@
 #include "osm_graph_slam/ros/conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
-#include "osm_graph_slam/ros/wall_matching_params.h"
 #include "osm_graph_slam/ros/sensor_mount_lookup.h"
+#include "osm_graph_slam/ros/wall_matching_params.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/map_export.h"
 
@@ -138,9 +138,10 @@ class LocalizationNodelet : public nodelet::Nodelet {
                                                         node_params_.line_matcher_ns, &found);
     const size_t buildings = localizer_->enableOsmWalls(w.walls, w.segments, w.matcher);
     if (buildings == 0) return;
-    NODELET_INFO("localization: global search also matches the scan's walls with %zu buildings "
-                 "of the map package%s",
-                 buildings, found ? "" : " (wall and matcher parameters: built-in defaults)");
+    NODELET_INFO(
+        "localization: global search also matches the scan's walls with %zu buildings "
+        "of the map package%s",
+        buildings, found ? "" : " (wall and matcher parameters: built-in defaults)");
   }
 
   void publishMapPoints() {

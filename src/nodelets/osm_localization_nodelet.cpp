@@ -48,9 +48,10 @@ class OsmLocalizationNodelet : public nodelet::Nodelet {
     const WallMatchingParams w = readWallMatchingParams(node_params_.line_extraction_ns,
                                                         node_params_.line_matcher_ns, &found);
     if (!found)
-      NODELET_WARN("osm_localization: no wall extraction / line matcher parameters under %s and "
-                   "%s (config/line_extraction.yaml, graph_backend.yaml); using built-in defaults",
-                   node_params_.line_extraction_ns.c_str(), node_params_.line_matcher_ns.c_str());
+      NODELET_WARN(
+          "osm_localization: no wall extraction / line matcher parameters under %s and "
+          "%s (config/line_extraction.yaml, graph_backend.yaml); using built-in defaults",
+          node_params_.line_extraction_ns.c_str(), node_params_.line_matcher_ns.c_str());
     localizer_ = std::make_unique<OsmLocalizer>(params, std::vector<Building>{}, w.walls,
                                                 w.segments, w.matcher);
 

@@ -74,7 +74,8 @@ void BagDriveReader::Impl::addImuRates(const sensor_msgs::Imu& msg) {
   const int64_t stamp = static_cast<int64_t>(msg.header.stamp.toNSec());
   const auto& w = msg.angular_velocity;
   const auto& a = msg.linear_acceleration;
-  if (msg.angular_velocity_covariance[0] != -1.0) gyro.emplace_back(stamp, Eigen::Vector3d(w.x, w.y, w.z));
+  if (msg.angular_velocity_covariance[0] != -1.0)
+    gyro.emplace_back(stamp, Eigen::Vector3d(w.x, w.y, w.z));
   if (msg.linear_acceleration_covariance[0] != -1.0)
     accel.emplace_back(stamp, Eigen::Vector3d(a.x, a.y, a.z));
   if (imu_frame.empty()) imu_frame = msg.header.frame_id;

@@ -227,8 +227,9 @@ int main(int argc, char** argv) {
   const auto t_init = Clock::now();
   Localizer localizer(params, map);
   const size_t wall_buildings =
-      osm_walls ? localizer.enableOsmWalls(pipeline.wall, pipeline.segments, pipeline.backend.matcher)
-                : 0;
+      osm_walls
+          ? localizer.enableOsmWalls(pipeline.wall, pipeline.segments, pipeline.backend.matcher)
+          : 0;
   const double init_ms = msSince(t_init);
 
   std::string initial = args.count("initial-pose") ? args["initial-pose"] : "";

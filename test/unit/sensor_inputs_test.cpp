@@ -113,18 +113,17 @@ TEST(SensorInputs, KeepsAtMostMaxSamplesUnlessUnbounded) {
   EXPECT_EQ(all.numAttitudes(), 10u);
 }
 
-
 // The localiser's IMU per scan: the mean of the readings between two scans; without one in the
 // interval the nearest within the gap; readings out of order are put in place.
 TEST(ImuReadingBuffer, MeanBetweenScansAndNearestWithinTheGap) {
   ImuReadingBuffer buffer;  // stamps in eighths of a second: exact in binary
   for (int i = 0; i < 10; ++i) buffer.add(0.125 * i, Eigen::Vector3d(i, 0.0, 0.0));
-  buffer.add(0.5625, Eigen::Vector3d(100.0, 0.0, 0.0));        // out of order
-  buffer.add(2.0, Eigen::Vector3d(std::nan(""), 0.0, 0.0));     // ignored
+  buffer.add(0.5625, Eigen::Vector3d(100.0, 0.0, 0.0));      // out of order
+  buffer.add(2.0, Eigen::Vector3d(std::nan(""), 0.0, 0.0));  // ignored
   EXPECT_EQ(buffer.size(), 11u);
-  EXPECT_NEAR(buffer.meanBetween(0.25, 0.5, 0.1)->x(), 3.5, 1e-12);     // 3, 4
-  EXPECT_NEAR(buffer.meanBetween(0.5, 0.625, 0.1)->x(), 52.5, 1e-12);   // 100, 5
-  EXPECT_NEAR(buffer.meanBetween(1.25, 1.5, 0.5)->x(), 9.0, 1e-12);     // nearest: 9 at 1.125
+  EXPECT_NEAR(buffer.meanBetween(0.25, 0.5, 0.1)->x(), 3.5, 1e-12);    // 3, 4
+  EXPECT_NEAR(buffer.meanBetween(0.5, 0.625, 0.1)->x(), 52.5, 1e-12);  // 100, 5
+  EXPECT_NEAR(buffer.meanBetween(1.25, 1.5, 0.5)->x(), 9.0, 1e-12);    // nearest: 9 at 1.125
   EXPECT_FALSE(buffer.meanBetween(1.25, 1.5, 0.3));
   EXPECT_FALSE(ImuReadingBuffer().meanBetween(0.0, 1.0, 1.0));
   ImuReadingBuffer live(1.0);  // live use keeps the last second only
