@@ -103,11 +103,6 @@ struct Localizer::Impl {
   std::unique_ptr<Registration> tracker;   ///< scan-to-local-map
   std::unique_ptr<Registration> odometry;  ///< scan-to-previous-scan, off the map
   PointCloudConstPtr previous_scan;        ///< the last matchable scan (odometry target)
-  struct GnssFix {
-    double stamp = 0.0;
-    Eigen::Vector2d xy = Eigen::Vector2d::Zero();
-    double std = 0.0;
-  };
   std::optional<GnssFix> gnss;  ///< the latest setGnssFix
   double gnss_checked_stamp = -1.0;
   int gnss_disagreements = 0;  ///< fixes in a row that contradicted the tracked pose
@@ -378,7 +373,7 @@ void Localizer::reset() {
 
 void Localizer::setGnssFix(double stamp, const Eigen::Vector2d& xy, double std) {
   if (!xy.allFinite()) return;
-  impl_->gnss = Impl::GnssFix{stamp, xy, std::isfinite(std) ? std::max(0.0, std) : 0.0};
+  impl_->gnss = GnssFix{stamp, xy, std::isfinite(std) ? std::max(0.0, std) : 0.0};
 }
 
 const Eigen::Vector2d* Localizer::recentGnssFix(double stamp, double* limit) const {

@@ -147,6 +147,13 @@ struct LocalizationParams {
   int global_confirm_after = 3;
 };
 
+/// A GNSS fix in the map frame: position and its horizontal deviation (0: unknown).
+struct GnssFix {
+  double stamp = 0.0;
+  Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+  double std = 0.0;  ///< [m]
+};
+
 enum class LocalizationStatus {
   kUninitialized,  ///< no pose yet (global localisation failed on this scan)
   kTracking,       ///< corrected by the map
