@@ -611,6 +611,24 @@ size_t Localizer::enableOsmWalls(const WallPointExtractorParams& walls,
   return map_->buildings.size();
 }
 
+Localizer::Place Localizer::wallsPlace(const Pose2& pose, double wall_fitness) const {
+  // The nearest keyframe gives the map region, the height and the slope.
+  size_t nearest = 0;
+  for (size_t i = 1; i < impl_->keyframe_xy.size(); ++i)
+    if ((impl_->keyframe_xy[i] - pose.translation()).squaredNorm() <
+        (impl_->keyframe_xy[nearest] - pose.translation()).squaredNorm())
+      nearest = i;
+  const Eigen::Isometry3d& kf = map_->keyframes[nearest].pose;
+  const Eigen::Vector2d rp = rollPitchOf(Eigen::Matrix3d(kf.linear()));
+  Place p;
+  p.index = static_cast<int>(nearest);
+  p.guess.linear() = rotationFromRollPitchYaw(rp.x(), rp.y(), pose.theta);
+  p.guess.translation() << pose.x, pose.y, kf.translation().z();
+  p.wall_fitness = wall_fitness;
+  p.source = "osm_walls";
+  return p;
+}
+
 std::vector<Eigen::Vector2d> Localizer::osmSearchCentres(const Eigen::Vector2d* fix,
                                                          double fix_limit) const {
   if (!fix) return impl_->osm_path_centres;
@@ -655,21 +673,7 @@ std::vector<Localizer::Place> Localizer::osmWallPlaces(const PointCloudConstPtr&
     bool near = false;
     for (const Place& p : places)
       near = near || (p.guess.translation().head<2>() - h.pose.translation()).norm() < 2.0;
-    if (near) continue;
-    // The nearest keyframe gives the map region, the height and the slope.
-    size_t nearest = 0;
-    for (size_t i = 1; i < impl_->keyframe_xy.size(); ++i)
-      if ((impl_->keyframe_xy[i] - h.pose.translation()).squaredNorm() <
-          (impl_->keyframe_xy[nearest] - h.pose.translation()).squaredNorm())
-        nearest = i;
-    const Eigen::Isometry3d& kf = map_->keyframes[nearest].pose;
-    const Eigen::Vector2d rp = rollPitchOf(Eigen::Matrix3d(kf.linear()));
-    Place& p = places.emplace_back();
-    p.index = static_cast<int>(nearest);
-    p.guess.linear() = rotationFromRollPitchYaw(rp.x(), rp.y(), h.pose.theta);
-    p.guess.translation() << h.pose.x, h.pose.y, kf.translation().z();
-    p.wall_fitness = h.fitness;
-    p.source = "osm_walls";
+    if (!near) places.push_back(wallsPlace(h.pose, h.fitness));
   }
   stats_.global_osm_ms += msSince(t0);
   return places;

@@ -316,6 +316,8 @@ class Localizer {
                                        double away_distance, bool side_views) const;
   /// Places from the scan's walls matched with the buildings (global_osm_walls), best first.
   std::vector<Place> osmWallPlaces(const PointCloudConstPtr& cloud);
+  /// The place of a walls match (planar pose in the map, the line matcher's fitness).
+  Place wallsPlace(const Pose2& pose, double wall_fitness) const;
   /// Where the wall search looks: points along the map drive's path, only those near the GNSS
   /// fix (and the fix) when there is a recent one.
   std::vector<Eigen::Vector2d> osmSearchCentres(const Eigen::Vector2d* fix, double fix_limit) const;
