@@ -122,6 +122,8 @@ struct Localizer::Impl {
   std::unique_ptr<OsmWallMatcher> walls;          ///< enableOsmWalls
   std::vector<Eigen::Vector2d> osm_path_centres;  ///< wall search centres without a fix
   double scan_stamp = 0.0;                        ///< of the scan being processed (GNSS age)
+  /// Scan time of the last walls search that gave no answer (global_osm_interval).
+  double walls_failed_stamp = -std::numeric_limits<double>::infinity();
 };
 
 /// A map keyframe to register the scan against, with the initial guess of the scan's pose.
@@ -410,11 +412,26 @@ void Localizer::setInitialPose(const Eigen::Isometry3d& pose, double stamp) {
 }
 
 GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& cloud) {
-  last_global_ = searchGlobally(cloud);
+  last_global_ = searchGlobally(cloud, /*walls_due=*/true);
   return last_global_;
 }
 
-GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& cloud) {
+GlobalLocalizationResult Localizer::globalLocalizeAt(const PointCloudConstPtr& cloud,
+                                                     double stamp) {
+  // A walls search that found nothing is not repeated on every scan: lost off the map, each one
+  // costs 0.5-1 s in vain. The next waits global_osm_interval of scan time (a jump back: due).
+  const double since = stamp - impl_->walls_failed_stamp;
+  const bool due = !(since >= 0.0 && since < params_.global_osm_interval);
+  const size_t searches = stats_.global_osm_searches;
+  last_global_ = searchGlobally(cloud, due);
+  if (stats_.global_osm_searches > searches)
+    impl_->walls_failed_stamp =
+        last_global_.success ? -std::numeric_limits<double>::infinity() : stamp;
+  return last_global_;
+}
+
+GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& cloud,
+                                                   bool walls_due) {
   GlobalLocalizationResult result;
   const auto t0 = Clock::now();
   ++stats_.global_attempts;
@@ -437,7 +454,7 @@ GlobalLocalizationResult Localizer::searchGlobally(const PointCloudConstPtr& clo
     ambiguous = verifyPlaces(cloud, side, result);
     stats_.global_by_side_view += result.success ? 1 : 0;
   }
-  if (!result.success && !ambiguous && impl_->walls) {
+  if (!result.success && !ambiguous && impl_->walls && walls_due) {
     ambiguous = verifyPlaces(cloud, osmWallPlaces(cloud), result);
     stats_.global_by_osm_walls += result.success ? 1 : 0;
   }
@@ -785,7 +802,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
   // Not started (no initial pose) or diverged: global localisation on this scan.
   impl_->scan_stamp = stamp;
   if (searching_) {
-    GlobalLocalizationResult g = globalLocalize(cloud);
+    GlobalLocalizationResult g = globalLocalizeAt(cloud, stamp);
     double gnss_limit = 0.0;
     const Eigen::Vector2d* fix = recentGnssFix(stamp, &gnss_limit);
     if (g.success && fix && (g.pose.translation().head<2>() - *fix).norm() > gnss_limit) {
@@ -918,7 +935,7 @@ LocalizationOutput Localizer::process(double stamp, const PointCloudConstPtr& cl
     if (accepted && ++confirm_wait_ >= params_.global_confirm_after) {
       // Independent of the tracked pose, but on the scan deskewed by the tracked motion: a raw
       // scan in a turn is smeared by degrees and its answer lands a metre off.
-      const GlobalLocalizationResult g = globalLocalize(scan);
+      const GlobalLocalizationResult g = globalLocalizeAt(scan, stamp);
       if (g.success) {
         const Eigen::Isometry3d d = out.pose.inverse() * g.pose;
         if (d.translation().norm() < 1.0 && rotationAngle(d.linear()) < 2.0 * M_PI / 180.0) {

@@ -82,6 +82,7 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   r.param("global_osm_min_segments", p.global_osm_min_segments);
   r.param("global_osm_min_fitness", p.global_osm_min_fitness);
   r.param("global_osm_min_matched", p.global_osm_min_matched);
+  r.param("global_osm_interval", p.global_osm_interval);
   r.param("global_osm_min_structure_overlap", p.global_osm_min_structure_overlap);
   r.param("global_confirm_after", p.global_confirm_after);
 }

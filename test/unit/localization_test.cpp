@@ -997,3 +997,30 @@ TEST(Localizer, OsmWallsFindScansBesideTheMappedPath) {
   EXPECT_GE(by_walls[0], 0.65 * tried);  // measured 24 of 28
   EXPECT_GE(by_walls[1], 0.65 * tried);  // measured 25
 }
+
+// Lost off the map, a walls search finds nothing and costs up to a second: it is not repeated on
+// every scan but after global_osm_interval of scan time (Scan Context still runs on each scan).
+TEST(Localizer, OsmWallsSearchIsSpacedWhileLost) {
+  const TownMap& town = townMap();
+  auto package = std::make_shared<MapPackage>(*town.package);
+  package->buildings = townBuildings(town.world);
+  LocalizationParams params = trackingParams();
+  params.global_confirm_after = 0;
+  Localizer localizer(params, package);
+  ASSERT_GT(localizer.enableOsmWalls({}, {}, {}), 0u);
+  // 400 m from the town: ground only, no place anywhere.
+  const auto cloud = simulateSyntheticScan(town.world, Eigen::Vector2d(400.0, 400.0), 0.0,
+                                           town.lidar, 3);
+  for (int k = 0; k < 16; ++k) {  // 0 .. 1.875 s in eighths (exact in binary)
+    const LocalizationOutput out = localizer.process(0.125 * k, cloud);
+    EXPECT_EQ(out.status, LocalizationStatus::kUninitialized);
+  }
+  EXPECT_EQ(localizer.stats().global_attempts, 16u);
+  EXPECT_EQ(localizer.stats().global_osm_searches, 2u) << "at 0 s and 1 s";
+  // Time jumps back (a replayed bag): due at once.
+  localizer.process(0.0, cloud);
+  EXPECT_EQ(localizer.stats().global_osm_searches, 3u);
+  // A direct call always searches.
+  localizer.globalLocalize(cloud);
+  EXPECT_EQ(localizer.stats().global_osm_searches, 4u);
+}

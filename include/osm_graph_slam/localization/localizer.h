@@ -129,6 +129,9 @@ struct LocalizationParams {
   int global_osm_min_segments = 3;         ///< fewer wall segments in the scan: no search
   double global_osm_min_fitness = -100.0;  ///< line matcher fitness of a place at least
   int global_osm_min_matched = 2;          ///< matched wall segments of a place at least
+  /// [s] of scan time after a walls search that found nothing before the next (lost off the
+  /// map, each costs 0.5-1 s); direct globalLocalize calls always search.
+  double global_osm_interval = 1.0;
   /// A walls place passes only if this fraction of its structure points (above the ground) lies
   /// within global_overlap_distance of the map as well (Karlsruhe pair: right walls places
   /// 0.73-0.92, Scan Context's right places >= 0.66; a street turned by 90 deg: 0.28).
@@ -303,7 +306,10 @@ class Localizer {
  private:
   struct Impl;
   struct Place;
-  GlobalLocalizationResult searchGlobally(const PointCloudConstPtr& cloud);
+  /// walls_due = false: no OSM walls search this time (global_osm_interval).
+  GlobalLocalizationResult searchGlobally(const PointCloudConstPtr& cloud, bool walls_due);
+  /// globalLocalize for the scan at stamp, with the walls search spaced by global_osm_interval.
+  GlobalLocalizationResult globalLocalizeAt(const PointCloudConstPtr& cloud, double stamp);
   /// The places worth registering, best first, 5 m apart (global_method decides the sources).
   std::vector<Place> candidatePlaces(const PointCloudConstPtr& cloud);
   void addScanContextPlaces(const PointCloudConstPtr& cloud, std::vector<Place>& places) const;
