@@ -103,7 +103,7 @@ struct Localizer::Impl {
   std::unique_ptr<Registration> tracker;   ///< scan-to-local-map
   std::unique_ptr<Registration> odometry;  ///< scan-to-previous-scan, off the map
   PointCloudConstPtr previous_scan;        ///< the last matchable scan (odometry target)
-  std::optional<GnssFix> gnss;  ///< the latest setGnssFix
+  std::optional<GnssFix> gnss;             ///< the latest setGnssFix
   double gnss_checked_stamp = -1.0;
   int gnss_disagreements = 0;  ///< fixes in a row that contradicted the tracked pose
   std::unique_ptr<Registration> coarse, fine;  ///< global localisation

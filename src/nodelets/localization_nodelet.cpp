@@ -350,8 +350,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   /// The IMU buffers, pending_initial_ and pending_gnss_ (callbacks run on several threads).
   std::mutex mutex_;
   ImuReadingBuffer gyro_{5.0}, accel_{5.0};  ///< the last 5 s
-  std::optional<GnssFix> pending_gnss_;  ///< the newest fix, handed over with the next scan
-  std::optional<EnuConverter> map_enu_;  ///< the map package's ENU origin
+  std::optional<GnssFix> pending_gnss_;      ///< the newest fix, handed over with the next scan
+  std::optional<EnuConverter> map_enu_;      ///< the map package's ENU origin
   ros::Publisher status_pub_, odom_pub_, map_pub_;
   ros::Subscriber cloud_sub_, imu_sub_, initial_sub_, gnss_sub_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;

@@ -1009,8 +1009,8 @@ TEST(Localizer, OsmWallsSearchIsSpacedWhileLost) {
   Localizer localizer(params, package);
   ASSERT_GT(localizer.enableOsmWalls({}, {}, {}), 0u);
   // 400 m from the town: ground only, no place anywhere.
-  const auto cloud = simulateSyntheticScan(town.world, Eigen::Vector2d(400.0, 400.0), 0.0,
-                                           town.lidar, 3);
+  const auto cloud =
+      simulateSyntheticScan(town.world, Eigen::Vector2d(400.0, 400.0), 0.0, town.lidar, 3);
   for (int k = 0; k < 16; ++k) {  // 0 .. 1.875 s in eighths (exact in binary)
     const LocalizationOutput out = localizer.process(0.125 * k, cloud);
     EXPECT_EQ(out.status, LocalizationStatus::kUninitialized);
