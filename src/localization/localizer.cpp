@@ -122,8 +122,9 @@ struct Localizer::Impl {
   std::unique_ptr<OsmWallMatcher> walls;          ///< enableOsmWalls
   std::vector<Eigen::Vector2d> osm_path_centres;  ///< wall search centres without a fix
   double scan_stamp = 0.0;                        ///< of the scan being processed (GNSS age)
-  /// Scan time of the last walls search that gave no answer (global_osm_interval).
+  /// Scan time of the last walls search and the failures in a row (global_osm_interval).
   double walls_failed_stamp = -std::numeric_limits<double>::infinity();
+  int walls_failures = 0;
 };
 
 /// A map keyframe to register the scan against, with the initial guess of the scan's pose.
@@ -418,15 +419,19 @@ GlobalLocalizationResult Localizer::globalLocalize(const PointCloudConstPtr& clo
 
 GlobalLocalizationResult Localizer::globalLocalizeAt(const PointCloudConstPtr& cloud,
                                                      double stamp) {
-  // A walls search that found nothing is not repeated on every scan: lost off the map, each one
-  // costs 0.5-1 s in vain. The next waits global_osm_interval of scan time (a jump back: due).
+  // Walls searches that find nothing back off: lost off the map each costs 0.5-1 s in vain. The
+  // wait after the n-th failure in a row is global_osm_interval / 2^(4-n), at most the interval
+  // (a time jump back: due at once).
   const double since = stamp - impl_->walls_failed_stamp;
-  const bool due = !(since >= 0.0 && since < params_.global_osm_interval);
+  const double wait =
+      params_.global_osm_interval / std::pow(2.0, std::max(0, 4 - impl_->walls_failures));
+  const bool due = !(since >= 0.0 && since < wait);
   const size_t searches = stats_.global_osm_searches;
   last_global_ = searchGlobally(cloud, due);
-  if (stats_.global_osm_searches > searches)
-    impl_->walls_failed_stamp =
-        last_global_.success ? -std::numeric_limits<double>::infinity() : stamp;
+  if (stats_.global_osm_searches > searches) {
+    impl_->walls_failures = last_global_.success ? 0 : impl_->walls_failures + 1;
+    impl_->walls_failed_stamp = stamp;
+  }
   return last_global_;
 }
 

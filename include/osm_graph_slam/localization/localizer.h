@@ -129,8 +129,9 @@ struct LocalizationParams {
   int global_osm_min_segments = 3;         ///< fewer wall segments in the scan: no search
   double global_osm_min_fitness = -100.0;  ///< line matcher fitness of a place at least
   int global_osm_min_matched = 2;          ///< matched wall segments of a place at least
-  /// [s] of scan time after a walls search that found nothing before the next (lost off the
-  /// map, each costs 0.5-1 s); direct globalLocalize calls always search.
+  /// [s] of scan time between walls searches that keep finding nothing (lost off the map, each
+  /// costs 0.5-1 s): after the 1st, 2nd, 3rd failure in a row 1/8, 1/4, 1/2 of it, then all of
+  /// it; direct globalLocalize calls always search.
   double global_osm_interval = 1.0;
   /// A walls place passes only if this fraction of its structure points (above the ground) lies
   /// within global_overlap_distance of the map as well (Karlsruhe pair: right walls places
@@ -308,7 +309,7 @@ class Localizer {
   struct Place;
   /// walls_due = false: no OSM walls search this time (global_osm_interval).
   GlobalLocalizationResult searchGlobally(const PointCloudConstPtr& cloud, bool walls_due);
-  /// globalLocalize for the scan at stamp, with the walls search spaced by global_osm_interval.
+  /// globalLocalize for the scan at stamp, failed walls searches backing off (global_osm_interval).
   GlobalLocalizationResult globalLocalizeAt(const PointCloudConstPtr& cloud, double stamp);
   /// The places worth registering, best first, 5 m apart (global_method decides the sources).
   std::vector<Place> candidatePlaces(const PointCloudConstPtr& cloud);
