@@ -122,8 +122,8 @@ struct Localizer::Impl {
   std::unique_ptr<OsmWallMatcher> walls;          ///< enableOsmWalls
   std::vector<Eigen::Vector2d> osm_path_centres;  ///< wall search centres without a fix
   double scan_stamp = 0.0;                        ///< of the scan being processed (GNSS age)
-  /// Scan time of the last walls search and the failures in a row (global_osm_interval).
-  double walls_failed_stamp = -std::numeric_limits<double>::infinity();
+  /// Scan time of the last walls search, and how many in a row found nothing (back-off).
+  double walls_search_stamp = -std::numeric_limits<double>::infinity();
   int walls_failures = 0;
 };
 
@@ -422,7 +422,7 @@ GlobalLocalizationResult Localizer::globalLocalizeAt(const PointCloudConstPtr& c
   // Walls searches that find nothing back off: lost off the map each costs 0.5-1 s in vain. The
   // wait after the n-th failure in a row is global_osm_interval / 2^(4-n), at most the interval
   // (a time jump back: due at once).
-  const double since = stamp - impl_->walls_failed_stamp;
+  const double since = stamp - impl_->walls_search_stamp;
   const double wait =
       params_.global_osm_interval / std::pow(2.0, std::max(0, 4 - impl_->walls_failures));
   const bool due = !(since >= 0.0 && since < wait);
@@ -430,7 +430,7 @@ GlobalLocalizationResult Localizer::globalLocalizeAt(const PointCloudConstPtr& c
   last_global_ = searchGlobally(cloud, due);
   if (stats_.global_osm_searches > searches) {
     impl_->walls_failures = last_global_.success ? 0 : impl_->walls_failures + 1;
-    impl_->walls_failed_stamp = stamp;
+    impl_->walls_search_stamp = stamp;
   }
   return last_global_;
 }
