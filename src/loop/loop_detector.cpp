@@ -640,6 +640,25 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   return true;
 }
 
+size_t LoopDetector::updatePoses(const std::vector<std::pair<uint64_t, Eigen::Isometry3d>>& poses) {
+  std::unordered_map<uint64_t, const Eigen::Isometry3d*> by_id;
+  by_id.reserve(poses.size());
+  for (const auto& [id, pose] : poses) by_id[id] = &pose;
+  size_t moved = 0;
+  auto index = std::make_unique<DynamicKdIndex>(3);
+  for (auto& entry : entries_) {
+    const auto it = by_id.find(entry.id);
+    if (it != by_id.end()) {
+      entry.odom_pose = *it->second;
+      ++moved;
+    }
+    const Eigen::Vector3f position = entry.odom_pose.translation().cast<float>();
+    index->add(position.data());
+  }
+  position_index_ = std::move(index);
+  return moved;
+}
+
 std::optional<DetectedLoop> LoopDetector::process(const LoopKeyframe& keyframe) {
   auto loop = detect(keyframe);
   LoopQueryStats stats = stats_;

@@ -1,5 +1,6 @@
 // Loop detection nodelet: KeyFrame -> LoopClosure. Thin adapter around LoopDetector.
 #include <geometry_msgs/Pose.h>
+#include <nav_msgs/Path.h>
 #include <nodelet/nodelet.h>
 #include <osm_graph_slam/KeyFrame.h>
 #include <osm_graph_slam/LoopClosure.h>
@@ -10,6 +11,7 @@
 
 #include <condition_variable>
 #include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
@@ -93,6 +95,9 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     input_nh.setCallbackQueue(&input_queue_);
     subscriber_ = input_nh.subscribe("keyframe", std::max(1, np.input_queue_size),
                                      &LoopDetectionNodelet::onKeyframe, this);
+    // The back-end's corrected keyframes: the stored ones follow them (LoopDetector::updatePoses).
+    if (tf_buffer_)
+      path_subscriber_ = input_nh.subscribe("slam/path", 1, &LoopDetectionNodelet::onPath, this);
     worker_ = std::thread(&LoopDetectionNodelet::searchLoop, this);
     input_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &input_queue_);
     input_spinner_->start();
@@ -114,18 +119,42 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     pending_cv_.notify_one();
   }
 
+  /// Input thread: only the newest path is kept; the worker applies it before its next search.
+  void onPath(const nav_msgs::PathConstPtr& msg) {
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      pending_path_ = msg;
+    }
+    pending_cv_.notify_one();
+  }
+
+  /// Worker: the stored keyframes take the back-end's poses, matched by stamp (the path's poses
+  /// carry the keyframes' stamps, not their ids).
+  void applyPath(const nav_msgs::Path& path) {
+    std::vector<std::pair<uint64_t, Eigen::Isometry3d>> poses;
+    poses.reserve(path.poses.size());
+    for (const auto& p : path.poses) {
+      const auto it = id_by_stamp_.find(p.header.stamp);
+      if (it != id_by_stamp_.end()) poses.emplace_back(it->second, fromPoseMsg(p.pose));
+    }
+    detector_->updatePoses(poses);
+  }
+
   /// Worker: every keyframe joins the database; when the search fell behind, only the newest
   /// waiting keyframe is searched from (a loop from a stale keyframe is worth less than keeping
   /// up), and the skipped searches are counted and said.
   void searchLoop() {
     for (;;) {
       std::deque<osm_graph_slam::KeyFrameConstPtr> batch;
+      nav_msgs::PathConstPtr path;
       {
         std::unique_lock<std::mutex> lock(pending_mutex_);
-        pending_cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });
+        pending_cv_.wait(lock, [&] { return stop_ || !pending_.empty() || pending_path_; });
         if (stop_) return;
         batch.swap(pending_);
+        path.swap(pending_path_);
       }
+      if (path) applyPath(*path);
       for (size_t i = 0; i < batch.size(); ++i) handle(*batch[i], i + 1 == batch.size());
       if (batch.size() > 1) {
         searches_skipped_ += batch.size() - 1;
@@ -151,6 +180,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       return;
     }
     kf.cloud = cloud;
+    if (tf_buffer_) id_by_stamp_[msg.header.stamp] = msg.id;
     noteRestart(msg);
     if (!search) {
       detector_->addKeyframe(kf);
@@ -234,6 +264,9 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   std::mutex pending_mutex_;
   std::condition_variable pending_cv_;
   std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;  ///< received, not yet handled
+  ros::Subscriber path_subscriber_;                       ///< search_frame map: slam/path
+  nav_msgs::PathConstPtr pending_path_;                   ///< the newest, not yet applied
+  std::map<ros::Time, uint64_t> id_by_stamp_;             ///< worker only (search_frame map)
   bool stop_ = false;
   size_t searches_skipped_ = 0;
   SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue

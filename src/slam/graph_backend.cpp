@@ -753,6 +753,14 @@ Trajectory GraphBackend::trajectory() const {
   return t;
 }
 
+std::vector<std::pair<uint64_t, Eigen::Isometry3d>> GraphBackend::keyframeMapPoses() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<std::pair<uint64_t, Eigen::Isometry3d>> out;
+  out.reserve(state_->keyframes.size());
+  for (const auto& [id, kf] : state_->keyframes) out.emplace_back(id, kf.map_pose);
+  return out;
+}
+
 Trajectory GraphBackend::odomTrajectory() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   Trajectory t;

@@ -187,7 +187,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     // map->odom holds the origin and the heading only once the first keyframe is in the graph:
     // until the first update the queries below would be made in the odometry frame.
     StageTimer t(timings_.backend_ms);
-    account(backend_->update());
+    updateBackend();
   }
   if (osm_buffer_) {
     StageTimer t(timings_.osm_ms);
@@ -205,7 +205,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
 
   if (++keyframes_since_update_ >= static_cast<size_t>(params_.optimize_every_keyframes)) {
     StageTimer t(timings_.backend_ms);
-    account(backend_->update());
+    updateBackend();
     keyframes_since_update_ = 0;
   }
 }
@@ -232,6 +232,13 @@ PipelineTimings SlamPipeline::timings() const {
   t.floors_found = floor_health_.found();
   t.floors_missing = floor_health_.missing();
   return t;
+}
+
+void SlamPipeline::updateBackend() {
+  const BackendUpdateReport report = backend_->update();
+  account(report);
+  // The stored keyframes follow the corrections, as the queries do (mapToOdom above).
+  if (loops_ && loop_search_in_map_) loops_->updatePoses(backend_->keyframeMapPoses());
 }
 
 void SlamPipeline::account(const BackendUpdateReport& report) {

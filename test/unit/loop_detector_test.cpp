@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <optional>
 #include <random>
 
 #include "osm_graph_slam/common/planar_pose.h"
@@ -87,13 +88,30 @@ struct DriveOutcome {
   double max_t = 0.0, max_r = 0.0;
 };
 
+/// search_frame map: the keyframes before `at` arrive in a frame turned by 90 deg about the start
+/// (the map frame before the heading was known); at keyframe `at` the back-end has the heading
+/// and, with `update`, the detector is given the corrected poses of the stored keyframes.
+struct FrameChange {
+  size_t at = 0;
+  bool update = false;
+};
+
 /// Runs the drive through a detector; prints every missed revisit with its candidates.
-DriveOutcome runDrive(const LoopDetectorParams& params) {
+DriveOutcome runDrive(const LoopDetectorParams& params,
+                      std::optional<FrameChange> change = std::nullopt) {
   const Drive& d = drive();
   LoopDetector detector(params);
   DriveOutcome out;
+  const Eigen::Isometry3d turned = isometryFromPlanar(Pose2(0.0, 0.0, M_PI / 2));
   for (size_t i = 0; i < d.keyframes.size(); ++i) {
-    const auto loop = detector.process(d.keyframes[i]);
+    LoopKeyframe keyframe = d.keyframes[i];
+    if (change && i < change->at) keyframe.odom_pose = turned * keyframe.odom_pose;
+    if (change && change->update && i == change->at) {
+      std::vector<std::pair<uint64_t, Eigen::Isometry3d>> corrected;
+      for (size_t j = 0; j < i; ++j) corrected.emplace_back(j, d.keyframes[j].odom_pose);
+      EXPECT_EQ(detector.updatePoses(corrected), i);
+    }
+    const auto loop = detector.process(keyframe);
     const bool revisit = hasTrueRevisit(d, i, params.min_accum_distance_gap, 5.0);
     out.revisits += revisit ? 1 : 0;
     out.ambiguous += detector.lastStats().rejected_ambiguous;
@@ -176,6 +194,17 @@ TEST(LoopDetector, CoarseGicpStageKeepsTheOdometryGuard) {
   EXPECT_EQ(out.ambiguous, 0) << "no correlative stage in this configuration";
   EXPECT_EQ(out.false_loops, 0);
   EXPECT_EQ(out.inaccurate, 0);
+}
+
+TEST(LoopDetector, StoredPosesFollowTheBackEndsCorrections) {
+  // Every revisit of this drive returns to the first 40 keyframes (the first street).
+  const FrameChange stale{40, false};
+  const DriveOutcome before = runDrive(LoopDetectorParams(), stale);
+  EXPECT_GE(before.revisits, 30);
+  EXPECT_LE(before.found, before.revisits / 4) << "the stale frame should hide the revisits";
+  const DriveOutcome after = runDrive(LoopDetectorParams(), FrameChange{40, true});
+  EXPECT_GE(after.found, static_cast<int>(0.95 * after.revisits));
+  EXPECT_EQ(after.false_loops, 0);
 }
 
 }  // namespace

@@ -176,6 +176,7 @@ struct LoopQueryStats {
 /// A database entry (public for tests and tools).
 struct LoopDatabaseEntry {
   uint64_t id = 0;
+  /// The pose searched around (odometry, or the map estimate with search_frame map).
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
   ScanContext descriptor;
@@ -208,6 +209,12 @@ class LoopDetector {
   std::optional<DetectedLoop> relocalize(const LoopKeyframe& keyframe);
   /// Stores a keyframe (descriptor computed once here). Returns false on an unusable cloud.
   bool addKeyframe(const LoopKeyframe& keyframe);
+  /// search_frame map: replaces the stored keyframes' poses by the back-end's newest estimates
+  /// (keyframes not named keep theirs), so that the stored keyframes and the next queries share
+  /// one frame. Poses stored at arrival by the map -> odom of that moment do not: a later
+  /// change of map -> odom (the heading found from GNSS, a loop) moves only the newer ones.
+  /// Returns how many stored keyframes were moved.
+  size_t updatePoses(const std::vector<std::pair<uint64_t, Eigen::Isometry3d>>& poses);
 
   size_t size() const { return entries_.size(); }
   const LoopDatabaseEntry& entry(size_t index) const { return entries_[index]; }

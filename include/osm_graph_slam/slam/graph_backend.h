@@ -188,7 +188,9 @@ class GraphBackend {
   std::optional<KeyframeState> latestKeyframe() const;
   /// map -> odom, so that map_pose(latest) = mapToOdom * odom_pose(latest).
   Eigen::Isometry3d mapToOdom() const;
-  Trajectory trajectory() const;      ///< corrected keyframe poses (map)
+  Trajectory trajectory() const;  ///< corrected keyframe poses (map)
+  /// (id, corrected pose in map) of every keyframe in the graph, in id order.
+  std::vector<std::pair<uint64_t, Eigen::Isometry3d>> keyframeMapPoses() const;
   Trajectory odomTrajectory() const;  ///< the same keyframes as odometry saw them
   std::vector<BuildingState> buildings() const;
   std::vector<Building> correctedBuildings() const;  ///< outline_geo filled when the origin is set

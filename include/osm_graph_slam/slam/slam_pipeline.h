@@ -110,6 +110,8 @@ class SlamPipeline {
   std::string scaleLine() const;
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
                      const ScanAiding& aiding);
+  /// backend_->update(), accounted; with search_frame map the loop database follows it.
+  void updateBackend();
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, const TrackResult& track, const ScanAiding& aiding);
