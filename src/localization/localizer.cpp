@@ -118,10 +118,11 @@ struct Localizer::Impl {
     ScanContext descriptor;
   };
   std::vector<SideView> side_views;
-  std::unique_ptr<LandmarkLoopSource> landmarks;  ///< geometric_hierarchy / combined
-  std::unique_ptr<OsmWallMatcher> walls;          ///< enableOsmWalls
-  std::vector<Eigen::Vector2d> osm_path_centres;  ///< wall search centres without a fix
-  double scan_stamp = 0.0;                        ///< of the scan being processed (GNSS age)
+  std::unique_ptr<LandmarkLoopSource> landmarks;  ///< geometric_hierarchy / combined, per keyframe
+  std::unique_ptr<LandmarkMapRecognizer> landmark_map;  ///< ... against the map's landmarks
+  std::unique_ptr<OsmWallMatcher> walls;                ///< enableOsmWalls
+  std::vector<Eigen::Vector2d> osm_path_centres;        ///< wall search centres without a fix
+  double scan_stamp = 0.0;                              ///< of the scan being processed (GNSS age)
   /// Scan time of the last walls search, and how many in a row found nothing (back-off).
   double walls_search_stamp = -std::numeric_limits<double>::infinity();
   int walls_failures = 0;
@@ -152,12 +153,10 @@ Localizer::Localizer(const LocalizationParams& params, std::shared_ptr<const Map
       params_.global_method != "combined")
     throw std::invalid_argument("localization: unknown global_method '" + params_.global_method +
                                 "' (scan_context | geometric_hierarchy | combined)");
-  if (params_.global_method != "scan_context") {
-    impl_->landmarks =
-        std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
-    for (const MapKeyframe& kf : map_->keyframes)
-      impl_->landmarks->add(kf.cloud ? kf.cloud : std::make_shared<PointCloud>());
-  }
+  if (params_.landmark_map != "keyframes" && params_.landmark_map != "global")
+    throw std::invalid_argument("localization: unknown landmark_map '" + params_.landmark_map +
+                                "' (keyframes | global)");
+  if (params_.global_method != "scan_context") buildLandmarkIndex();
   learnDescriptorLimit();
   const size_t n = map_->keyframes.size();
   addSideViews();
@@ -596,8 +595,35 @@ PlaceFit Localizer::overlapAt(const PointCloud& cloud, const Eigen::Isometry3d& 
       params_.global_structure_height - map_->scan_context.sensor_height);  // base_link z
 }
 
+void Localizer::buildLandmarkIndex() {
+  if (params_.landmark_map == "keyframes") {
+    impl_->landmarks =
+        std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
+    for (const MapKeyframe& kf : map_->keyframes)
+      impl_->landmarks->add(kf.cloud ? kf.cloud : std::make_shared<PointCloud>());
+    return;
+  }
+  std::vector<KeyframeLandmarks> observed;
+  std::vector<Eigen::Vector2d> path;
+  for (const MapKeyframe& kf : map_->keyframes) {
+    KeyframeLandmarks& k = observed.emplace_back();
+    k.pose = planarPose(kf.pose);
+    if (kf.cloud)
+      k.landmarks = landmarkCenters(extractLandmarks(*kf.cloud, params_.landmark_extraction));
+    path.push_back(kf.pose.translation().head<2>());
+  }
+  impl_->landmark_map = std::make_unique<LandmarkMapRecognizer>(
+      discoverLandmarks(observed, params_.landmark_map_params), path, params_.landmark_map_params,
+      params_.landmarks);
+}
+
 std::vector<Localizer::Place> Localizer::candidatePlaces(const PointCloudConstPtr& cloud) {
   std::vector<Place> places;
+  if (impl_->landmark_map) {  // first, as below
+    const auto match = impl_->landmark_map->query(
+        landmarkCenters(extractLandmarks(*cloud, params_.landmark_extraction)));
+    if (match) places.push_back(placeAt(match->pose, "geometric_hierarchy"));
+  }
   if (impl_->landmarks) {  // first: its guess holds the translation too
     const auto proposal = impl_->landmarks->propose(cloud, impl_->landmarks->size());
     if (proposal) {
@@ -633,7 +659,7 @@ size_t Localizer::enableOsmWalls(const WallPointExtractorParams& walls,
   return map_->buildings.size();
 }
 
-Localizer::Place Localizer::wallsPlace(const Pose2& pose, double wall_fitness) const {
+Localizer::Place Localizer::placeAt(const Pose2& pose, const char* source) const {
   // The nearest keyframe gives the map region, the height and the slope.
   size_t nearest = 0;
   for (size_t i = 1; i < impl_->keyframe_xy.size(); ++i)
@@ -646,8 +672,7 @@ Localizer::Place Localizer::wallsPlace(const Pose2& pose, double wall_fitness) c
   p.index = static_cast<int>(nearest);
   p.guess.linear() = rotationFromRollPitchYaw(rp.x(), rp.y(), pose.theta);
   p.guess.translation() << pose.x, pose.y, kf.translation().z();
-  p.wall_fitness = wall_fitness;
-  p.source = "osm_walls";
+  p.source = source;
   return p;
 }
 
@@ -695,7 +720,9 @@ std::vector<Localizer::Place> Localizer::osmWallPlaces(const PointCloudConstPtr&
     bool near = false;
     for (const Place& p : places)
       near = near || (p.guess.translation().head<2>() - h.pose.translation()).norm() < 2.0;
-    if (!near) places.push_back(wallsPlace(h.pose, h.fitness));
+    if (near) continue;
+    places.push_back(placeAt(h.pose, "osm_walls"));
+    places.back().wall_fitness = h.fitness;
   }
   stats_.global_osm_ms += msSince(t0);
   return places;

@@ -59,6 +59,12 @@ void readParams(const ParamReader& r, LocalizationParams& p) {
   const PrefixedParamReader landmarks(r, "landmarks");
   readParams(PrefixedParamReader(landmarks, "extraction"), p.landmark_extraction);
   readParams(landmarks, p.landmarks);
+  r.param("landmark_map", p.landmark_map);
+  const PrefixedParamReader landmark_map(r, "landmark_map_params");
+  landmark_map.param("association_distance", p.landmark_map_params.association_distance);
+  landmark_map.param("min_observations", p.landmark_map_params.min_observations);
+  landmark_map.param("tile_radius", p.landmark_map_params.tile_radius);
+  landmark_map.param("tile_spacing", p.landmark_map_params.tile_spacing);
   r.param("global_ring_key_candidates", p.global_ring_key_candidates);
   r.param("global_candidates", p.global_candidates);
   r.param("global_max_descriptor_distance", p.global_max_descriptor_distance);

@@ -19,6 +19,7 @@
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/cloud/scan_deskew.h"
 #include "osm_graph_slam/cloud/wall_point_extractor.h"
+#include "osm_graph_slam/landmarks/landmark_map.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/localization/map_package.h"
@@ -87,6 +88,11 @@ struct LocalizationParams {
   std::string global_method = "scan_context";
   LandmarkExtractionParams landmark_extraction = loopLandmarkExtractionDefaults();
   LandmarkPlaceRecognitionParams landmarks;
+  /// What the scan's landmarks are matched with: keyframes (each map keyframe's own) | global
+  /// (the landmarks that landmark_map_params.min_observations keyframes agree on, merged into one
+  /// map and indexed in tiles along the mapped path; GeoSLAM §4.3, doc/landmarks.md).
+  std::string landmark_map = "keyframes";
+  LandmarkMapParams landmark_map_params;
   int global_ring_key_candidates = 30;          ///< nearest ring keys searched
   int global_candidates = 8;                    ///< best Scan Context matches registered
   double global_max_descriptor_distance = 0.6;  ///< upper bound of the limit below
@@ -324,7 +330,11 @@ class Localizer {
   /// Places from the scan's walls matched with the buildings (global_osm_walls), best first.
   std::vector<Place> osmWallPlaces(const PointCloudConstPtr& cloud);
   /// The place of a walls match (planar pose in the map, the line matcher's fitness).
-  Place wallsPlace(const Pose2& pose, double wall_fitness) const;
+  /// The place of a planar map pose; the nearest keyframe gives the height and the slope.
+  Place placeAt(const Pose2& pose, const char* source) const;
+  /// geometric_hierarchy / combined: the map keyframes' landmarks, indexed per keyframe or
+  /// merged into the map's landmarks (landmark_map).
+  void buildLandmarkIndex();
   /// Where the wall search looks: points along the map drive's path, only those near the GNSS
   /// fix (and the fix) when there is a recent one.
   std::vector<Eigen::Vector2d> osmSearchCentres(const Eigen::Vector2d* fix, double fix_limit) const;
