@@ -137,7 +137,11 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       const auto it = id_by_stamp_.find(p.header.stamp);
       if (it != id_by_stamp_.end()) poses.emplace_back(it->second, fromPoseMsg(p.pose));
     }
-    detector_->updatePoses(poses);
+    const size_t moved = detector_->updatePoses(poses);
+    NODELET_INFO_ONCE(
+        "loop_detection: search_frame map: the stored keyframes follow the back-end's slam/path "
+        "(first update: %zu of %zu moved)",
+        moved, detector_->size());
   }
 
   /// Worker: every keyframe joins the database; when the search fell behind, only the newest
