@@ -133,9 +133,14 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   void applyPath(const nav_msgs::Path& path) {
     std::vector<std::pair<uint64_t, Eigen::Isometry3d>> poses;
     poses.reserve(path.poses.size());
+    // A looped bag repeats its stamps: the path (in id order) names the keyframes of one stamp
+    // in the order they came.
+    std::map<ros::Time, size_t> seen;
     for (const auto& p : path.poses) {
-      const auto it = id_by_stamp_.find(p.header.stamp);
-      if (it != id_by_stamp_.end()) poses.emplace_back(it->second, fromPoseMsg(p.pose));
+      const auto it = ids_by_stamp_.find(p.header.stamp);
+      if (it == ids_by_stamp_.end()) continue;
+      const size_t k = seen[p.header.stamp]++;
+      if (k < it->second.size()) poses.emplace_back(it->second[k], fromPoseMsg(p.pose));
     }
     const size_t moved = detector_->updatePoses(poses);
     NODELET_INFO_ONCE(
@@ -184,7 +189,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       return;
     }
     kf.cloud = cloud;
-    if (tf_buffer_) id_by_stamp_[msg.header.stamp] = msg.id;
+    if (tf_buffer_) ids_by_stamp_[msg.header.stamp].push_back(msg.id);
     noteRestart(msg);
     if (!search) {
       detector_->addKeyframe(kf);
@@ -267,10 +272,10 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   std::thread worker_;
   std::mutex pending_mutex_;
   std::condition_variable pending_cv_;
-  std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;  ///< received, not yet handled
-  ros::Subscriber path_subscriber_;                       ///< search_frame map: slam/path
-  nav_msgs::PathConstPtr pending_path_;                   ///< the newest, not yet applied
-  std::map<ros::Time, uint64_t> id_by_stamp_;             ///< worker only (search_frame map)
+  std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;     ///< received, not yet handled
+  ros::Subscriber path_subscriber_;                          ///< search_frame map: slam/path
+  nav_msgs::PathConstPtr pending_path_;                      ///< the newest, not yet applied
+  std::map<ros::Time, std::vector<uint64_t>> ids_by_stamp_;  ///< worker only (search_frame map)
   bool stop_ = false;
   size_t searches_skipped_ = 0;
   SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue

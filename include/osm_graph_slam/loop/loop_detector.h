@@ -47,7 +47,7 @@ struct LoopDetectorParams {
   /// (the tracker's) or map (the back-end's latest estimate, map->odom * odometry; bounded by
   /// GNSS, INS heading and OSM priors where the odometry drifts). The detector itself does not
   /// read it.
-  std::string search_frame = "odometry";
+  std::string search_frame = "map";
   double min_accum_distance_gap = 25.0;   ///< [m] along the trajectory
   double search_radius_base = 10.0;       ///< [m] around the odometry position
   double search_radius_per_meter = 0.05;  ///< [m/m] growth with the travelled distance gap
