@@ -6,14 +6,13 @@
 #include <osm_graph_slam/LoopClosure.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_listener.h>
 
 #include <condition_variable>
 #include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <pluginlib/class_list_macros.hpp>
 #include <thread>
 
@@ -66,10 +65,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     readParams(RosParamReader(pnh), np);
     mode_ = np.mode;
     node_params_ = np;
-    if (params.search_frame == "map") {
-      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
-      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
-    } else if (params.search_frame != "odometry") {
+    search_in_map_ = params.search_frame == "map";
+    if (!search_in_map_ && params.search_frame != "odometry") {
       NODELET_ERROR("loop_detection: unknown search_frame '%s' (odometry | map); using odometry",
                     params.search_frame.c_str());
     }
@@ -95,8 +92,10 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     input_nh.setCallbackQueue(&input_queue_);
     subscriber_ = input_nh.subscribe("keyframe", std::max(1, np.input_queue_size),
                                      &LoopDetectionNodelet::onKeyframe, this);
-    // The back-end's corrected keyframes: the stored ones follow them (LoopDetector::updatePoses).
-    if (tf_buffer_)
+    // The back-end's corrected keyframes: the stored ones follow them (LoopDetector::updatePoses)
+    // and new ones are moved by the map -> odom they imply (no TF listener of our own: a second
+    // one in the manager would log every clock jump twice).
+    if (search_in_map_)
       path_subscriber_ = input_nh.subscribe("slam/path", 1, &LoopDetectionNodelet::onPath, this);
     worker_ = std::thread(&LoopDetectionNodelet::searchLoop, this);
     input_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &input_queue_);
@@ -129,7 +128,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   }
 
   /// Worker: the stored keyframes take the back-end's poses, matched by stamp (the path's poses
-  /// carry the keyframes' stamps, not their ids).
+  /// carry the keyframes' stamps, not their ids); map -> odom is the newest matched keyframe's
+  /// map pose times its odometry pose inverted, as the back-end computes it.
   void applyPath(const nav_msgs::Path& path) {
     std::vector<std::pair<uint64_t, Eigen::Isometry3d>> poses;
     poses.reserve(path.poses.size());
@@ -137,10 +137,13 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     // in the order they came.
     std::map<ros::Time, size_t> seen;
     for (const auto& p : path.poses) {
-      const auto it = ids_by_stamp_.find(p.header.stamp);
-      if (it == ids_by_stamp_.end()) continue;
+      const auto it = received_by_stamp_.find(p.header.stamp);
+      if (it == received_by_stamp_.end()) continue;
       const size_t k = seen[p.header.stamp]++;
-      if (k < it->second.size()) poses.emplace_back(it->second[k], fromPoseMsg(p.pose));
+      if (k >= it->second.size()) continue;
+      const Eigen::Isometry3d map_pose = fromPoseMsg(p.pose);
+      poses.emplace_back(it->second[k].id, map_pose);
+      map_to_odom_ = map_pose * it->second[k].odom_pose.inverse();
     }
     const size_t moved = detector_->updatePoses(poses);
     NODELET_INFO_ONCE(
@@ -179,7 +182,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   void handle(const osm_graph_slam::KeyFrame& msg, bool search) {
     LoopKeyframe kf;
     kf.id = msg.id;
-    kf.odom_pose = searchPose(fromPoseMsg(msg.odom_pose));
+    const Eigen::Isometry3d odom_pose = fromPoseMsg(msg.odom_pose);
+    kf.odom_pose = searchPose(odom_pose);
     kf.accum_distance = msg.accum_distance;
     auto cloud = std::make_shared<PointCloud>();
     std::string error;
@@ -189,7 +193,7 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
       return;
     }
     kf.cloud = cloud;
-    if (tf_buffer_) ids_by_stamp_[msg.header.stamp].push_back(msg.id);
+    if (search_in_map_) received_by_stamp_[msg.header.stamp].push_back({msg.id, odom_pose});
     noteRestart(msg);
     if (!search) {
       detector_->addKeyframe(kf);
@@ -246,23 +250,18 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
 
   /// The keyframe in the map (search_frame: map) by the newest map -> odom, else as it came.
   Eigen::Isometry3d searchPose(const Eigen::Isometry3d& odom_pose) {
-    if (!tf_buffer_) return odom_pose;
-    try {
-      const auto t = tf_buffer_->lookupTransform(node_params_.map_frame, node_params_.odom_frame,
-                                                 ros::Time(0));
-      return fromTransformMsg(t.transform) * odom_pose;
-    } catch (const std::exception& e) {
-      // Normal until the back-end's first keyframe; the odometry pose is the best there is.
-      NODELET_WARN_ONCE("loop_detection: no %s -> %s yet (%s): searching around odometry poses",
-                        node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(), e.what());
+    if (!search_in_map_) return odom_pose;
+    if (!map_to_odom_) {
+      // Normal until the back-end's first path; the odometry pose is the best there is.
+      NODELET_WARN_ONCE("loop_detection: no slam/path yet: searching around odometry poses");
       return odom_pose;
     }
+    return *map_to_odom_ * odom_pose;
   }
 
   std::string mode_;
   LoopDetectionNodeletParams node_params_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  bool search_in_map_ = false;  ///< search_frame map
   std::unique_ptr<LoopDetector> detector_;
   ros::Publisher publisher_;
   /// The keyframe subscription's queue (declared before subscriber_: it must outlive it).
@@ -272,10 +271,16 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
   std::thread worker_;
   std::mutex pending_mutex_;
   std::condition_variable pending_cv_;
-  std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;     ///< received, not yet handled
-  ros::Subscriber path_subscriber_;                          ///< search_frame map: slam/path
-  nav_msgs::PathConstPtr pending_path_;                      ///< the newest, not yet applied
-  std::map<ros::Time, std::vector<uint64_t>> ids_by_stamp_;  ///< worker only (search_frame map)
+  std::deque<osm_graph_slam::KeyFrameConstPtr> pending_;  ///< received, not yet handled
+  ros::Subscriber path_subscriber_;                       ///< search_frame map: slam/path
+  nav_msgs::PathConstPtr pending_path_;                   ///< the newest, not yet applied
+  struct Received {
+    uint64_t id;
+    Eigen::Isometry3d odom_pose;
+  };
+  /// Worker only (search_frame map): the keyframes received, by stamp, and map -> odom.
+  std::map<ros::Time, std::vector<Received>> received_by_stamp_;
+  std::optional<Eigen::Isometry3d> map_to_odom_;
   bool stop_ = false;
   size_t searches_skipped_ = 0;
   SequenceGaps keyframe_ids_;  ///< counts keyframes lost in the subscription queue

@@ -25,8 +25,6 @@ void readParams(const ParamReader& r, LineExtractionNodeletParams& p) {
 
 void readParams(const ParamReader& r, LoopDetectionNodeletParams& p) {
   r.param("mode", p.mode);
-  r.param("map_frame", p.map_frame);
-  r.param("odom_frame", p.odom_frame);
   r.param("relocalize_after_restart", p.relocalize_after_restart);
   r.param("input_queue_size", p.input_queue_size);
 }

@@ -35,10 +35,6 @@ struct LineExtractionNodeletParams {
 
 struct LoopDetectionNodeletParams {
   std::string mode = "odometry";  ///< odometry | place_recognition
-  /// With search_frame: map, new keyframes are moved into the map by TF map_frame -> odom_frame
-  /// and the stored ones follow the back-end's slam/path.
-  std::string map_frame = "map";
-  std::string odom_frame = "odom";
   /// Odometry mode: after a tracking restart (the time jumped back) this many keyframes search
   /// every stored keyframe, as place_recognition does, until one finds a loop (0: never).
   int relocalize_after_restart = 10;
