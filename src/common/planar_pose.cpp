@@ -50,4 +50,15 @@ Eigen::Isometry2d fitRigid2d(const std::vector<Eigen::Vector2d>& a,
   return T;
 }
 
+std::vector<Eigen::Vector2d> spacedPathPoints(const std::vector<Eigen::Vector2d>& path,
+                                              double spacing) {
+  std::vector<Eigen::Vector2d> kept;
+  for (const Eigen::Vector2d& xy : path) {
+    bool covered = false;
+    for (const Eigen::Vector2d& c : kept) covered = covered || (c - xy).norm() < spacing;
+    if (!covered) kept.push_back(xy);
+  }
+  return kept;
+}
+
 }  // namespace osm_graph_slam

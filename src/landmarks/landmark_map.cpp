@@ -3,6 +3,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include "osm_graph_slam/common/cell_key.h"
+
 namespace osm_graph_slam {
 namespace {
 
@@ -13,10 +15,6 @@ struct Group {
   int last_keyframe = -1;
   Eigen::Vector2d mean() const { return sum / count; }
 };
-
-int64_t cellKey(int64_t cx, int64_t cy) {
-  return (cx << 32) ^ (cy & 0xffffffff);
-}
 
 }  // namespace
 
@@ -36,7 +34,7 @@ std::vector<MapLandmark> discoverLandmarks(const std::vector<KeyframeLandmarks>&
       double best_d = delta;
       for (int64_t dx = -2; dx <= 2; ++dx) {
         for (int64_t dy = -2; dy <= 2; ++dy) {
-          const auto it = cells.find(cellKey(cx + dx, cy + dy));
+          const auto it = cells.find(packCellKey(cx + dx, cy + dy));
           if (it == cells.end()) continue;
           for (int g : it->second) {
             if (groups[g].last_keyframe == static_cast<int>(k)) continue;
@@ -48,7 +46,7 @@ std::vector<MapLandmark> discoverLandmarks(const std::vector<KeyframeLandmarks>&
       if (best < 0) {
         best = static_cast<int>(groups.size());
         groups.emplace_back();
-        cells[cellKey(cx, cy)].push_back(best);
+        cells[packCellKey(cx, cy)].push_back(best);
       }
       Group& g = groups[best];
       g.sum += p;
@@ -75,12 +73,8 @@ LandmarkMapRecognizer::LandmarkMapRecognizer(std::vector<MapLandmark> landmarks,
                                              const LandmarkPlaceRecognitionParams& recognition)
     : landmarks_(std::move(landmarks)),
       recognizer_(std::make_unique<LandmarkPlaceRecognizer>(recognition)) {
-  const double spacing = std::max(1.0, params.tile_spacing);
-  for (const Eigen::Vector2d& xy : path) {
-    bool covered = false;  // a path that comes back reuses the tiles of its first pass
-    for (const Eigen::Vector2d& c : centres_) covered = covered || (c - xy).norm() < spacing;
-    if (!covered) centres_.push_back(xy);
-  }
+  // A path that comes back reuses the tiles of its first pass.
+  centres_ = spacedPathPoints(path, std::max(1.0, params.tile_spacing));
   const double r2 = params.tile_radius * params.tile_radius;
   for (const Eigen::Vector2d& c : centres_) {
     std::vector<Eigen::Vector2d> tile;

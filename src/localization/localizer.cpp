@@ -648,14 +648,8 @@ size_t Localizer::enableOsmWalls(const WallPointExtractorParams& walls,
   m.min_matched_segments = params_.global_osm_min_matched;
   impl_->walls = std::make_unique<OsmWallMatcher>(map_->buildings, walls, segments, m);
   // Centres along the map drive's path, each keyframe within global_osm_spacing of one.
-  auto& centres = impl_->osm_path_centres;
-  centres.clear();
-  const double spacing = std::max(1.0, params_.global_osm_spacing);
-  for (const Eigen::Vector2d& xy : impl_->keyframe_xy) {
-    bool covered = false;
-    for (const Eigen::Vector2d& c : centres) covered = covered || (c - xy).norm() < spacing;
-    if (!covered) centres.push_back(xy);
-  }
+  impl_->osm_path_centres =
+      spacedPathPoints(impl_->keyframe_xy, std::max(1.0, params_.global_osm_spacing));
   return map_->buildings.size();
 }
 

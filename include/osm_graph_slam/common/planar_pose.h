@@ -27,4 +27,9 @@ inline double yawOf(const Eigen::Isometry2d& T) {
 Eigen::Isometry2d fitRigid2d(const std::vector<Eigen::Vector2d>& a,
                              const std::vector<Eigen::Vector2d>& b);
 
+/// Points of `path` in order, each kept unless one kept before lies within `spacing`: every path
+/// point ends within `spacing` of one, and a path that comes back reuses its first pass's points.
+std::vector<Eigen::Vector2d> spacedPathPoints(const std::vector<Eigen::Vector2d>& path,
+                                              double spacing);
+
 }  // namespace osm_graph_slam
