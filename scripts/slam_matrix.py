@@ -965,8 +965,11 @@ class Context:
     """What every drive needs: tools, folders, options, and the child processes to stop."""
 
     def __init__(self, bin_dir, config, out, sim_args, keep=False, step_timeout=None,
-                 eval_options=()):
+                 eval_options=(), dump=False, replay_from=None, replay_sets=()):
         self.bin_dir = bin_dir
+        self.replay_from = replay_from  # --replay: re-run only the back-ends on FROM's dumps
+        self.replay_sets = list(replay_sets)
+        self.dump = dump  # offline_slam --dump into slam_osm/dump and slam_no_osm/dump
         self.config = config
         self.out = out
         self.sim_args = sim_args
@@ -1127,6 +1130,8 @@ def run_drive(drive, ctx, force=False):
 
 
 def _clean(d):
+    if os.path.islink(os.path.join(d, "sim")):  # --replay: the source's simulation
+        os.remove(os.path.join(d, "sim"))
     for name in ("sim", "slam_osm", "slam_no_osm"):
         shutil.rmtree(os.path.join(d, name), ignore_errors=True)
     for name in ("evaluation.json", "ground_truth_tum.txt", "result.json"):
@@ -1150,6 +1155,53 @@ def _timed(steps, name, fn):
 def _run_drive_steps(drive, ctx, d, logs, steps, force):
     _clean(d)
     write_atomically(os.path.join(d, "drive.json"), json.dumps(drive.axes(), indent=2) + "\n")
+    if ctx.replay_from:
+        sim, drive_dir = _replay_backends(drive, ctx, d, logs, steps)
+    else:
+        sim, drive_dir = _simulate_and_run_slam(drive, ctx, d, logs, steps)
+    return _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir)
+
+
+def _find_drive_dir(sim):
+    drives = sorted(p for p in (os.path.join(sim, a, b) for a in _listdir(sim)
+                                for b in _listdir(os.path.join(sim, a)))
+                    if re.search(r"_drive_\d+_sync$", p) and os.path.isdir(p))
+    return drives[0] if drives else None
+
+
+REPLAY_COPIED = {"slam_osm": ("ground_truth_scans_tum.txt", "ground_truth_tum.txt", "loops.txt", "timing.json"),
+                 "slam_no_osm": ("timing.json",)}
+
+
+def _replay_backends(drive, ctx, d, logs, steps):
+    """--replay FROM: the same drive's back-end inputs (FROM/<drive>/slam_*/dump, written with
+    --dump) through replay_backend with --set; the front-end's files (truth, loops, timing) and
+    the simulation are taken from FROM unchanged."""
+    src = os.path.join(ctx.replay_from, drive.name)
+    sim = os.path.join(d, "sim")
+    if not os.path.isdir(os.path.join(src, "sim")):
+        raise StepFailed("replay: %s has no sim folder (run the matrix there first)" % src)
+    os.symlink(os.path.join(os.path.abspath(src), "sim"), sim)
+    drive_dir = _find_drive_dir(sim)
+    if drive_dir is None:
+        raise StepFailed("replay: no drive folder in %s" % sim)
+    for run, extra in (("slam_osm", []), ("slam_no_osm", ["--no-osm"])):
+        dump = os.path.join(src, run, "dump")
+        if not os.path.isfile(os.path.join(dump, "keyframes.csv")):
+            raise StepFailed("replay: %s missing (run the matrix there with --dump)" % dump)
+        out = os.path.join(d, run)
+        sets = [a for kv in ctx.replay_sets for a in ("--set", kv)]
+        _timed(steps, "replay_" + run, lambda: ctx.run(
+            "replay_backend (%s)" % run, [ctx.tool("replay_backend"), "--dump", dump, "--output", out,
+                                          "--config", ctx.config] + extra + sets,
+            os.path.join(logs, "replay_%s.log" % run)))
+        for name in REPLAY_COPIED[run]:
+            if os.path.isfile(os.path.join(src, run, name)):
+                shutil.copyfile(os.path.join(src, run, name), os.path.join(out, name))
+    return sim, drive_dir
+
+
+def _simulate_and_run_slam(drive, ctx, d, logs, steps):
     sim = os.path.join(d, "sim")
     sim_log = os.path.join(logs, "simulate_urban.log")
     cmd = [ctx.tool("simulate_urban"), "--out", sim] + drive.sim_flags() + ctx.sim_args
@@ -1160,23 +1212,29 @@ def _run_drive_steps(drive, ctx, d, logs, steps, force):
         if hint:
             raise StepFailed(hint) from None
         raise
-    drives = sorted(p for p in (os.path.join(sim, a, b) for a in _listdir(sim)
-                                for b in _listdir(os.path.join(sim, a)))
-                    if re.search(r"_drive_\d+_sync$", p) and os.path.isdir(p))
-    if not drives:
+    drive_dir = _find_drive_dir(sim)
+    if drive_dir is None:
         raise StepFailed("simulate: no drive folder in %s (%s)" % (sim, last_log_line(sim_log) or "empty log"))
-    drive_dir = drives[0]
     prior = os.path.join(sim, "prior.osm")
 
     common = [ctx.tool("offline_slam"), "--kitti-raw", drive_dir, "--config", ctx.config]
     osm_out, no_osm_out = os.path.join(d, "slam_osm"), os.path.join(d, "slam_no_osm")
+
+    def dump(run_out):  # the back-end's inputs, for replay_backend (--replay)
+        return ["--dump", os.path.join(run_out, "dump"), "--dump-without-clouds"] if ctx.dump else []
+
     _timed(steps, "offline_slam_osm", lambda: ctx.run(
-        "offline_slam (with OSM)", common + ["--osm", prior, "--output", osm_out],
+        "offline_slam (with OSM)", common + ["--osm", prior, "--output", osm_out] + dump(osm_out),
         os.path.join(logs, "offline_slam_osm.log")))
     _timed(steps, "offline_slam_no_osm", lambda: ctx.run(
-        "offline_slam --no-osm", common + ["--no-osm", "--output", no_osm_out],
+        "offline_slam --no-osm", common + ["--no-osm", "--output", no_osm_out] + dump(no_osm_out),
         os.path.join(logs, "offline_slam_no_osm.log")))
+    return sim, drive_dir
 
+
+def _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir):
+    prior = os.path.join(sim, "prior.osm")
+    osm_out, no_osm_out = os.path.join(d, "slam_osm"), os.path.join(d, "slam_no_osm")
     # Ground truth of the whole drive, so that coverage can see where the estimate stops short:
     # offline_slam's truth of every scan (newer builds), else the simulator's true poses moved
     # into the map frame here, else offline_slam's truth of the keyframes.
@@ -1396,6 +1454,13 @@ def build_parser():
     ap.add_argument("--out", default=os.path.join(REPO, "build_ws", "matrix"), help="default: %(default)s")
     ap.add_argument("--jobs", type=int, default=1, help="drives at a time (each tool uses both cores; default 1)")
     ap.add_argument("--keep", action="store_true", help="keep the simulated scans (velodyne_points)")
+    ap.add_argument("--dump", action="store_true",
+                    help="keep the back-end's inputs (slam_*/dump, without clouds) for --replay")
+    ap.add_argument("--replay", metavar="FROM",
+                    help="no simulation, no front-end: replay_backend on FROM/<drive>/slam_*/dump "
+                         "(a matrix run with --dump) with --set, evaluated as usual (seconds per drive)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="with --replay: a graph_backend parameter for both runs (replay_backend --set)")
     ap.add_argument("--force", action="store_true", help="run drives again even if they have a result.json")
     ap.add_argument("--retry-failed", action="store_true", help="run drives again whose stored status is not ok")
     ap.add_argument("--step-timeout", type=float, default=None, metavar="S",
@@ -1459,14 +1524,16 @@ def _main(args, log):
     if to_run:
         runnable = [d for d in to_run if not world_problem(d)]
         if runnable:
-            missing = [t for t in TOOLS if not os.access(os.path.join(args.bin, t), os.X_OK)]
+            tools = ("replay_backend", "evaluate_slam") if args.replay else TOOLS
+            missing = [t for t in tools if not os.access(os.path.join(args.bin, t), os.X_OK)]
             if missing:
                 raise MatrixError("%s missing in %s: build first (scripts/setup.sh) or give --bin"
                                   % (", ".join(missing), args.bin))
             if not os.path.isfile(args.config):
                 raise MatrixError("offline_slam config %s missing" % args.config)
         ctx = Context(os.path.abspath(args.bin), os.path.abspath(args.config), out, sim_args, args.keep,
-                      args.step_timeout, evaluate_options(args.bin) if runnable else ())
+                      args.step_timeout, evaluate_options(args.bin) if runnable else (), args.dump,
+                      os.path.abspath(args.replay) if args.replay else None, args.set)
         results = run_matrix(drives, ctx, to_run, args.jobs, log=log)
 
     rows = []

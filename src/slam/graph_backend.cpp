@@ -263,6 +263,10 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   kf.odom_prediction_error = in.odom_prediction_error;
   kf.reanchored = in.reanchored;
   kf.gravity_roll_pitch = in.gravity_roll_pitch;
+  kf.gnss_position = in.gnss_position;
+  kf.gnss_std = in.gnss_std;
+  kf.gnss_altitude = in.gnss_altitude;
+  kf.ins_yaw = in.ins_yaw;
   kf.cloud = in.cloud;
   if (in.floor) s.early_floors[in.id] = *in.floor;
   if (s.keyframes.empty())

@@ -79,6 +79,13 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
       kf.odom_prediction_error = {extra[first], extra[first + 1], extra[first + 2]};
       if (!kf.odom_prediction_error.allFinite()) return false;
     }
+    if (extra.size() >= 12 + kHessianValues) {  // GNSS x y std altitude, INS yaw (nan: none)
+      const double* a = &extra[7 + kHessianValues];
+      if (std::isfinite(a[0]) && std::isfinite(a[1])) kf.gnss_position.emplace(a[0], a[1]);
+      if (std::isfinite(a[2]) && a[2] > 0.0) kf.gnss_std = a[2];
+      if (std::isfinite(a[3])) kf.gnss_altitude = a[3];
+      if (std::isfinite(a[4])) kf.ins_yaw = a[4];
+    }
     dump.keyframes.push_back(std::move(kf));
     return true;
   };

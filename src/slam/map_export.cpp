@@ -213,7 +213,8 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
   return result;
 }
 
-MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory) {
+MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory,
+                          bool with_clouds) {
   MapExportResult result;
   const std::vector<KeyframeState> keyframes = backend.keyframes();
   if (keyframes.empty()) {
@@ -223,7 +224,7 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   StagedFolder folder;
   if (!folder.open(directory, &result.message)) return result;
   std::error_code ec;
-  fs::create_directories(fs::path(folder.stagedPath("keyframes")), ec);
+  if (with_clouds) fs::create_directories(fs::path(folder.stagedPath("keyframes")), ec);
   Writer write{result, folder, {}, {}};
   std::string error;
 
@@ -231,7 +232,7 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   kf_csv << std::setprecision(17)
          << "# id stamp accum_distance odom_pose(3x4 row-major) odom_fitness imu_roll imu_pitch"
             " reanchored odom_hessian(upper triangle, row-major; zeros: unknown) "
-            "prediction_error(x y z)"
+            "prediction_error(x y z) gnss(x y std altitude) ins_yaw"
             " (nan: unknown)\n";
   seg_csv << std::setprecision(12) << "# keyframe_id x1 y1 x2 y2 support\n";
   std::ostringstream floor_csv;
@@ -244,7 +245,11 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
            << (kf.reanchored ? 1 : 0);
     writeUpperTriangle(kf_csv, kf.odom_hessian);
     const Eigen::Vector3d& e = kf.odom_prediction_error;
-    kf_csv << ' ' << e.x() << ' ' << e.y() << ' ' << e.z() << '\n';
+    kf_csv << ' ' << e.x() << ' ' << e.y() << ' ' << e.z();
+    // The GNSS and INS aiding, so that a replay can turn GNSS priors and heading edges on.
+    const Eigen::Vector2d g = kf.gnss_position.value_or(Eigen::Vector2d(nan, nan));
+    kf_csv << ' ' << g.x() << ' ' << g.y() << ' ' << kf.gnss_std.value_or(nan) << ' '
+           << kf.gnss_altitude.value_or(nan) << ' ' << kf.ins_yaw.value_or(nan) << '\n';
     for (const auto& s : kf.segments)
       seg_csv << kf.id << ' ' << s.start.x() << ' ' << s.start.y() << ' ' << s.end.x() << ' '
               << s.end.y() << ' ' << s.support << '\n';
@@ -252,7 +257,7 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
       const Eigen::Vector4d& f = *kf.floor;
       floor_csv << kf.id << ' ' << f(0) << ' ' << f(1) << ' ' << f(2) << ' ' << f(3) << '\n';
     }
-    if (kf.cloud && !kf.cloud->empty()) {
+    if (with_clouds && kf.cloud && !kf.cloud->empty()) {
       char name[64];
       std::snprintf(name, sizeof(name), "keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
       write(name, writePcdAtomically(write.path(name), *kf.cloud, &error), error);

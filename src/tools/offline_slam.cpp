@@ -11,6 +11,7 @@
 //                [--config OVERRIDES.yaml (default config/kitti.yaml; simulated drives: sim.yaml)]
 //                [--max-scans N] [--json]
 //                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
+//                [--dump-without-clouds]
 //                [--cloud-topic velodyne_points] [--gps-topic gps/fix] [--imu-topic imu/data]
 //                [--ground-truth-topic ground_truth] [--base-frame base_link]
 // The first GPS fix is the map origin; the first IMU orientation (OXTS record) the initial
@@ -53,15 +54,18 @@ namespace fs = std::filesystem;
 namespace {
 
 int usage(const std::string& why) {
-  std::cerr << "offline_slam: " << why << "\n"
-            << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag\n"
-               "       | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])\n"
-               "         [--rate HZ] [--calib FILE])\n"
-               "       --output DIR [--osm FILE | --overpass URL] [--config OVERRIDES.yaml]\n"
-               "       [--no-osm] [--no-loops] [--max-scans N]\n"
-               "       [--initial-heading imu|global_matching] [--no-imu] [--dump DIR] [--json]\n"
-               "       [--cloud-topic T] [--gps-topic T] [--imu-topic T]\n"
-               "       [--ground-truth-topic T] [--base-frame F]   (bag topics and frame)\n";
+  std::cerr
+      << "offline_slam: " << why << "\n"
+      << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag\n"
+         "       | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])\n"
+         "         [--rate HZ] [--calib FILE])\n"
+         "       --output DIR [--osm FILE | --overpass URL] [--config OVERRIDES.yaml]\n"
+         "       [--no-osm] [--no-loops] [--max-scans N]\n"
+         "       [--initial-heading imu|global_matching] [--no-imu] [--dump DIR] [--json]\n"
+         "       [--dump-without-clouds]   (the dump without keyframes/*.pcd: replay_backend\n"
+         "                                  does not read them)\n"
+         "       [--cloud-topic T] [--gps-topic T] [--imu-topic T]\n"
+         "       [--ground-truth-topic T] [--base-frame F]   (bag topics and frame)\n";
   return 2;
 }
 
@@ -89,7 +93,7 @@ std::vector<StampedLoopClosure> stampedLoops(const GraphBackend& backend) {
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::map<std::string, std::string> args;
-  bool json = false, use_osm = true, use_loops = true, use_imu = true;
+  bool json = false, use_osm = true, use_loops = true, use_imu = true, dump_clouds = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--json") {
@@ -100,6 +104,8 @@ int main(int argc, char** argv) {
       use_loops = false;
     } else if (a == "--no-imu") {
       use_imu = false;
+    } else if (a == "--dump-without-clouds") {
+      dump_clouds = false;
     } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
       args[a.substr(2)] = argv[++i];
     } else {
@@ -219,7 +225,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (args.count("dump")) {
-    const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"]);
+    const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"], dump_clouds);
     if (!dumped.success) std::cerr << "offline_slam: dump failed: " << dumped.message << "\n";
   }
   Trajectory truth, truth_all_scans;

@@ -84,7 +84,16 @@ elif name == "offline_slam":
                "tracking": {"scans": 20, "matched": 20, "failed_matches": 0, "lost_events": 0,
                             "longest_no_keyframe_s": 0.1}}, open(os.path.join(out, "timing.json"), "w"))
     open(os.path.join(out, "loops.csv"), "w").write("a,b\n")
+    if "--dump" in args:
+        os.makedirs(opt("--dump"))
+        open(os.path.join(opt("--dump"), "keyframes.csv"), "w").write("0 0 0\n")
     print("done")
+elif name == "replay_backend":
+    out = opt("--output")
+    os.makedirs(out)
+    with open(os.path.join(out, "trajectory_tum.txt"), "w") as f:
+        for i in range(2, 18):
+            f.write("%d.%09d %g 0 0 0 0 0 1\n" % (1577880000 + i // 10, (i % 10) * 100000000, 0.8 * i))
 elif name == "evaluate_slam":
     new = bool(os.environ.get("FAKE_NEW_EVAL"))
     if new and "--run-report" in args and os.environ["FAKE_NEW_EVAL"] == "broken":
@@ -108,7 +117,7 @@ elif name == "evaluate_slam":
 
 def make_fake_bin(folder):
     os.makedirs(folder, exist_ok=True)
-    for tool in sm.TOOLS:
+    for tool in sm.TOOLS + ("replay_backend",):
         path = os.path.join(folder, tool)
         with open(path, "w") as f:
             f.write(FAKE_TOOL)
@@ -479,6 +488,41 @@ class RunTest(unittest.TestCase):
         status, text = self.matrix("--world", "city", "--seed", "1", "--length", "100", "--force", "--keep")
         self.assertEqual(len([c for c in self.tool_calls() if c[0] == "simulate_urban"]), 1)
         self.assertTrue(os.path.exists(os.path.join(drive_dir, "velodyne_points")))
+
+    def test_replay_runs_only_the_back_ends_on_the_dumps(self):
+        status, text = self.matrix("--world", "city", "--seed", "1", "--length", "100", "--dump")
+        self.assertEqual(status, 0, text)
+        src = os.path.join(self.out, "city_s1_100m_independent_hdl64e_noisy")
+        slam = [c for c in self.tool_calls() if c[0] == "offline_slam"]
+        self.assertEqual([c[c.index("--dump") + 1] for c in slam],
+                         [os.path.join(src, "slam_osm", "dump"), os.path.join(src, "slam_no_osm", "dump")])
+        os.remove(self.calls)
+        replay_out = os.path.join(self.tmp, "replay")
+        status, text = run_main(["--bin", self.bin, "--out", replay_out, "--config", self.config,
+                                 "--world", "city", "--seed", "1,2", "--length", "100", "--replay", self.out,
+                                 "--set", "gnss_prior_std=1.5", "--set", "osm_datum_std_xy=1"])
+        self.assertEqual(status, 0, text)
+        doc = json.load(open(os.path.join(replay_out, "matrix.json")))
+        self.assertEqual(doc["drives"][0]["status"], "ok")
+        self.assertAlmostEqual(doc["drives"][0]["metrics"]["ate_change_pct"], -40.0)
+        self.assertIn("has no sim folder", doc["drives"][1]["status"])  # seed 2 was never run
+        calls = self.tool_calls()
+        self.assertFalse([c for c in calls if c[0] in ("simulate_urban", "offline_slam")])
+        replays = [c for c in calls if c[0] == "replay_backend"]
+        self.assertEqual(len(replays), 2)
+        self.assertEqual([c[c.index("--dump") + 1] for c in replays],
+                         [os.path.join(src, "slam_osm", "dump"), os.path.join(src, "slam_no_osm", "dump")])
+        self.assertEqual(["--no-osm" in c for c in replays], [False, True])
+        for c in replays:
+            self.assertEqual(c[-4:], ["--set", "gnss_prior_std=1.5", "--set", "osm_datum_std_xy=1"])
+        d = os.path.join(replay_out, "city_s1_100m_independent_hdl64e_noisy")
+        self.assertTrue(os.path.islink(os.path.join(d, "sim")))
+        self.assertTrue(os.path.isfile(os.path.join(d, "slam_osm", "timing.json")))  # the front-end's
+        # running the replay again replaces its own folders, never the source's simulation
+        status, text = run_main(["--bin", self.bin, "--out", replay_out, "--config", self.config, "--force",
+                                 "--world", "city", "--seed", "1", "--length", "100", "--replay", self.out])
+        self.assertEqual(status, 0, text)
+        self.assertTrue(os.path.isfile(os.path.join(src, "sim", "prior.osm")))
 
     def test_new_evaluate_options_are_passed_when_known(self):
         os.environ["FAKE_NEW_EVAL"] = "1"

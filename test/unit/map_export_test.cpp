@@ -266,6 +266,49 @@ TEST_F(ExportFixture, ReplayingADumpReproducesTheBackend) {
   EXPECT_NE(error.find("floors.csv:2"), std::string::npos) << error;
 }
 
+TEST(MapExport, DumpKeepsTheGnssAndInsAidingForReplays) {
+  GraphBackendParams params;
+  params.initial_yaw_known = true;
+  GraphBackend backend(params);
+  backend.setOrigin(49.0, 8.4, 110.0);
+  for (uint64_t k = 0; k < 3; ++k) {
+    KeyframeInput in;
+    in.id = k;
+    in.stamp = 100.0 + k;
+    in.accum_distance = 2.0 * k;
+    in.odom_pose.translation() = Eigen::Vector3d(2.0 * k, 0.0, 0.0);
+    if (k != 1) {  // keyframe 1 had no fix and no INS sample
+      in.gnss_position = Eigen::Vector2d(2.0 * k + 0.3, -0.4);
+      in.gnss_std = 1.8;
+      in.gnss_altitude = 0.5 * k;
+      in.ins_yaw = 0.01 * (k + 1);
+    }
+    backend.addKeyframe(in);
+  }
+  backend.update();  // keyframes enter the graph at the update
+  const std::string dir = ::testing::TempDir() + "/dump_aiding";
+  fs::remove_all(dir);
+  const MapExportResult dumped = dumpGraph(backend, dir, false);
+  ASSERT_TRUE(dumped.success) << dumped.message;
+  EXPECT_FALSE(fs::exists(dir + "/keyframes"));  // without clouds
+  GraphDump dump;
+  std::string error;
+  ASSERT_TRUE(readGraphDump(dir, dump, &error)) << error;
+  ASSERT_EQ(dump.keyframes.size(), 3u);
+  for (const auto& kf : dump.keyframes) {
+    ASSERT_EQ(kf.gnss_position.has_value(), kf.id != 1) << kf.id;
+    EXPECT_EQ(kf.gnss_std.has_value(), kf.id != 1);
+    EXPECT_EQ(kf.gnss_altitude.has_value(), kf.id != 1);
+    ASSERT_EQ(kf.ins_yaw.has_value(), kf.id != 1);
+    if (kf.id == 1) continue;
+    EXPECT_NEAR(kf.gnss_position->x(), 2.0 * kf.id + 0.3, 1e-12);
+    EXPECT_NEAR(kf.gnss_position->y(), -0.4, 1e-12);
+    EXPECT_NEAR(*kf.gnss_std, 1.8, 1e-12);
+    EXPECT_NEAR(*kf.gnss_altitude, 0.5 * kf.id, 1e-12);
+    EXPECT_NEAR(*kf.ins_yaw, 0.01 * (kf.id + 1), 1e-12);
+  }
+}
+
 TEST(MapExport, EmptyGraphAndUnwritableFolderFailWithReason) {
   GraphBackend empty;
   MapExportResult r = saveMap(empty, ::testing::TempDir() + "/never", 0.1);

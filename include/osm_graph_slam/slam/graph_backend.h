@@ -120,6 +120,10 @@ struct KeyframeState {
   bool reanchored = false;  ///< linked by a weak odometry edge (the tracker re-anchored it)
   std::optional<Eigen::Vector2d> gravity_roll_pitch;  ///< as received (IMU)
   std::optional<Eigen::Vector4d> floor;               ///< in base_link, as received
+  std::optional<Eigen::Vector2d> gnss_position;       ///< as received (KeyframeInput), for dumps
+  std::optional<double> gnss_std;                     ///< as received
+  std::optional<double> gnss_altitude;                ///< as received
+  std::optional<double> ins_yaw;                      ///< as received
   PointCloudConstPtr cloud;
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;

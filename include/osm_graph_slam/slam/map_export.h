@@ -34,6 +34,7 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
 /// dump_graph: everything needed to rebuild and re-optimise the graph offline by replaying it
 /// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, floors.csv, loops.csv,
 /// buildings_prior.geojson, origin.txt) plus graph.g2o for inspection.
-MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory);
+MapExportResult dumpGraph(const GraphBackend& backend, const std::string& directory,
+                          bool with_clouds = true);
 
 }  // namespace osm_graph_slam
