@@ -43,7 +43,8 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   info(0, 0) = info(1, 1) = 1.0 / (p.osm_datum_std_xy * p.osm_datum_std_xy);
   info(2, 2) = 1.0 / (std_theta * std_theta);
-  graph.addPriorSE2(id, Pose2(), info, EdgeOptions{1, {}});
+  graph.addPriorSE2(id, Pose2(), info,
+                    EdgeOptions{1, kernelNamed(p.osm_datum_kernel, p.osm_datum_kernel_width)});
   return id;
 }
 

@@ -109,6 +109,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("building_prior_std_theta", p.building_prior_std_theta);
   r.param("osm_datum_std_xy", p.osm_datum_std_xy);
   r.param("osm_datum_std_theta", p.osm_datum_std_theta);
+  if (!readKernelName(r, "osm_datum_kernel", p.osm_datum_kernel, error)) ok = false;
+  r.param("osm_datum_kernel_width", p.osm_datum_kernel_width);
   r.param("osm_datum_reassociate_distance", p.osm_datum_reassociate_distance);
   r.param("optimization_window", p.optimization_window);
   r.param("window_loop_chi2", p.window_loop_chi2);

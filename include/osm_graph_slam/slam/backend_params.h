@@ -190,6 +190,10 @@ struct GraphBackendParams {
   /// 0 = off (every prior absolute, as in the thesis).
   double osm_datum_std_xy = 3.0;     ///< [m]
   double osm_datum_std_theta = 0.0;  ///< [rad] (0 with the datum on: translation only)
+  /// Robust kernel of the datum's prior (none | huber | cauchy): a tight deviation for maps that
+  /// agree with the GNSS evidence, released for one shifted far beyond it.
+  std::string osm_datum_kernel = "none";
+  double osm_datum_kernel_width = 1.0;  ///< [deviations]
   /// [m] keyframes matched while the datum was this far from its current estimate are matched
   /// again (their walls were paired at the map's stale position). 0 = never.
   double osm_datum_reassociate_distance = 0.5;
