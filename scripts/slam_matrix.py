@@ -1310,7 +1310,8 @@ def _listdir(path):
 
 def _finish_drive(ctx, d, row):
     """Deletes the simulated scans (GBs for 1.5 km) unless --keep; writes result.json."""
-    if not ctx.keep:
+    # --replay links the source's simulation: never delete in there (its drives may be running).
+    if not ctx.keep and not os.path.islink(os.path.join(d, "sim")):
         sim = os.path.join(d, "sim")
         for a in _listdir(sim):
             for b in _listdir(os.path.join(sim, a)):

@@ -498,6 +498,8 @@ class RunTest(unittest.TestCase):
                          [os.path.join(src, "slam_osm", "dump"), os.path.join(src, "slam_no_osm", "dump")])
         os.remove(self.calls)
         replay_out = os.path.join(self.tmp, "replay")
+        scans = os.path.join(src, "sim", "2020_01_01", "2020_01_01_drive_0001_sync", "velodyne_points")
+        os.makedirs(scans)  # as while the source's drive still runs (or was run with --keep)
         status, text = run_main(["--bin", self.bin, "--out", replay_out, "--config", self.config,
                                  "--world", "city", "--seed", "1,2", "--length", "100", "--replay", self.out,
                                  "--set", "gnss_prior_std=1.5", "--set", "osm_datum_std_xy=1"])
@@ -523,6 +525,7 @@ class RunTest(unittest.TestCase):
                                  "--world", "city", "--seed", "1", "--length", "100", "--replay", self.out])
         self.assertEqual(status, 0, text)
         self.assertTrue(os.path.isfile(os.path.join(src, "sim", "prior.osm")))
+        self.assertTrue(os.path.isdir(scans))
 
     def test_new_evaluate_options_are_passed_when_known(self):
         os.environ["FAKE_NEW_EVAL"] = "1"
