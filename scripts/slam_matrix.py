@@ -755,6 +755,92 @@ def orientation_metrics(osm_out, no_osm_out):
     return m
 
 
+def _oxts_latlon(path):
+    """(lat, lon) of an OXTS record, or None for a record without a fix (pos_accuracy >= 1e3 m:
+    the simulator's outages) or an unreadable one."""
+    try:
+        v = open(path).read().split()
+        if len(v) < 24 or float(v[23]) >= 1e3:
+            return None
+        lat, lon = float(v[0]), float(v[1])
+    except (OSError, ValueError):
+        return None
+    return (lat, lon) if math.isfinite(lat) and math.isfinite(lon) else None
+
+
+def gnss_mean_error(drive_dir):
+    """Mean horizontal (east, north) error [m] of the drive's fixes against oxts_true (the
+    simulator's truth), over the records with a fix; None without them."""
+    data = os.path.join(drive_dir, "oxts", "data")
+    east = north = 0.0
+    n = 0
+    for name in _listdir(data):
+        fix = _oxts_latlon(os.path.join(data, name))
+        true = _oxts_latlon(os.path.join(drive_dir, "oxts_true", "data", name))
+        if fix is None or true is None:
+            continue
+        r = 6378137.0 * math.pi / 180.0
+        east += (fix[1] - true[1]) * r * math.cos(math.radians(true[0]))
+        north += (fix[0] - true[0]) * r
+        n += 1
+    return (east / n, north / n) if n else None
+
+
+def observed_prior_offset(sim_dir, corrected_geojson):
+    """Mean (dx, dy) [m] of the simulator's prior offsets over the buildings the run observed
+    (tag osm_graph_slam:observations > 0), and their count; None when unknown."""
+    offsets = {}
+    try:
+        for line in open(os.path.join(sim_dir, "prior_offsets.csv")):
+            v = line.strip().split(",")
+            if line.startswith("#") or len(v) < 4 or v[0] == "osm_id":
+                continue
+            offsets[v[0]] = (float(v[2]), float(v[3]))
+        features = read_json(corrected_geojson)["features"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    seen = []
+    for f in features:
+        props = f.get("properties") or {}
+        try:
+            n = int((props.get("tags") or {}).get("osm_graph_slam:observations", 0))
+        except (TypeError, ValueError):
+            n = 0
+        if n > 0 and str(props.get("id")) in offsets:
+            seen.append(offsets[str(props.get("id"))])
+    if not seen:
+        return None
+    return (sum(o[0] for o in seen) / len(seen), sum(o[1] for o in seen) / len(seen)), len(seen)
+
+
+def offset_bound(map_offset, gnss_offset):
+    """The smallest common horizontal offset [m] any weighting of the two absolute references
+    can reach: min over w in [0, 1] of |w m + (1 - w) b|. The walls tie the trajectory to the
+    map; its absolute position can only come from the map (error m, the observed buildings'
+    mean prior offset) or from the fixes (error b, their mean error over the drive)."""
+    (mx, my), (bx, by) = map_offset, gnss_offset
+    dx, dy = mx - bx, my - by
+    length2 = dx * dx + dy * dy
+    w = 0.0 if length2 == 0 else max(0.0, min(1.0, -(bx * dx + by * dy) / length2))
+    return math.hypot(bx + w * dx, by + w * dy)
+
+
+def absolute_offset_metrics(sim_dir, drive_dir, corrected_geojson):
+    """Simulated drives only: the fixes' mean error, the observed buildings' mean prior offset
+    and offset_bound() of the two ("B_bnd": no estimator's buildings or trajectory end closer
+    in the mean)."""
+    m = {"gnss_mean_error": None, "map_mean_offset": None, "offset_bound": None}
+    b = gnss_mean_error(drive_dir)
+    seen = observed_prior_offset(sim_dir, corrected_geojson)
+    if b is not None:
+        m["gnss_mean_error"] = math.hypot(*b)
+    if seen is not None:
+        m["map_mean_offset"] = math.hypot(*seen[0])
+    if b is not None and seen is not None:
+        m["offset_bound"] = offset_bound(seen[0], b)
+    return m
+
+
 # --- summary, table, check ---------------------------------------------------------------------
 
 def f3(x):
@@ -797,6 +883,7 @@ COLUMNS = [
     ("bld_corrected", "B_corr", 7, f3, "max"),
     ("seen_prior", "S_prior", 7, f3, "max"),
     ("seen_corrected", "S_corr", 7, f3, "max"),
+    ("offset_bound", "B_bnd", 5, f2, "max"),
     ("overlaps", "ovl", 4, fint, "max"),
     ("scans_per_s", "sc/s", 5, f1, "min"),
 ]
@@ -1170,7 +1257,7 @@ def _find_drive_dir(sim):
 
 
 REPLAY_COPIED = {"slam_osm": ("ground_truth_scans_tum.txt", "ground_truth_tum.txt", "loops.txt", "timing.json"),
-                 "slam_no_osm": ("timing.json",)}
+                 "slam_no_osm": ("ground_truth_tum.txt", "timing.json")}
 
 
 def _replay_backends(drive, ctx, d, logs, steps):
@@ -1292,6 +1379,7 @@ def _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir):
                             read_json(os.path.join(sim, "sim_info.json")), coverage)
     metrics["own_coverage"] = coverage
     metrics.update(orientation_metrics(osm_out, no_osm_out))
+    metrics.update(absolute_offset_metrics(sim, drive_dir, os.path.join(osm_out, "buildings_corrected.geojson")))
     metrics["ground_truth"] = metrics_gt
     if notes:
         metrics["notes"] = notes

@@ -339,6 +339,40 @@ class ParseTest(unittest.TestCase):
         self.assertEqual(sm.own_coverage([], [0.0, 10.0])["fraction"], 0.0)
         self.assertIsNone(sm.own_coverage([1.0], [5.0]))
 
+    def test_offset_bound_is_the_nearest_point_between_the_two_references(self):
+        self.assertAlmostEqual(sm.offset_bound((2.0, 0.0), (-1.0, 0.0)), 0.0)  # opposite: they cancel
+        self.assertAlmostEqual(sm.offset_bound((1.2, 0.0), (1.6, 0.0)), 1.2)  # same way: the smaller
+        self.assertAlmostEqual(sm.offset_bound((1.0, 1.0), (1.0, -1.0)), 1.0)  # the segment's midpoint
+        tmp = tempfile.mkdtemp(prefix="offset_bound_")
+        try:
+            drive = os.path.join(tmp, "drive")
+            for sub in ("oxts", "oxts_true"):
+                os.makedirs(os.path.join(drive, sub, "data"))
+            lat, lon = 49.0, 8.4
+            rows = [(1e-5, 1.8), (3e-5, 1.8), (9e-3, 1e4)]  # the third is an outage: not counted
+            for i, (dlat, acc) in enumerate(rows):
+                tail = " 0" * 15 + " %g" % acc + " 0" * 6 + "\n"  # pos_accuracy is field 23
+                open(os.path.join(drive, "oxts", "data", "%010d.txt" % i), "w").write(
+                    "%.9f %.9f 110 0 0 0 0 0" % (lat + dlat, lon) + tail[:-1] + "\n")
+                open(os.path.join(drive, "oxts_true", "data", "%010d.txt" % i), "w").write(
+                    "%.9f %.9f 110 0 0 0 0 0" % (lat, lon) + tail)
+            east, north = sm.gnss_mean_error(drive)
+            self.assertAlmostEqual(east, 0.0, places=6)
+            self.assertAlmostEqual(north, 2e-5 * math.pi / 180 * 6378137.0, places=4)  # 2.2 m
+            open(os.path.join(tmp, "prior_offsets.csv"), "w").write(
+                "# header\nosm_id,status,dx_m,dy_m,dtheta_deg,centroid_x,centroid_y\n"
+                "1,moved,1.0,0.0,0,0,0\n2,moved,-3.0,0.0,0,0,0\n3,moved,9.0,9.0,0,0,0\n")
+            feature = lambda i, n: {"properties": {"id": i, "tags": {"osm_graph_slam:observations": str(n)}}}
+            geojson = os.path.join(tmp, "corrected.geojson")
+            json.dump({"features": [feature(1, 4), feature(2, 1), feature(3, 0)]}, open(geojson, "w"))
+            m = sm.absolute_offset_metrics(tmp, drive, geojson)
+            self.assertAlmostEqual(m["map_mean_offset"], 1.0)  # building 3 was never observed
+            self.assertAlmostEqual(m["gnss_mean_error"], north, places=6)
+            self.assertAlmostEqual(m["offset_bound"], sm.offset_bound((-1.0, 0.0), (0.0, north)))
+            self.assertEqual(sm.absolute_offset_metrics(tmp, os.path.join(tmp, "none"), geojson)["offset_bound"], None)
+        finally:
+            shutil.rmtree(tmp)
+
     def test_orientation_metrics(self):
         def q(axis, deg):  # (qx, qy, qz, qw) of a rotation about x, y or z
             h = math.radians(deg) / 2
