@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/loop/dynamic_kd_index.h"
 #include "osm_graph_slam/loop/landmark_loop_source.h"
 
@@ -41,7 +42,8 @@ Eigen::Isometry3d planarIsometry(double x, double y, double z, double yaw) {
 
 }  // namespace
 
-PointCloudPtr downsampleForLoop(const PointCloud& cloud, double leaf) {
+PointCloudPtr downsampleForLoop(const PointCloud& cloud, double leaf, bool use_pcl) {
+  if (leaf > 0.0 && !use_pcl) return voxelCentroids(cloud, leaf);
   auto finite = std::make_shared<PointCloud>();
   finite->reserve(cloud.size());
   for (const auto& p : cloud.points) {
@@ -94,14 +96,15 @@ double overlapRatio(const PointCloud& source, const PointCloud& target,
 
 /// The cloud kept for verification: downsampled, or (voxel_size <= 0) the caller's cloud itself
 /// when it is all finite, so already filtered keyframe clouds are not copied.
-static PointCloudConstPtr storedCloud(const PointCloudConstPtr& cloud, double voxel_size) {
+static PointCloudConstPtr storedCloud(const PointCloudConstPtr& cloud, double voxel_size,
+                                      bool use_pcl) {
   if (voxel_size <= 0.0) {
     const bool finite = std::all_of(cloud->begin(), cloud->end(), [](const PointT& p) {
       return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
     });
     if (finite) return cloud;
   }
-  return downsampleForLoop(*cloud, voxel_size);
+  return downsampleForLoop(*cloud, voxel_size, use_pcl);
 }
 
 /// Everything computed once per keyframe: descriptor and the two registration clouds.
@@ -138,6 +141,10 @@ LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
     landmark_source_ =
         std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
   }
+  if (params_.voxel_filter != "own" && params_.voxel_filter != "pcl") {
+    throw std::invalid_argument("loop detection: unknown voxel_filter '" + params_.voxel_filter +
+                                "' (own | pcl)");
+  }
   if (params_.coarse_method != "correlative" && params_.coarse_method != "gicp") {
     throw std::invalid_argument("loop detection: unknown coarse_method '" + params_.coarse_method +
                                 "' (correlative | gicp)");
@@ -146,7 +153,9 @@ LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
   params_.correlative.sensor_height = params_.scan_context.sensor_height;
   params_.correlative.min_height = params_.scan_context.min_height;
   params_.correlative.max_height = params_.scan_context.max_height;
-  fine_registration_ = createRegistration(params_.registration);
+  RegistrationParams fine = params_.registration;
+  fine.target_cache_size = std::max(1, params_.candidate_cache_size);
+  fine_registration_ = createRegistration(fine);
   if (params_.coarse_max_correspondence_distance > 0.0) {
     RegistrationParams coarse = params_.registration;
     coarse.max_correspondence_distance = params_.coarse_max_correspondence_distance;
@@ -584,16 +593,18 @@ std::optional<DetectedLoop> LoopDetector::prepareAndVerify(
     Query& query, const std::vector<RankedCandidate>& ranked, const PointCloudConstPtr& cloud,
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const auto start = Clock::now();
-  query.cloud = storedCloud(cloud, params_.voxel_size);
-  query.fine_cloud = params_.fine_query_voxel_size > params_.voxel_size
-                         ? downsampleForLoop(*query.cloud, params_.fine_query_voxel_size)
-                         : query.cloud;
+  query.cloud = storedCloud(cloud, params_.voxel_size, pclVoxelFilter());
+  query.fine_cloud =
+      params_.fine_query_voxel_size > params_.voxel_size
+          ? downsampleForLoop(*query.cloud, params_.fine_query_voxel_size, pclVoxelFilter())
+          : query.cloud;
   if (useCorrelative(odom_pose)) {
     query.bev_points = bevQueryPoints(*query.cloud, params_.correlative);
   } else {
-    query.coarse_cloud = coarse_registration_
-                             ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size)
-                             : query.cloud;
+    query.coarse_cloud =
+        coarse_registration_
+            ? downsampleForLoop(*query.cloud, params_.coarse_voxel_size, pclVoxelFilter())
+            : query.cloud;
   }
   stats_.prepare_ms = msSince(start);
   auto loop = verify(query, ranked, odom_pose, accum_distance);
@@ -615,7 +626,7 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
     return false;
   }
   LoopDatabaseEntry entry;
-  entry.cloud = storedCloud(keyframe.cloud, params_.voxel_size);
+  entry.cloud = storedCloud(keyframe.cloud, params_.voxel_size, pclVoxelFilter());
   if (static_cast<int>(entry.cloud->size()) < params_.min_points) {
     logger_.warnOnce("loop_few_points",
                      "loop detection: keyframe " + std::to_string(keyframe.id) + " has only " +
@@ -628,9 +639,10 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   entry.accum_distance = keyframe.accum_distance;
   entry.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
   // Without a coarse stage no coarse cloud is needed: share the pointer.
-  entry.coarse_cloud = coarse_registration_
-                           ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size)
-                           : entry.cloud;
+  entry.coarse_cloud =
+      coarse_registration_
+          ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size, pclVoxelFilter())
+          : entry.cloud;
   // Numbered like entries_: the landmark source's index is the database index.
   if (landmark_source_) landmark_source_->add(keyframe.cloud);
   const Eigen::Vector3f position = keyframe.odom_pose.translation().cast<float>();

@@ -44,12 +44,14 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("verify_odometry_nearest", p.verify_odometry_nearest);
   r.param("voxel_size", p.voxel_size);
   r.param("fine_query_voxel_size", p.fine_query_voxel_size);
+  r.param("voxel_filter", p.voxel_filter);
   r.param("min_points", p.min_points);
   r.param("coarse_method", p.coarse_method);
   readCorrelativeParams(PrefixedParamReader(r, "correlative"), p.correlative);
   r.param("max_ambiguity", p.max_ambiguity);
   r.param("max_refinement_shift", p.max_refinement_shift);
   r.param("field_cache_size", p.field_cache_size);
+  r.param("candidate_cache_size", p.candidate_cache_size);
   r.param("coarse_voxel_size", p.coarse_voxel_size);
   r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
   r.param("coarse_max_fitness", p.coarse_max_fitness);

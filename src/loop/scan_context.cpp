@@ -66,11 +66,12 @@ ScanContext computeScanContext(const PointCloud& cloud, const ScanContextParams&
   sc.cells = Eigen::MatrixXf::Zero(std::max(1, params.num_rings), std::max(1, params.num_sectors));
   for (const auto& p : cloud.points) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
-    int ring, sector;
-    if (!scanContextCell(p.x, p.y, params, &ring, &sector)) continue;
     const double height =
         std::min(static_cast<double>(p.z) + params.sensor_height, params.max_height);
-    if (height < params.min_height) continue;  // ground returns: noise, no structure
+    // Ground returns: noise, no structure (tested first: no atan2 for the ground's many points).
+    if (height < params.min_height) continue;
+    int ring, sector;
+    if (!scanContextCell(p.x, p.y, params, &ring, &sector)) continue;
     float& cell = sc.cells(ring, sector);
     cell = std::max(cell, static_cast<float>(height));
   }
@@ -106,10 +107,13 @@ int sectorKeyShift(const ScanContext& query, const ScanContext& candidate) {
   int best_shift = 0;
   float best_cost = std::numeric_limits<float>::max();
   for (int shift = 0; shift < sectors; ++shift) {
+    // Summed in the order of j as before, without a modulo per term (two loops, no wrap).
     float cost = 0.f;
-    for (int j = 0; j < sectors; ++j) {
-      cost += std::abs(query.sector_key[j] - candidate.sector_key[wrapIndex(j + shift, sectors)]);
-    }
+    const int wrap = sectors - shift;
+    for (int j = 0; j < wrap; ++j)
+      cost += std::abs(query.sector_key[j] - candidate.sector_key[j + shift]);
+    for (int j = wrap; j < sectors; ++j)
+      cost += std::abs(query.sector_key[j] - candidate.sector_key[j - wrap]);
     if (cost < best_cost) {
       best_cost = cost;
       best_shift = shift;

@@ -3,12 +3,16 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <tuple>
 
+#include <pcl/filters/voxel_grid.h>
 #include "frontend_test_utils.h"
+
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/common/memory_tuning.h"
 #include "test_data.h"
 
@@ -206,6 +210,59 @@ TEST(CloudPrefilterTest, OctantOutlierRemovalEqualsWholeCloudOnRealScan) {
       EXPECT_LT(diff / whole->size(), 0.01);
     }
   }
+}
+
+// voxelCentroids (loop detection's filter) is pcl::VoxelGrid without its per-field copies: the
+// same voxels in the same order, centroids equal up to the float sums' order.
+TEST(VoxelCentroidsTest, EqualsPclVoxelGridOnRealScan) {
+  const auto path = test::sharedDataPath("kitti00/000094.bin");
+  OGS_REQUIRE_SHARED_FILE(path);
+  const auto raw = test::loadScan(path);
+  auto input = std::make_shared<PointCloud>(*raw);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (size_t i = 0; i < input->size(); i += 97) input->points[i].y = nan;
+  auto finite = std::make_shared<PointCloud>();
+  for (const auto& p : input->points)
+    if (std::isfinite(p.y)) finite->push_back(p);
+  for (const double leaf : {0.2, 0.6, 1.5}) {
+    PointCloud expected;
+    pcl::VoxelGrid<PointT> grid;
+    grid.setLeafSize(float(leaf), float(leaf), float(leaf));
+    grid.setInputCloud(finite);
+    grid.filter(expected);
+    const auto result = voxelCentroids(*input, leaf);
+    ASSERT_EQ(result->size(), expected.size()) << leaf;
+    double worst = 0.0;
+    for (size_t i = 0; i < expected.size(); ++i) {
+      worst = std::max<double>(
+          worst, (result->points[i].getVector3fMap() - expected.points[i].getVector3fMap()).norm());
+      ASSERT_NEAR(result->points[i].intensity, expected.points[i].intensity, 1e-4) << i;
+    }
+    EXPECT_LT(worst, 1e-4) << leaf;
+    EXPECT_TRUE(result->is_dense);
+    EXPECT_EQ(result->width, result->size());
+  }
+}
+
+TEST(VoxelCentroidsTest, EmptyNanOnlyAndFarPoints) {
+  PointCloud cloud;
+  EXPECT_TRUE(voxelCentroids(cloud, 0.5)->empty());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  cloud.push_back(pointAt(nan, 1.f, 1.f));
+  cloud.push_back(pointAt(1.f, std::numeric_limits<float>::infinity(), 1.f));
+  EXPECT_TRUE(voxelCentroids(cloud, 0.5)->empty());
+  // Beyond 2^20 voxels from the origin: PCL's filter takes over.
+  cloud.push_back(pointAt(0.1f, 0.1f, 0.1f));
+  cloud.push_back(pointAt(0.2f, 0.2f, 0.2f));
+  cloud.push_back(pointAt(3.0e5f, 0.f, 0.f));
+  const auto far = sortedPoints(*voxelCentroids(cloud, 0.1));
+  ASSERT_EQ(far.size(), 3u);
+  EXPECT_FLOAT_EQ(std::get<0>(far[0]), 0.1f);
+  EXPECT_FLOAT_EQ(std::get<0>(far[2]), 3.0e5f);
+  // Two points in one voxel: their mean.
+  const auto near = voxelCentroids(cloud, 1.0);
+  ASSERT_EQ(near->size(), 1u + 1u);
+  EXPECT_FLOAT_EQ(near->points[0].x, 0.15f);
 }
 
 TEST(CloudPrefilterTest, RealScanIsReducedAndStaysInRange) {

@@ -42,6 +42,10 @@ struct RegistrationParams {
   double vgicp_resolution = 1.0;  ///< [m] voxel size of the target distributions (fast_vgicp)
   /// Fewer inlier correspondences than this fails the match (fast_gicp).
   int min_correspondences = 20;
+  /// Prepared targets (KD-tree, covariances) kept for setTarget() of the same cloud object again,
+  /// least recently used dropped first (fast_gicp / fast_vgicp; ~0.5 MB each at 5k points). Not
+  /// read from the parameter files: the loop detector sets it (candidate_cache_size).
+  int target_cache_size = 1;
 };
 
 /// Back-ends may keep the preprocessing (KD-tree, covariances) of the cloud objects they were
