@@ -516,12 +516,16 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
   auto start = Clock::now();
   Query query;
   query.id = keyframe.id;
+  last_query_ = LastQuery();
   if (!keyframe.cloud || keyframe.cloud->empty()) {
     stats_.reason = "keyframe " + std::to_string(keyframe.id) + " has no points";
     return std::nullopt;
   }
-  if (useScanContext())
+  last_query_.input = keyframe.cloud;
+  if (useScanContext()) {
     query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+    last_query_.descriptor = query.descriptor;
+  }
   stats_.descriptor_ms = msSince(start);
 
   start = Clock::now();
@@ -557,6 +561,7 @@ std::optional<DetectedLoop> LoopDetector::detect(const LoopKeyframe& keyframe) {
 
 std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyframe) {
   stats_ = LoopQueryStats();
+  last_query_ = LastQuery();
   if (!keyframe.cloud || keyframe.cloud->empty()) {
     stats_.reason = "relocalisation cloud has no points";
     return std::nullopt;
@@ -564,8 +569,11 @@ std::optional<DetectedLoop> LoopDetector::relocalize(const LoopKeyframe& keyfram
   auto start = Clock::now();
   Query query;
   query.id = keyframe.id;
-  if (useScanContext())
+  last_query_.input = keyframe.cloud;
+  if (useScanContext()) {
     query.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+    last_query_.descriptor = query.descriptor;
+  }
   stats_.descriptor_ms = msSince(start);
   const size_t limit = keyframe.accum_distance < 0.0
                            ? entries_.size()
@@ -594,6 +602,7 @@ std::optional<DetectedLoop> LoopDetector::prepareAndVerify(
     const std::optional<Eigen::Isometry3d>& odom_pose, double accum_distance) {
   const auto start = Clock::now();
   query.cloud = storedCloud(cloud, params_.voxel_size, pclVoxelFilter());
+  if (cloud == last_query_.input) last_query_.stored = query.cloud;
   query.fine_cloud =
       params_.fine_query_voxel_size > params_.voxel_size
           ? downsampleForLoop(*query.cloud, params_.fine_query_voxel_size, pclVoxelFilter())
@@ -625,8 +634,13 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
                          " has a smaller accumulated distance than its predecessor; ignored");
     return false;
   }
+  // Searched just before (process()): its descriptor and downsampled cloud are this keyframe's.
+  LastQuery searched;
+  if (keyframe.cloud == last_query_.input) searched = std::move(last_query_);
+  last_query_ = LastQuery();
   LoopDatabaseEntry entry;
-  entry.cloud = storedCloud(keyframe.cloud, params_.voxel_size, pclVoxelFilter());
+  entry.cloud = searched.stored ? searched.stored
+                                : storedCloud(keyframe.cloud, params_.voxel_size, pclVoxelFilter());
   if (static_cast<int>(entry.cloud->size()) < params_.min_points) {
     logger_.warnOnce("loop_few_points",
                      "loop detection: keyframe " + std::to_string(keyframe.id) + " has only " +
@@ -637,7 +651,9 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   entry.id = keyframe.id;
   entry.odom_pose = keyframe.odom_pose;
   entry.accum_distance = keyframe.accum_distance;
-  entry.descriptor = computeScanContext(*keyframe.cloud, params_.scan_context);
+  entry.descriptor = searched.descriptor
+                         ? *searched.descriptor
+                         : computeScanContext(*keyframe.cloud, params_.scan_context);
   // Without a coarse stage no coarse cloud is needed: share the pointer.
   entry.coarse_cloud =
       coarse_registration_

@@ -296,6 +296,14 @@ class LoopDetector {
   LoopQueryStats stats_;
   struct FieldCache;
   std::unique_ptr<FieldCache> field_cache_;
+  /// The last searched cloud and what was computed from it, for addKeyframe() of the same cloud
+  /// right after (process(), the nodelet): descriptor and downsampled cloud not computed twice.
+  struct LastQuery {
+    PointCloudConstPtr input;
+    std::optional<ScanContext> descriptor;
+    PointCloudConstPtr stored;
+  };
+  LastQuery last_query_;
 };
 
 /// Fraction of source points (after transform) with a target point within max_distance.
