@@ -5,6 +5,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
@@ -231,30 +232,33 @@ class FastGicp : public Registration {
 
   void setTarget(const PointCloudConstPtr& target) override {
     // The same cloud object again (e.g. loop verification from a second seed): keep everything.
-    if (target_ && target && target_->source == target) return;
+    if (target_pending_ ? pending_target_ == target
+                        : target_ && target && target_->source == target)
+      return;
+    target_pending_ = false;
+    pending_target_.reset();
     const auto cached = std::find_if(recent_targets_.begin(), recent_targets_.end(),
                                      [&](const auto& c) { return target && c->source == target; });
     if (cached != recent_targets_.end()) {
       // A recent target again (a revisit verifies the same keyframes for consecutive queries).
       target_ = *cached;
       recent_targets_.erase(cached);
+      recent_targets_.push_front(target_);
     } else if (last_source_ && target && last_source_->source == target) {
       // A scan that becomes the new keyframe was just the source: reuse its tree and covariances.
       target_ = last_source_;
+      remember(target_);
     } else {
-      arena_.execute([&] { target_ = prepare(target, params_.k_correspondences, epsilon()); });
-    }
-    recent_targets_.push_front(target_);
-    while (recent_targets_.size() > static_cast<size_t>(std::max(1, params_.target_cache_size)))
-      recent_targets_.pop_back();
-    if (voxelized_ && target_->tree) {
-      arena_.execute([&] { computeAllCovariances(*target_, params_.k_correspondences); });
-      buildVoxels(*target_, params_.vgicp_resolution);
+      // Prepared when first needed: by align() together with a new source, on both cores.
+      target_.reset();
+      target_pending_ = true;
+      pending_target_ = target;
     }
   }
 
   std::optional<double> overlap(const PointCloud& source, const Eigen::Isometry3d& transform,
                                 double max_distance) const override {
+    if (target_pending_) arena_.execute([&] { prepareTarget(nullptr); });
     if (!target_ || !target_->tree || source.empty()) return std::nullopt;
     const Eigen::Affine3f t = transform.cast<float>();
     const float max_sq = static_cast<float>(max_distance * max_distance);
@@ -298,14 +302,16 @@ class FastGicp : public Registration {
   RegistrationResult alignImpl(const PointCloudConstPtr& source, const Eigen::Isometry3d& guess) {
     RegistrationResult result;
     result.transform = guess;
+    const bool new_source = !last_source_ || !source || last_source_->source != source;
+    if (target_pending_) {
+      prepareTarget(new_source ? &source : nullptr);
+    } else if (new_source) {
+      last_source_ = prepare(source, params_.k_correspondences, epsilon());
+    }
     if (!target_ || target_->points.size() < minPoints()) {
       result.message =
           name() + ": target has fewer than " + std::to_string(minPoints()) + " valid points";
       return result;
-    }
-    // Aligning the same cloud object again (several targets or seeds): reuse its preparation.
-    if (!last_source_ || !source || last_source_->source != source) {
-      last_source_ = prepare(source, params_.k_correspondences, epsilon());
     }
     PreparedCloud& src = *last_source_;
     if (src.points.size() < minPoints()) {
@@ -372,6 +378,33 @@ class FastGicp : public Registration {
       result.message = name() + ": too few correspondences at the solution";
     }
     return result;
+  }
+
+  /// Prepares the pending target, and source (when given) at the same time: the two KD-tree
+  /// builds are serial each (~0.3 ms for 4k points).
+  void prepareTarget(const PointCloudConstPtr* source) const {
+    std::shared_ptr<PreparedCloud> target;
+    if (source) {
+      tbb::parallel_invoke(
+          [&] { target = prepare(pending_target_, params_.k_correspondences, epsilon()); },
+          [&] { last_source_ = prepare(*source, params_.k_correspondences, epsilon()); });
+    } else {
+      target = prepare(pending_target_, params_.k_correspondences, epsilon());
+    }
+    target_ = target;
+    target_pending_ = false;
+    pending_target_.reset();
+    remember(target_);
+    if (voxelized_ && target_->tree) {
+      computeAllCovariances(*target_, params_.k_correspondences);
+      buildVoxels(*target_, params_.vgicp_resolution);
+    }
+  }
+
+  void remember(const std::shared_ptr<PreparedCloud>& target) const {
+    recent_targets_.push_front(target);
+    while (recent_targets_.size() > static_cast<size_t>(std::max(1, params_.target_cache_size)))
+      recent_targets_.pop_back();
   }
 
   static constexpr int kInnerSteps = 1;
@@ -499,10 +532,13 @@ class FastGicp : public Registration {
   RegistrationParams params_;
   bool voxelized_ = false;
   mutable tbb::task_arena arena_;  // execute() is not const; overlap() runs in it too
-  std::shared_ptr<PreparedCloud> target_;
-  std::shared_ptr<PreparedCloud> last_source_;
+  // Mutable: overlap() (const) prepares a target set but not aligned onto yet.
+  mutable std::shared_ptr<PreparedCloud> target_;
+  mutable std::shared_ptr<PreparedCloud> last_source_;
+  mutable bool target_pending_ = false;  ///< setTarget(pending_target_) not prepared yet
+  mutable PointCloudConstPtr pending_target_;
   /// The last target_cache_size targets, most recent first (target_ included).
-  std::list<std::shared_ptr<PreparedCloud>> recent_targets_;
+  mutable std::list<std::shared_ptr<PreparedCloud>> recent_targets_;
 };
 
 }  // namespace
