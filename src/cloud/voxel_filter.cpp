@@ -75,13 +75,7 @@ PointCloudPtr voxelCentroids(const PointCloud& cloud, double leaf) {
       auto finite = std::make_shared<PointCloud>();
       for (const auto& q : cloud.points)
         if (std::isfinite(q.x) && std::isfinite(q.y) && std::isfinite(q.z)) finite->push_back(q);
-      pcl::VoxelGrid<PointT> grid;
-      grid.setLeafSize(static_cast<float>(leaf), static_cast<float>(leaf),
-                       static_cast<float>(leaf));
-      grid.setInputCloud(finite);
-      grid.filter(*out);
-      out->header = pcl::PCLHeader();
-      return out;
+      return voxelDownsample(finite, leaf, true);  // finite's header is empty, as promised
     }
     const uint64_t key = voxelKey(floorToInt(fx), floorToInt(fy), floorToInt(fz));
     size_t s = slotOf(key, capacity - 1);
