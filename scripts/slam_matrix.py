@@ -51,6 +51,7 @@ SIM_DEFAULTS = {
     "manoeuvres": "none",
     "drop_scans": 0.0,
     "dropout_burst": 0,  # N or "N@T": one burst of N consecutive missing scans (at T s)
+    "map_shift": 0.0,  # [m] the 'global' prior model's common shift, fixed (0: uniform in 1-3 m)
 }
 DEFAULT_SIM_ARGS = "--motion-distortion --kitti-calibration-error"  # as scripts/demo.sh
 BASELINE_LABEL = "odom+loops"
@@ -82,9 +83,14 @@ PRESETS = {
         "manoeuvres": ["none"],
         "drop_scans": [0.0],
         "dropout_burst": [0],
+        "map_shifts": [0.0],
         "design": "rotation",
         "per_cell_short": 3,
         "per_cell_long": 1,
+        # + per world 2 drives whose map is shifted by 1.5 m as a whole: seed 1's first fix is
+        # good (0.7 m off), so a map that pulls the trajectory shows as a loss (doc/matrix.md).
+        "extra_drives": [{"seed": s, "length": 300, "prior_model": "global", "map_shift": 1.5}
+                         for s in (1, 4)],
     },
     # 2 worlds x 2 (prior model, sensor) pairs, 200 m: 4 drives, about 6 minutes.
     "quick": {
@@ -97,6 +103,7 @@ PRESETS = {
         "manoeuvres": ["none"],
         "drop_scans": [0.0],
         "dropout_burst": [0],
+        "map_shifts": [0.0],
         "design": "rotation",
         "per_cell_short": 2,
         "per_cell_long": 2,
@@ -114,6 +121,7 @@ PRESETS = {
         "manoeuvres": ["none"],
         "drop_scans": [0.0],
         "dropout_burst": [0],
+        "map_shifts": [0.0],
         "design": "product",
         "scenarios": [
             {},
@@ -126,7 +134,7 @@ PRESETS = {
 }
 LONG_DRIVE_M = 1000  # rotation design: drives of at least this length get per_cell_long pairs
 AXES = ("worlds", "seeds", "lengths", "prior_models", "sensors", "gnss", "manoeuvres",
-        "drop_scans", "dropout_burst")
+        "drop_scans", "dropout_burst", "map_shifts")
 ROTATED = ("prior_models", "sensors")  # the rotation design's rotated axes
 
 
@@ -184,7 +192,7 @@ class Drive:
     def __init__(self, world, seed, length, prior_model=SIM_DEFAULTS["prior_model"],
                  sensor=SIM_DEFAULTS["sensor"], gnss=SIM_DEFAULTS["gnss"],
                  manoeuvres=SIM_DEFAULTS["manoeuvres"], drop_scans=SIM_DEFAULTS["drop_scans"],
-                 dropout_burst=SIM_DEFAULTS["dropout_burst"]):
+                 dropout_burst=SIM_DEFAULTS["dropout_burst"], map_shift=SIM_DEFAULTS["map_shift"]):
         self.world = world
         self.seed = int(seed)
         self.length = int(length)
@@ -194,18 +202,19 @@ class Drive:
         self.manoeuvres = manoeuvres
         self.drop_scans = float(drop_scans)
         self.dropout_burst = parse_burst(dropout_burst)
+        self.map_shift = float(map_shift)
 
     def replaced(self, **changes):
         fields = {"world": self.world, "seed": self.seed, "length": self.length,
                   "prior_model": self.prior_model, "sensor": self.sensor, "gnss": self.gnss,
                   "manoeuvres": self.manoeuvres, "drop_scans": self.drop_scans,
-                  "dropout_burst": self.dropout_burst}
+                  "dropout_burst": self.dropout_burst, "map_shift": self.map_shift}
         fields.update(changes)
         return Drive(**fields)
 
     def key(self):
         return (self.world, self.seed, self.length, self.prior_model, self.sensor, self.gnss,
-                self.manoeuvres, self.drop_scans, self.dropout_burst)
+                self.manoeuvres, self.drop_scans, self.dropout_burst, self.map_shift)
 
     def __eq__(self, other):
         return isinstance(other, Drive) and self.key() == other.key()
@@ -227,6 +236,8 @@ class Drive:
             parts.append("drop" + fmt_num(self.drop_scans))
         if self.dropout_burst != SIM_DEFAULTS["dropout_burst"]:
             parts.append("burst" + str(self.dropout_burst).replace("@", "at"))
+        if self.map_shift > 0:
+            parts.append("shift" + fmt_num(self.map_shift))
         return re.sub(r"[^A-Za-z0-9_.+-]", "-", "_".join(parts))
 
     def sim_flags(self):
@@ -252,13 +263,16 @@ class Drive:
             flags += ["--drop-scans", fmt_num(self.drop_scans)]
         if self.dropout_burst != SIM_DEFAULTS["dropout_burst"]:
             flags += ["--dropout-burst", str(self.dropout_burst)]
+        if self.map_shift > 0:
+            flags += ["--prior-global-offset", "%s,%s" % (fmt_num(self.map_shift), fmt_num(self.map_shift))]
         return flags
 
     def axes(self):
         return {"drive": self.name, "world": self.world.label, "world_file": self.world.path,
                 "seed": self.seed, "length_m": self.length, "prior_model": self.prior_model,
                 "sensor": self.sensor, "gnss": self.gnss, "manoeuvres": self.manoeuvres,
-                "drop_scans": self.drop_scans, "dropout_burst": self.dropout_burst}
+                "drop_scans": self.drop_scans, "dropout_burst": self.dropout_burst,
+                "map_shift": self.map_shift}
 
     def estimated_scans(self):
         label = self.world.label
@@ -306,40 +320,43 @@ def diagonal_combinations(lists):
     return out
 
 
-def build_grid(axes, design, per_cell_short=1, per_cell_long=1, scenarios=None):
+def build_grid(axes, design, per_cell_short=1, per_cell_long=1, scenarios=None, extra_drives=None):
     """The drives of a matrix. design 'product': every combination of the axes. 'rotation':
-    every world x seed x length x (gnss, manoeuvres, drops) cell gets per_cell (prior model,
-    sensor) pairs in diagonal rotation, the rotation running on across the cells of one length,
-    so every pair appears and every prior model and sensor meets each world and each length.
-    scenarios (dicts of Drive fields): each drive once per scenario, with its values."""
+    every world x seed x length x (gnss, manoeuvres, drops, map shift) cell gets per_cell (prior
+    model, sensor) pairs in diagonal rotation, the rotation running on across the cells of one
+    length, so every pair appears and every prior model and sensor meets each world and each
+    length. scenarios (dicts of Drive fields): each drive once per scenario, with its values.
+    extra_drives (dicts of Drive fields but the world): one more drive per world each."""
     def cells(lengths):
         return itertools.product(axes["worlds"], axes["seeds"], lengths, axes["gnss"],
-                                 axes["manoeuvres"], axes["drop_scans"], axes["dropout_burst"])
+                                 axes["manoeuvres"], axes["drop_scans"], axes["dropout_burst"],
+                                 axes["map_shifts"])
 
     drives = []
     if design == "product":
-        for w, s, l, g, m, d, b in cells(axes["lengths"]):
+        for w, s, l, g, m, d, b, shift in cells(axes["lengths"]):
             for p, sensor in itertools.product(axes["prior_models"], axes["sensors"]):
-                drives.append(Drive(w, s, l, p, sensor, g, m, d, b))
+                drives.append(Drive(w, s, l, p, sensor, g, m, d, b, shift))
     elif design == "rotation":
         pairs = diagonal_combinations([axes[a] for a in ROTATED])
         for length in axes["lengths"]:
             per_cell = per_cell_long if length >= LONG_DRIVE_M else per_cell_short
             per_cell = max(1, min(per_cell, len(pairs)))
             t = 0
-            for w, s, l, g, m, d, b in cells([length]):
+            for w, s, l, g, m, d, b, shift in cells([length]):
                 for _ in range(per_cell):
                     p, sensor = pairs[t % len(pairs)]
                     t += 1
-                    drives.append(Drive(w, s, l, p, sensor, g, m, d, b))
+                    drives.append(Drive(w, s, l, p, sensor, g, m, d, b, shift))
     else:
         raise MatrixError("unknown design '%s'" % design)
     if scenarios:
         drives = [d.replaced(**sc) for d in drives for sc in scenarios]
+    drives += [Drive(w, **fields) for w in axes["worlds"] for fields in extra_drives or []]
     # One drive per parameter set, in table order: world, length, seed, then the rest.
     unique = list(dict.fromkeys(drives))
     worlds = list(dict.fromkeys(axes["worlds"]))
-    lengths = list(dict.fromkeys(axes["lengths"]))
+    lengths = list(dict.fromkeys(list(axes["lengths"]) + sorted(d.length for d in unique)))
     return sorted(unique, key=lambda d: (worlds.index(d.world), lengths.index(d.length), d.seed))
 
 
@@ -354,22 +371,25 @@ def split_values(values, convert, split=True):
 
 
 def axes_from_args(args):
-    """(axes, design, per_cell_short, per_cell_long, scenarios): the preset's axes, explicit
-    ones replacing theirs (and their values in the preset's scenarios); without a preset the
-    product of the given axes (defaults for the others)."""
-    scenarios = None
+    """(axes, design, per_cell_short, per_cell_long, scenarios, extra_drives): the preset's axes,
+    explicit ones replacing theirs (and their values in the preset's scenarios; any explicit axis
+    but the worlds drops the preset's extra drives); without a preset the product of the given
+    axes (defaults for the others)."""
+    scenarios, extras = None, []
     if args.preset:
         p = PRESETS[args.preset]
         axes = {a: list(p[a]) for a in AXES}
         axes["worlds"] = [parse_world(w, REPO) for w in axes["worlds"]]
         design, short, long_ = p["design"], p.get("per_cell_short", 1), p.get("per_cell_long", 1)
         scenarios = [dict(sc) for sc in p.get("scenarios", [])]
+        extras = [dict(x) for x in p.get("extra_drives", [])]
     else:
         axes = {"worlds": [World("city")], "seeds": [1], "lengths": [300],
                 "prior_models": [SIM_DEFAULTS["prior_model"]], "sensors": [SIM_DEFAULTS["sensor"]],
                 "gnss": [SIM_DEFAULTS["gnss"]], "manoeuvres": [SIM_DEFAULTS["manoeuvres"]],
                 "drop_scans": [SIM_DEFAULTS["drop_scans"]],
-                "dropout_burst": [SIM_DEFAULTS["dropout_burst"]]}
+                "dropout_burst": [SIM_DEFAULTS["dropout_burst"]],
+                "map_shifts": [SIM_DEFAULTS["map_shift"]]}
         design, short, long_ = "product", 1, 1
 
     def choice(allowed, what):
@@ -405,16 +425,19 @@ def axes_from_args(args):
         "manoeuvres": split_values(args.manoeuvres, str, split=False),
         "drop_scans": split_values(args.drop_scans, number(float, "--drop-scans", 0.0)),
         "dropout_burst": split_values(args.dropout_burst, parse_burst),
+        "map_shifts": split_values(args.map_shift, number(float, "--map-shift", 0.0)),
     }
     for a, values in explicit.items():
         if values:
             axes[a] = list(dict.fromkeys(values))
             for sc in scenarios or []:
                 sc.pop(a, None)
+            if a != "worlds":
+                extras = []
     for d in axes["drop_scans"]:
         if d >= 1.0:
             raise MatrixError("--drop-scans is a fraction below 1, not '%s'" % d)
-    return axes, design, short, long_, scenarios
+    return axes, design, short, long_, scenarios, extras
 
 
 # --- reading the results -----------------------------------------------------------------------
@@ -933,6 +956,8 @@ def format_table(rows, summary=None):
         extra.append(("manoeuvres", 16))
     if any((r.get("drop_scans") or 0) > 0 or r.get("dropout_burst") not in (None, 0) for r in rows):
         extra.append(("drops", 10))
+    if any((r.get("map_shift") or 0) > 0 for r in rows):
+        extra.append(("shift", 5))
     head = [h.ljust(w) if h in ("world", "prior", "sensor", "gnss", "manoeuvres", "drops") else h.rjust(w)
             for h, w in AXIS_COLUMNS + extra]
     head += [h.rjust(w) for _, h, w, _, _ in COLUMNS] + ["status"]
@@ -948,6 +973,9 @@ def format_table(rows, summary=None):
         for name, w in extra:
             if name == "manoeuvres":
                 cells.append(cut(str(r.get("manoeuvres", "")), w).ljust(w))
+            elif name == "shift":
+                shift = r.get("map_shift") or 0
+                cells.append((fmt_num(float(shift)) if shift > 0 else "-").rjust(w))
             else:
                 d, burst = r.get("drop_scans") or 0, r.get("dropout_burst") or 0
                 parts = ([fmt_num(float(d))] if d > 0 else []) + (["b%s" % burst] if burst else [])
@@ -1534,6 +1562,9 @@ def build_parser():
     g.add_argument("--drop-scans", action="append", metavar="F", help="fraction of scans dropped")
     g.add_argument("--dropout-burst", action="append", metavar="N[@T]",
                    help="one burst of N consecutive missing scans (at T s); 0 = none")
+    g.add_argument("--map-shift", action="append", metavar="M",
+                   help="the 'global' and 'mixed' prior models' common map shift [m], fixed "
+                        "(simulate_urban --prior-global-offset M,M); 0 = uniform in 1-3 m")
     ap.add_argument("--sim-args", default=DEFAULT_SIM_ARGS,
                     help="extra simulate_urban options for every drive (default: '%(default)s')")
     ap.add_argument("--bin", default=os.path.join(REPO, "build_ws", "devel", "lib", "osm_graph_slam"),
@@ -1584,7 +1615,7 @@ def _main(args, log):
         raise MatrixError("--jobs must be at least 1")
     if not args.preset and not any([args.world, args.osm, args.seed, args.length, args.prior_model,
                                     args.sensor, args.gnss, args.manoeuvres, args.drop_scans,
-                                    args.dropout_burst]):
+                                    args.dropout_burst, args.map_shift]):
         raise MatrixError("give --preset quick|default|stress or the axes (--world, --seed, --length, ...)")
     drives = build_grid(*axes_from_args(args))
     try:

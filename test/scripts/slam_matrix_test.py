@@ -165,7 +165,21 @@ class GridTest(unittest.TestCase):
                 self.assertGreaterEqual(len({d.seed for d in drives if d.world.label == w and d.length == length}), 3)
         # every (prior model, sensor) pair is measured
         self.assertEqual(len({(d.prior_model, d.sensor) for d in drives}), 8)
-        self.assertLess(sum(d.estimated_seconds() for d in drives), 2 * 3600 * 0.85)
+        self.assertLess(sum(d.estimated_seconds() for d in drives), 2 * 3600)
+
+    def test_default_preset_has_drives_whose_map_is_shifted_as_a_whole(self):
+        shifted = [d for d in preset_drives("default") if d.map_shift > 0]
+        self.assertEqual(sorted((d.world.label, d.seed) for d in shifted),
+                         [("city", 1), ("city", 4), ("karlsruhe", 1), ("karlsruhe", 4)])
+        for d in shifted:
+            self.assertEqual((d.prior_model, d.length, d.map_shift), ("global", 300, 1.5))
+            self.assertIn("--prior-global-offset 1.5,1.5", " ".join(d.sim_flags()))
+            self.assertTrue(d.name.endswith("_shift1.5"), d.name)
+        # they belong to the preset's worlds, and give way to any other explicit axis
+        drives = preset_drives("default", ["--world", "city"])
+        self.assertEqual(len([d for d in drives if d.map_shift > 0]), 2)
+        self.assertFalse(any(d.map_shift > 0 for d in preset_drives("default", ["--seed", "2"])))
+        self.assertFalse(any(d.map_shift > 0 for d in preset_drives("quick")))
 
     def test_quick_preset(self):
         drives = preset_drives("quick")
@@ -231,6 +245,12 @@ class GridTest(unittest.TestCase):
         self.assertEqual(d.sim_flags()[-2:], ["--dropout-burst", "20@30.5"])
         self.assertEqual(d.name, "city_s1_300m_independent_hdl64e_noisy_burst20at30.5")
         self.assertEqual(sm.Drive(city, 1, 300, dropout_burst="0"), sm.Drive(city, 1, 300))
+        d = sm.Drive(city, 1, 300, "mixed", map_shift="2")
+        self.assertEqual(d.sim_flags()[-2:], ["--prior-global-offset", "2,2"])
+        self.assertEqual(d.name, "city_s1_300m_mixed_hdl64e_noisy_shift2")
+        self.assertNotEqual(d, sm.Drive(city, 1, 300, "mixed"))
+        args = sm.build_parser().parse_args(["--world", "city", "--prior-model", "global", "--map-shift", "0,1.5"])
+        self.assertEqual([d.map_shift for d in sm.build_grid(*sm.axes_from_args(args))], [0.0, 1.5])
         with self.assertRaises(sm.MatrixError):
             sm.parse_burst("x@1")
 
