@@ -20,9 +20,11 @@ int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) 
   const bool fixed = p.mode == OsmMode::kPrior || heldAtPrior(b, p);
   graph.addVertexSE2(b.vertex_id, b.pose, fixed);
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
-  info(0, 0) = info(1, 1) = 1.0 / (p.building_prior_std_xy * p.building_prior_std_xy);
+  const double std_xy =
+      gnss_anchored ? p.building_prior_std_xy : p.building_prior_std_xy_without_gnss;
+  info(0, 0) = info(1, 1) = 1.0 / (std_xy * std_xy);
   info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
-  if (p.osm_datum_std_xy > 0.0 && !fixed)
+  if (datumStdXy(p) > 0.0 && !fixed)
     graph.addEdgeSE2(datumVertex(p), b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
   else
     graph.addPriorSE2(b.vertex_id, b.prior.reference_pose, info, EdgeOptions{1, {}});
@@ -30,7 +32,7 @@ int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) 
 }
 
 Pose2 BackendState::predictedPose(const BuildingState& b, const GraphBackendParams& p) const {
-  if (p.osm_datum_std_xy <= 0.0) return b.prior.reference_pose;
+  if (datumStdXy(p) <= 0.0) return b.prior.reference_pose;
   return graph.vertexSE2(GraphBackend::kOsmDatumVertex).value_or(Pose2()) * b.prior.reference_pose;
 }
 
@@ -41,11 +43,16 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   // Translation only unless a rotation deviation is given (1e-5 rad: 2 mm at 200 m).
   const double std_theta = p.osm_datum_std_theta > 0.0 ? p.osm_datum_std_theta : 1e-5;
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
-  info(0, 0) = info(1, 1) = 1.0 / (p.osm_datum_std_xy * p.osm_datum_std_xy);
+  info(0, 0) = info(1, 1) = 1.0 / (datumStdXy(p) * datumStdXy(p));
   info(2, 2) = 1.0 / (std_theta * std_theta);
+  const std::string& kernel = gnss_anchored ? p.osm_datum_kernel : p.osm_datum_kernel_without_gnss;
   graph.addPriorSE2(id, Pose2(), info,
-                    EdgeOptions{1, kernelNamed(p.osm_datum_kernel, p.osm_datum_kernel_width)});
+                    EdgeOptions{1, kernelNamed(kernel, p.osm_datum_kernel_width)});
   return id;
+}
+
+double BackendState::datumStdXy(const GraphBackendParams& p) const {
+  return gnss_anchored ? p.osm_datum_std_xy : p.osm_datum_std_xy_without_gnss;
 }
 
 int BackendState::gnssBiasWindow(double stamp, const GraphBackendParams& p) const {
@@ -62,7 +69,7 @@ int BackendState::odometryScaleWindow(double accum_distance, const GraphBackendP
   return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
 }
 
-int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
+int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p, double scale) {
   if (!gnss_bias_start) gnss_bias_start = stamp;
   const int k = gnssBiasWindow(stamp, p);
   const auto found = gnss_bias_vertices.find(k);
@@ -70,23 +77,35 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p) {
   const int id = GraphBackend::kGnssBiasVertexTop - k;
   // Without altitude evidence the vertical bias is unused; any positive deviation keeps it tame.
   const double vertical = p.gnss_bias_std_vertical > 0.0 ? p.gnss_bias_std_vertical : 1.0;
-  const Eigen::Vector3d var(p.gnss_bias_std * p.gnss_bias_std, p.gnss_bias_std * p.gnss_bias_std,
-                            vertical * vertical);
+  const Eigen::Vector3d var =
+      Eigen::Vector3d(p.gnss_bias_std * p.gnss_bias_std, p.gnss_bias_std * p.gnss_bias_std,
+                      vertical * vertical) *
+      (scale * scale);
   const auto before = gnss_bias_vertices.lower_bound(k);  // windows are met in time order
-  if (before == gnss_bias_vertices.begin()) {
+  // A fix mode whose accuracy differs by more than 1.5x (RTK lost or regained) has a bias of its
+  // own: it starts afresh instead of continuing the previous window's.
+  const auto newMode = [&](int j) {
+    const double r = scale / gnss_bias_scales.at(j);
+    return !(r > 1.0 / 1.5 && r < 1.5);
+  };
+  if (before == gnss_bias_vertices.begin() || newMode(std::prev(before)->first)) {
     graph.addVertexPointXYZ(id, Eigen::Vector3d::Zero());
     graph.addPriorPointXYZ(id, Eigen::Vector3d::Zero(), var.cwiseInverse().asDiagonal());
   } else {
-    // b_k = φ·b_j + w, var(w) = σ²(1 − φ²): the stationary process over the windows between
-    // (an outage may skip some).
+    // b_k / s_k = φ·b_j / s_j + w, var(w) = σ²(1 − φ²): the stationary process of the bias over
+    // its deviation σ s (a receiver whose accuracy changes) across the windows between (an
+    // outage may skip some).
     const auto& [j, prev] = *std::prev(before);
     const double window = std::max(p.gnss_bias_window, 1e-3);
     const double phi = p.gnss_bias_tau > 0.0 ? std::exp(-(k - j) * window / p.gnss_bias_tau) : 0.0;
+    const double step = phi * scale / gnss_bias_scales.at(j);
     const Eigen::Vector3d step_var = var * std::max(1.0 - phi * phi, 1e-6);
-    graph.addVertexPointXYZ(id, phi * graph.vertexPointXYZ(prev).value_or(Eigen::Vector3d::Zero()));
-    graph.addEdgePointXYZGaussMarkov(prev, id, phi, step_var.cwiseInverse().asDiagonal());
+    graph.addVertexPointXYZ(id,
+                            step * graph.vertexPointXYZ(prev).value_or(Eigen::Vector3d::Zero()));
+    graph.addEdgePointXYZGaussMarkov(prev, id, step, step_var.cwiseInverse().asDiagonal());
   }
   gnss_bias_vertices.emplace(k, id);
+  gnss_bias_scales.emplace(k, scale);
   return id;
 }
 

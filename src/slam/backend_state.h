@@ -54,10 +54,16 @@ struct BackendState {
   bool heading_initialized = false;
   std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
+  /// GNSS priors hold the trajectory (gnss_prior_std > 0, a known heading, at least two fixes):
+  /// building and datum priors created from then on take their tighter deviations
+  /// (GraphBackendParams::building_prior_std_xy vs ..._without_gnss).
+  bool gnss_anchored = false;
+  size_t gnss_priors = 0;  ///< GNSS prior edges added
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
-  std::optional<double> gnss_bias_start;  ///< stamp where GNSS bias window 0 starts
-  std::map<int, int> gnss_bias_vertices;  ///< window -> its bias vertex
-  std::map<int, int> scale_vertices;      ///< odometry scale window -> its scale vertex
+  std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
+  std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex
+  std::map<int, double> gnss_bias_scales;  ///< window -> its deviation's scale (reported accuracy)
+  std::map<int, int> scale_vertices;       ///< odometry scale window -> its scale vertex
   /// accum_distance -> (keyframe, INS yaw) of the keyframes with an INS heading
   std::map<double, std::pair<uint64_t, double>> ins_headings;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
@@ -90,13 +96,16 @@ struct BackendState {
   /// Index of the odometry scale's path window holding accum_distance (0 for a bad length).
   int odometryScaleWindow(double accum_distance, const GraphBackendParams& p) const;
   /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
-  /// and tied to the previous window's by the Gauss-Markov process.
-  int gnssBiasVertex(double stamp, const GraphBackendParams& p);
+  /// with deviation gnss_bias_std x scale (the first fix of the window decides the scale) and tied
+  /// to the previous window's by the Gauss-Markov process of the bias over its deviation.
+  int gnssBiasVertex(double stamp, const GraphBackendParams& p, double scale = 1.0);
   /// The odometry scale vertex of the path window holding accum_distance (created on first use:
   /// a prior around 1 for the first window, a random walk from the previous one otherwise).
   int odometryScaleVertex(double accum_distance, const GraphBackendParams& p);
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
   int datumVertex(const GraphBackendParams& p);
+  /// The datum's deviation for this run (with or without GNSS priors); <= 0: no datum.
+  double datumStdXy(const GraphBackendParams& p) const;
   /// Whether an answered OSM query covers the position.
   bool covered(const Eigen::Vector2d& position) const;
 

@@ -436,17 +436,31 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
   const bool altitude = gnssAltitude() && in.gnss_altitude.has_value();
   const Eigen::Vector3d fix(in.gnss_position->x(), in.gnss_position->y(),
                             altitude ? *in.gnss_altitude : 0.0);
+  const double scale = gnssAccuracyScale(in);
+  // One fix (an origin) anchors no better than the soft anchor; from the second on the fixes
+  // hold the run and the map's priors created from then on take their tighter deviations.
+  if (++s.gnss_priors >= 2) s.gnss_anchored = true;
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();  // no altitude: z uninformed
-  info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss_prior_std, 2);
-  if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss_altitude_std, 2);
+  info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss_prior_std * scale, 2);
+  if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss_altitude_std * scale, 2);
   const EdgeOptions options{0, RobustKernel::huber(params_.gnss_prior_kernel_width)};
   if (params_.gnss_bias_std > 0.0)
-    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_), fix, info,
+    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_, scale), fix, info,
                                          options);
   else if (altitude)
     s.graph.addPriorSE3XYZ(vid, fix, info, options);
   else
     s.graph.addPriorSE3XY(vid, fix.head<2>(), info.topLeftCorner<2, 2>(), options);
+}
+
+double GraphBackend::gnssAccuracyScale(const KeyframeInput& in) const {
+  // A receiver reports its whole error (white noise and bias together, as NavSatFix covariance
+  // or OXTS pos_accuracy): an RTK fix then outweighs the map, a single-point one does not.
+  const double modelled = std::hypot(params_.gnss_prior_std, params_.gnss_bias_std);
+  if (!params_.gnss_reported_accuracy || !in.gnss_std || !(*in.gnss_std > 0.0) ||
+      !std::isfinite(*in.gnss_std) || !(modelled > 0.0))
+    return 1.0;
+  return std::max(*in.gnss_std, params_.gnss_min_reported_std) / modelled;
 }
 
 void GraphBackend::addInsHeadingChange(const KeyframeInput& in) {

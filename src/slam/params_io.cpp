@@ -47,6 +47,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("reanchor_std_rot", p.reanchor_std_rot);
   r.param("gnss_prior_std", p.gnss_prior_std);
   r.param("gnss_prior_kernel_width", p.gnss_prior_kernel_width);
+  r.param("gnss_reported_accuracy", p.gnss_reported_accuracy);
+  r.param("gnss_min_reported_std", p.gnss_min_reported_std);
   r.param("gnss_first_yaw_std", p.gnss_first_yaw_std);
   r.param("gnss_bias_std", p.gnss_bias_std);
   r.param("gnss_bias_std_vertical", p.gnss_bias_std_vertical);
@@ -106,11 +108,15 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("building_edge_spacing", p.building_edge_spacing);
   r.param("local_edge_at_walls", p.local_edge_at_walls);
   r.param("building_prior_std_xy", p.building_prior_std_xy);
+  r.param("building_prior_std_xy_without_gnss", p.building_prior_std_xy_without_gnss);
   r.param("building_prior_std_theta", p.building_prior_std_theta);
   r.param("osm_datum_std_xy", p.osm_datum_std_xy);
   r.param("osm_datum_std_theta", p.osm_datum_std_theta);
   if (!readKernelName(r, "osm_datum_kernel", p.osm_datum_kernel, error)) ok = false;
   r.param("osm_datum_kernel_width", p.osm_datum_kernel_width);
+  r.param("osm_datum_std_xy_without_gnss", p.osm_datum_std_xy_without_gnss);
+  if (!readKernelName(r, "osm_datum_kernel_without_gnss", p.osm_datum_kernel_without_gnss, error))
+    ok = false;
   r.param("osm_datum_reassociate_distance", p.osm_datum_reassociate_distance);
   r.param("optimization_window", p.optimization_window);
   r.param("window_loop_chi2", p.window_loop_chi2);

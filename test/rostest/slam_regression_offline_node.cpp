@@ -66,6 +66,7 @@ TEST_F(SlamRegressionOffline, OsmPriorsMeetTheTargets) {
   EXPECT_EQ(m.slam.associated, m.baseline.associated);
   EXPECT_LE(m.slam.ate.mean, param("ate_ratio_max", 0.7) * m.baseline.ate.mean)
       << "ATE with OSM " << m.slam.ate.mean << " m, without " << m.baseline.ate.mean << " m";
+  EXPECT_LE(m.slam.ate.mean, param("ate_max_m", 1e9)) << "ATE with OSM";
   const TrajectoryErrors& base = m.baseline_same_steps;
   EXPECT_LE(m.slam.rpe_trans.mean, param("rpe_ratio_max", 1.05) * base.rpe_trans.mean)
       << "RPE with OSM " << m.slam.rpe_trans.mean << " m, without " << base.rpe_trans.mean;

@@ -81,6 +81,44 @@ TEST(GnssPrior, AnEstimatedBiasKeepsTheTrajectoryFromFollowingTheFixesWander) {
   EXPECT_LT(with_bias, independent / 2.0);
 }
 
+namespace {
+
+/// 40 keyframes along x (exact odometry). The first 20 fixes are exact and report 0.02 m (RTK);
+/// the last 20 lie 1 m to the left and report 1.8 m (single point, bias included). Returns the
+/// trajectory's mean lateral offset.
+double meanOffsetAfterRtkIsLost(bool reported_accuracy) {
+  GraphBackendParams params = noOsmKnownHeading();
+  params.gnss_prior_std = 1.5;
+  params.gnss_bias_std = 1.0;
+  params.gnss_reported_accuracy = reported_accuracy;
+  GraphBackend backend(params);
+  for (uint64_t i = 0; i < 40; ++i) {
+    KeyframeInput kf = straightKeyframe(i);
+    kf.gnss_position = Eigen::Vector2d(2.0 * i, i < 20 ? 0.0 : 1.0);
+    kf.gnss_std = i < 20 ? 0.02 : 1.8;
+    backend.addKeyframe(kf);
+  }
+  backend.update(true);
+  double sum = 0.0;
+  const Trajectory t = backend.trajectory();
+  for (const auto& p : t) sum += p.pose.translation().y() / t.size();
+  return sum;
+}
+
+}  // namespace
+
+// Each fix weighs what its receiver reports: RTK fixes (floored at gnss_min_reported_std) hold
+// the trajectory; the single-point fixes after them cannot pull it, their offset is their bias.
+TEST(GnssPrior, EachFixWeighsItsReportedAccuracy) {
+  const double reported = meanOffsetAfterRtkIsLost(true),
+               modelled = meanOffsetAfterRtkIsLost(false);
+  std::printf(
+      "[gnss_prior] mean offset after RTK is lost: reported accuracy %.3f m, modelled %.3f m\n",
+      reported, modelled);
+  EXPECT_LT(std::abs(reported), 0.03);
+  EXPECT_GT(modelled, 0.15);  // all fixes alike: the trajectory moves towards the later ones
+}
+
 // A windowed update holds the GNSS biases of time windows before the window: a free old bias
 // would keep every old fix in the problem.
 TEST(GnssPrior, AWindowedUpdateHoldsTheBiasesOfOldTimeWindows) {

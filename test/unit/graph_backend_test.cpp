@@ -770,9 +770,10 @@ ShiftedMapRun shiftedMapRun(double datum_std, const std::string& datum_kernel = 
   const auto prior = drive().perturbedPrior(0.2, 0.0, Pose2(1.5, -2.0, 0.0), 17);
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   params.anchor_std_xy = 0.0;
-  params.osm_datum_std_xy = datum_std;
-  params.osm_datum_kernel = datum_kernel;
-  if (building_prior_std > 0.0) params.building_prior_std_xy = building_prior_std;
+  // No GNSS after the first fix: the map's priors take their ..._without_gnss deviations.
+  params.osm_datum_std_xy_without_gnss = datum_std;
+  params.osm_datum_kernel_without_gnss = datum_kernel;
+  if (building_prior_std > 0.0) params.building_prior_std_xy_without_gnss = building_prior_std;
   params.odometry.max_std_xyz = 0.05;  // exact odometry, honest deviations
   GraphBackend backend(params);
   drive().feed(backend, odom, prior);

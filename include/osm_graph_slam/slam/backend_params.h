@@ -65,16 +65,22 @@ struct GraphBackendParams {
   /// with a GNSS fix, and the first keyframe no longer fixed at its (noisy) fix but held by a
   /// prior on height, attitude and the known heading. 0 (default) keeps the first keyframe fixed
   /// at its fix and uses no other fix. Needs a known initial heading (an IMU).
-  double gnss_prior_std = 0.0;
+  double gnss_prior_std = 1.5;
   double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
-  double gnss_first_yaw_std = 0.01;      ///< [rad] the first keyframe's heading prior (INS)
+  /// A fix that reports its deviation σ (NavSatFix covariance, OXTS pos_accuracy) scales
+  /// gnss_prior_std and gnss_bias_std together by σ / hypot(gnss_prior_std, gnss_bias_std): a
+  /// receiver reports its whole error, bias included. RTK fixes then decide the absolute position
+  /// and a shifted map cannot pull it; single-point fixes (σ ≈ 1.8 m) keep the deviations above.
+  bool gnss_reported_accuracy = true;
+  double gnss_min_reported_std = 0.05;  ///< [m] reported deviations below this count as this
+  double gnss_first_yaw_std = 0.01;     ///< [rad] the first keyframe's heading prior (INS)
   /// The fixes' slowly varying error (multipath, atmosphere, a consumer receiver's bias) as a
   /// first-order Gauss-Markov offset estimated with the trajectory: one XY bias vertex per
   /// gnss_bias_window seconds, [m] stationary deviation gnss_bias_std, correlation time
   /// gnss_bias_tau [s]; gnss_prior_std is then the fixes' white noise. Without it (0) every fix
   /// is independent and hundreds of them claim an absolute accuracy of a few centimetres that a
   /// 1 m bias does not have, so the trajectory follows the bias' wander and outvotes the map.
-  double gnss_bias_std = 0.0;
+  double gnss_bias_std = 1.0;
   double gnss_bias_std_vertical = 1.5;  ///< [m] the bias' up component (with gnss_altitude_std)
   double gnss_bias_tau = 90.0;          ///< [s]
   double gnss_bias_window = 10.0;       ///< [s]
@@ -176,24 +182,28 @@ struct GraphBackendParams {
   /// building's reference vertex with the rotation's lever arm. false: as if the vertex itself
   /// had been matched, although it can be 20 m from the walls that were seen (doc/backend.md).
   bool local_edge_at_walls = true;
-  /// OSM prior of each building. Deliberately weaker than the simulated misplacement (1 m, 2 deg):
-  /// a building then follows its observations, and buildings seen again later tie the trajectory
-  /// together like loop closures. On the simulated Karlsruhe drives (calibration error, motion
-  /// distortion) 5 m / 0.1 rad gave ATE -53 % (1.5 km) and -23 % (60 s) against odometry + loops,
-  /// where 1 m / 2 deg gave -28 % and +34 % (the trajectory bent towards misplaced buildings).
-  double building_prior_std_xy = 5.0;     ///< [m]
-  double building_prior_std_theta = 0.1;  ///< [rad]
+  /// OSM prior of each building, relative to the datum, with GNSS priors holding the trajectory
+  /// (about one building's misplacement in OSM): the map's common position then counts against
+  /// the fixes' (doc/backend.md, session 34: default matrix).
+  double building_prior_std_xy = 1.5;  ///< [m]
+  /// ... when fewer than two fixes hold the run (GNSS priors off, no known heading, one origin):
+  /// deliberately weak, so a building follows its observations and a misplaced map cannot pull
+  /// the one anchor (sessions 11-33; 1 m gave +34 % on a 60 s Karlsruhe drive).
+  double building_prior_std_xy_without_gnss = 5.0;  ///< [m]
+  double building_prior_std_theta = 0.1;            ///< [rad]
   /// OSM datum (doc/backend.md "Why the prior hurt"): > 0 ties every building's prior to one
   /// SE2 vertex, the offset of the OSM map as a whole, held at zero with these deviations, so a
   /// map that is shifted as a whole (imagery offsets, another datum) does not drag the trajectory
   /// away from its GNSS anchor; only each building's deviation from the common offset does.
   /// 0 = off (every prior absolute, as in the thesis).
-  double osm_datum_std_xy = 3.0;     ///< [m]
+  double osm_datum_std_xy = 1.5;     ///< [m]
   double osm_datum_std_theta = 0.0;  ///< [rad] (0 with the datum on: translation only)
   /// Robust kernel of the datum's prior (none | huber | cauchy): a tight deviation for maps that
   /// agree with the GNSS evidence, released for one shifted far beyond it.
-  std::string osm_datum_kernel = "none";
-  double osm_datum_kernel_width = 1.0;  ///< [deviations]
+  std::string osm_datum_kernel = "cauchy";
+  double osm_datum_kernel_width = 1.0;                 ///< [deviations]
+  double osm_datum_std_xy_without_gnss = 3.0;          ///< [m] only the first fix anchors the run
+  std::string osm_datum_kernel_without_gnss = "none";  ///< ... and its kernel
   /// [m] keyframes matched while the datum was this far from its current estimate are matched
   /// again (their walls were paired at the map's stale position). 0 = never.
   double osm_datum_reassociate_distance = 0.5;

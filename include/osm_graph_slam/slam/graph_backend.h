@@ -233,6 +233,9 @@ class GraphBackend {
   void addGnssPrior(const KeyframeInput& in);
   /// The keyframe's INS heading-change edge (ins_heading_std > 0).
   void addInsHeadingChange(const KeyframeInput& in);
+  /// gnss_prior_std and gnss_bias_std scale for the keyframe's fix: its reported deviation over
+  /// their combined deviation (gnss_reported_accuracy), else 1.
+  double gnssAccuracyScale(const KeyframeInput& in) const;
   void flushKeyframes(BackendUpdateReport& report);
   void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
