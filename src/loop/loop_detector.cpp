@@ -155,6 +155,7 @@ LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
   params_.correlative.max_height = params_.scan_context.max_height;
   RegistrationParams fine = params_.registration;
   fine.target_cache_size = std::max(1, params_.candidate_cache_size);
+  fine.max_source_points = std::max(0, params_.fine_max_source_points);
   fine_registration_ = createRegistration(fine);
   if (params_.coarse_max_correspondence_distance > 0.0) {
     RegistrationParams coarse = params_.registration;

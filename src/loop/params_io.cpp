@@ -44,6 +44,7 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("verify_odometry_nearest", p.verify_odometry_nearest);
   r.param("voxel_size", p.voxel_size);
   r.param("fine_query_voxel_size", p.fine_query_voxel_size);
+  r.param("fine_max_source_points", p.fine_max_source_points);
   r.param("voxel_filter", p.voxel_filter);
   r.param("min_points", p.min_points);
   r.param("coarse_method", p.coarse_method);

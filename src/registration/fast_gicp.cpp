@@ -329,23 +329,24 @@ class FastGicp : public Registration {
           name() + ": source has fewer than " + std::to_string(minPoints()) + " valid points";
       return result;
     }
+    const std::vector<uint32_t> active = activeSourcePoints(src.points.size());
     if (!guess.matrix().allFinite()) {
       result.message = name() + ": initial guess is not finite";
       return result;
     }
 
     Eigen::Isometry3d t = guess;
-    std::vector<Correspondence> corr(src.points.size());
+    std::vector<Correspondence> corr(active.size());
     double lambda = 1e-6;
     NormalEquations eq;
     for (int iter = 0; iter < params_.max_iterations; ++iter) {
       result.iterations = iter + 1;
-      updateCorrespondences(src, t, corr);
+      updateCorrespondences(src, active, t, corr);
       // kInnerSteps Levenberg-Marquardt steps per correspondence update (measured: 1 is as
       // fast as 2-4 on the KITTI pair, the nearest-neighbour search dominates either way).
       bool first_step_small = false;
       for (int inner = 0; inner < kInnerSteps; ++inner) {
-        eq = linearise(src, t, corr, true);
+        eq = linearise(src, active, t, corr, true);
         if (eq.inliers < params_.min_correspondences) {
           result.message = name() + ": only " + std::to_string(eq.inliers) +
                            " correspondences within " +
@@ -353,7 +354,7 @@ class FastGicp : public Registration {
           return result;
         }
         Vec6 delta = Vec6::Zero();
-        const StepOutcome step = levenbergMarquardtStep(src, corr, eq, lambda, t, &delta);
+        const StepOutcome step = levenbergMarquardtStep(src, active, corr, eq, lambda, t, &delta);
         if (step == StepOutcome::kNumericalFailure) {
           result.message = name() + ": singular normal equations";
           return result;
@@ -375,8 +376,8 @@ class FastGicp : public Registration {
     // The Hessian of the last Gauss-Newton linearisation: at the solution within the convergence
     // epsilon, of the cost that was minimised (voxel distributions for VGICP); not recomputed.
     if (result.converged) result.hessian = eq.h;
-    if (voxelized_) updateCorrespondences(src, t, corr, false);
-    eq = linearise(src, t, corr, false, false);
+    if (voxelized_) updateCorrespondences(src, active, t, corr, false);
+    eq = linearise(src, active, t, corr, false, false);
     result.transform = t;
     result.fitness =
         eq.inliers > 0 ? eq.squared_distance / eq.inliers : std::numeric_limits<double>::infinity();
@@ -421,7 +422,7 @@ class FastGicp : public Registration {
   enum class StepOutcome { kAccepted, kNoDescent, kNumericalFailure };
 
   /// One damped Gauss-Newton step on fixed correspondences; accepted only if it lowers the cost.
-  StepOutcome levenbergMarquardtStep(const PreparedCloud& src,
+  StepOutcome levenbergMarquardtStep(const PreparedCloud& src, const std::vector<uint32_t>& active,
                                      const std::vector<Correspondence>& corr,
                                      const NormalEquations& eq, double& lambda,
                                      Eigen::Isometry3d& t, Vec6* delta) const {
@@ -431,7 +432,7 @@ class FastGicp : public Registration {
       *delta = damped.ldlt().solve(-eq.b);
       if (!delta->allFinite()) return StepOutcome::kNumericalFailure;
       const Eigen::Isometry3d candidate = applyUpdate(*delta, t);
-      if (linearise(src, candidate, corr, false).cost <= eq.cost) {
+      if (linearise(src, active, candidate, corr, false).cost <= eq.cost) {
         t = candidate;
         lambda = std::max(lambda / 10.0, 1e-12);
         return StepOutcome::kAccepted;
@@ -441,76 +442,93 @@ class FastGicp : public Registration {
     return StepOutcome::kNoDescent;
   }
 
-  void updateCorrespondences(PreparedCloud& src, const Eigen::Isometry3d& t,
-                             std::vector<Correspondence>& corr) const {
-    updateCorrespondences(src, t, corr, voxelized_);
+  /// The source points aligned (indices into the prepared source): all, or max_source_points
+  /// evenly spaced in leaf order.
+  std::vector<uint32_t> activeSourcePoints(size_t n) const {
+    const size_t m = params_.max_source_points > 0
+                         ? std::max<size_t>(params_.max_source_points, minPoints())
+                         : n;
+    std::vector<uint32_t> active(std::min(n, m));
+    for (size_t j = 0; j < active.size(); ++j)
+      active[j] = static_cast<uint32_t>(active.size() == n ? j : j * n / active.size());
+    return active;
   }
 
-  void updateCorrespondences(PreparedCloud& src, const Eigen::Isometry3d& t,
-                             std::vector<Correspondence>& corr, bool voxels) const {
+  void updateCorrespondences(PreparedCloud& src, const std::vector<uint32_t>& active,
+                             const Eigen::Isometry3d& t, std::vector<Correspondence>& corr) const {
+    updateCorrespondences(src, active, t, corr, voxelized_);
+  }
+
+  /// corr[j] belongs to source point active[j].
+  void updateCorrespondences(PreparedCloud& src, const std::vector<uint32_t>& active,
+                             const Eigen::Isometry3d& t, std::vector<Correspondence>& corr,
+                             bool voxels) const {
     const double res = target_->voxel_resolution;
     const double max_sq = params_.max_correspondence_distance * params_.max_correspondence_distance;
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, src.points.size(), 512),
-        [&](const tbb::blocked_range<size_t>& range) {
-          for (size_t i = range.begin(); i != range.end(); ++i) {
-            corr[i].target = -1;
-            if (voxels) {
-              // VGICP: the correspondence of a point is the distribution of its target voxel.
-              const auto found =
-                  target_->voxel_index.find(voxelKey(t * src.points[i].cast<double>(), res));
-              if (found != target_->voxel_index.end()) corr[i].target = found->second;
-              continue;
-            }
-            const Eigen::Vector3f p = (t * src.points[i].cast<double>()).cast<float>();
-            uint32_t index = 0;
-            float dist_sq = 0.0f;
-            const size_t found = target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
-            if (found == 1 && dist_sq <= max_sq) corr[i].target = static_cast<int>(index);
-          }
-        });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, active.size(), 512),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t j = range.begin(); j != range.end(); ++j) {
+                          corr[j].target = -1;
+                          const Vec3 moved = t * src.points[active[j]].cast<double>();
+                          if (voxels) {
+                            // VGICP: the correspondence of a point is the distribution of its
+                            // target voxel.
+                            const auto found = target_->voxel_index.find(voxelKey(moved, res));
+                            if (found != target_->voxel_index.end()) corr[j].target = found->second;
+                            continue;
+                          }
+                          const Eigen::Vector3f p = moved.cast<float>();
+                          uint32_t index = 0;
+                          float dist_sq = 0.0f;
+                          const size_t found =
+                              target_->tree->knnSearch(p.data(), 1, &index, &dist_sq);
+                          if (found == 1 && dist_sq <= max_sq)
+                            corr[j].target = static_cast<int>(index);
+                        }
+                      });
     // Covariances of the points matched for the first time (the voxels' are all computed). The
     // source may be the target object too (a cloud aligned onto itself): one flag per point.
     CovarianceList wanted;
-    for (size_t i = 0; i < corr.size(); ++i) {
-      if (corr[i].target < 0) continue;
-      listCovariance(src, static_cast<uint32_t>(i), wanted);
-      if (!voxels) listCovariance(*target_, static_cast<uint32_t>(corr[i].target), wanted);
+    for (size_t j = 0; j < corr.size(); ++j) {
+      if (corr[j].target < 0) continue;
+      listCovariance(src, active[j], wanted);
+      if (!voxels) listCovariance(*target_, static_cast<uint32_t>(corr[j].target), wanted);
     }
     computeCovariances(wanted, params_.k_correspondences);
     const Mat3 r = t.linear();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, src.points.size(), 512),
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, active.size(), 512),
                       [&](const tbb::blocked_range<size_t>& range) {
-                        for (size_t i = range.begin(); i != range.end(); ++i) {
-                          const int k = corr[i].target;
+                        for (size_t j = range.begin(); j != range.end(); ++j) {
+                          const int k = corr[j].target;
                           if (k < 0) continue;
                           const Mat3 combined =
                               (voxels ? target_->voxel_covariances[k] : target_->covariances[k]) +
-                              r * src.covariances[i] * r.transpose();
-                          corr[i].information = combined.inverse();
+                              r * src.covariances[active[j]] * r.transpose();
+                          corr[j].information = combined.inverse();
                         }
                       });
   }
 
-  NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
-                            const std::vector<Correspondence>& corr, bool with_derivatives) const {
-    return linearise(src, t, corr, with_derivatives, voxelized_);
+  NormalEquations linearise(const PreparedCloud& src, const std::vector<uint32_t>& active,
+                            const Eigen::Isometry3d& t, const std::vector<Correspondence>& corr,
+                            bool with_derivatives) const {
+    return linearise(src, active, t, corr, with_derivatives, voxelized_);
   }
 
   /// Cost (and, when with_derivatives, Gauss-Newton normal equations) for fixed correspondences
   /// to target points or (voxels) to target voxel distributions weighted by their point count.
-  NormalEquations linearise(const PreparedCloud& src, const Eigen::Isometry3d& t,
-                            const std::vector<Correspondence>& corr, bool with_derivatives,
-                            bool voxels) const {
+  NormalEquations linearise(const PreparedCloud& src, const std::vector<uint32_t>& active,
+                            const Eigen::Isometry3d& t, const std::vector<Correspondence>& corr,
+                            bool with_derivatives, bool voxels) const {
     tbb::combinable<NormalEquations> partial;
     tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, src.points.size(), 512),
+        tbb::blocked_range<size_t>(0, active.size(), 512),
         [&](const tbb::blocked_range<size_t>& range) {
           NormalEquations& acc = partial.local();
           Eigen::Matrix<double, 3, 6> j;
           for (size_t i = range.begin(); i != range.end(); ++i) {
             if (corr[i].target < 0) continue;
-            const Vec3 p = t * src.points[i].cast<double>();
+            const Vec3 p = t * src.points[active[i]].cast<double>();
             const int k = corr[i].target;
             const Vec3 residual =
                 (voxels ? target_->voxel_means[k] : target_->points[k].cast<double>()) - p;

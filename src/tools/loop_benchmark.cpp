@@ -62,11 +62,12 @@ struct SizeResult {
   // Parts of verification_ms.
   double prepare_ms = 0, correlative_ms = 0, coarse_ms = 0, fine_ms = 0, fine_target_ms = 0,
          overlap_ms = 0;
-  double fine_registrations = 0;
+  double fine_registrations = 0, fine_iterations = 0;
   int ambiguous = 0;  ///< candidates rejected by the ambiguity test
   double tree_retrieval_ms = 0, brute_retrieval_ms = 0;
   double phase1_mean = 0, phase2_mean = 0, registrations_mean = 0;
   int accepted = 0, correct = 0, queries = 0;
+  double max_error_m = 0, sum_error_m = 0;  ///< translation error of the correct loops
   // Reference back-end on the first reference_queries queries (same pipeline), and ours on them.
   int reference_queries = 0;
   double reference_verification_ms = 0, subset_verification_ms = 0;
@@ -122,11 +123,13 @@ LoopKeyframe revisitQuery(int size, int q, int target, const SizeWorkload& w) {
 /// Database keyframe i holds pool scan i % pool size (taken at pool_poses[...] in the town), the
 /// query the re-scan of the target's pool scan at the offset: a loop is correct when its
 /// relative pose is the true one between the two town poses within 10 cm / 0.5 deg.
-bool correctLoop(const DetectedLoop& loop, int target, const SizeWorkload& w) {
+bool correctLoop(const DetectedLoop& loop, int target, const SizeWorkload& w,
+                 double* error_m = nullptr) {
   const size_t n = w.pool_poses.size();
   const Eigen::Isometry3d truth =
       w.pool_poses[loop.to_id % n].inverse() * w.pool_poses[target % n] * kRevisitOffset;
   const Eigen::Isometry3d err = truth.inverse() * loop.relative_pose;
+  if (error_m) *error_m = err.translation().norm();
   return err.translation().norm() <= 0.1 &&
          Eigen::AngleAxisd(err.linear()).angle() <= 0.5 * M_PI / 180.0;
 }
@@ -174,6 +177,7 @@ void addQueryStats(SizeResult& out, const LoopQueryStats& s, bool in_reference_s
   out.fine_target_ms += s.fine_target_ms;
   out.overlap_ms += s.overlap_ms;
   out.fine_registrations += s.fine_registrations;
+  out.fine_iterations += s.fine_iterations;
   out.ambiguous += s.rejected_ambiguous;
   out.phase1_mean += s.phase1_candidates;
   out.phase2_mean += s.phase2_candidates;
@@ -185,7 +189,7 @@ void averageSizeResult(SizeResult& out, int queries) {
        {&out.descriptor_ms, &out.candidates_ms, &out.ranking_ms, &out.verification_ms,
         &out.phase1_mean, &out.phase2_mean, &out.registrations_mean, &out.tree_retrieval_ms,
         &out.brute_retrieval_ms, &out.prepare_ms, &out.correlative_ms, &out.coarse_ms, &out.fine_ms,
-        &out.fine_target_ms, &out.overlap_ms, &out.fine_registrations}) {
+        &out.fine_target_ms, &out.overlap_ms, &out.fine_registrations, &out.fine_iterations}) {
     *v /= queries;
   }
   out.total_ms = out.descriptor_ms + out.candidates_ms + out.ranking_ms + out.verification_ms;
@@ -221,8 +225,13 @@ std::vector<SizeResult> benchmarkSize(int size, int queries, int reference_queri
       addQueryStats(results[v], detectors[v]->lastStats(), q < reference_queries);
       if (loop) {
         ++results[v].accepted;
-        const bool ok = correctLoop(*loop, targets[q], w);
+        double error_m = 0.0;
+        const bool ok = correctLoop(*loop, targets[q], w, &error_m);
         results[v].correct += ok;
+        if (ok) {
+          results[v].max_error_m = std::max(results[v].max_error_m, error_m);
+          results[v].sum_error_m += error_m;
+        }
         if (!ok && explain) explainWrongLoop(*loop, targets[q], kf, *detectors[v], w);
       }
     }
@@ -263,6 +272,7 @@ struct DriveResult {
   double prepare_ms_per_query = 0, correlative_ms_per_query = 0;
   int keyframes = 0, revisits = 0, found = 0, accepted = 0, correct = 0;
   double precision = 0, recall = 0, max_error_m = 0, max_error_deg = 0;
+  double sum_error_m = 0;  ///< translation error summed over the correct loops
   double descriptor_ms = 0, candidates_ms = 0, ranking_ms = 0, verification_ms = 0;
   double verification_ms_per_query = 0, registrations_per_query = 0;
   double coarse_ms_per_query = 0, fine_ms_per_query = 0, overlap_ms_per_query = 0;
@@ -347,6 +357,7 @@ void addDriveKeyframe(DriveResult& out, const Drive& d, size_t i, const LoopQuer
   out.max_error_deg = std::max(out.max_error_deg, er);
   const bool correct = et <= 0.10 && er <= 0.5;
   out.correct += correct;
+  if (correct) out.sum_error_m += et;
   if (!correct && explain) {
     std::cerr << "drive [" << out.coarse << "]: wrong loop " << i << " -> " << loop->to_id
               << " error " << et << " m " << er << " deg\n";
@@ -399,13 +410,15 @@ std::vector<DriveResult> benchmarkDrive(const Drive& d, const std::vector<Varian
 void printDrive(const DriveResult& d) {
   std::printf(
       "drive [%s, coarse %s]: %d keyframes, %d revisits, %d accepted (%d correct), precision "
-      "%.3f, recall %.3f (%d/%d), max error %.4f m %.3f deg, %d ambiguous rejected | per "
+      "%.3f, recall %.3f (%d/%d), max error %.4f m %.3f deg (mean %.2f mm), %d ambiguous "
+      "rejected | per "
       "keyframe: descriptor %.3f, candidates %.3f, ranking %.3f, verification %.2f ms | per "
       "verified keyframe (%d): %.2f ms (prepare %.2f, correlative %.2f, coarse gicp %.2f, fine "
       "%.2f, overlap %.2f), %.1f candidate/seed pairs\n",
       d.method.c_str(), d.coarse.c_str(), d.keyframes, d.revisits, d.accepted, d.correct,
-      d.precision, d.recall, d.found, d.revisits, d.max_error_m, d.max_error_deg, d.ambiguous,
-      d.descriptor_ms, d.candidates_ms, d.ranking_ms, d.verification_ms, d.verified_queries,
+      d.precision, d.recall, d.found, d.revisits, d.max_error_m, d.max_error_deg,
+      1000.0 * d.sum_error_m / std::max(1, d.correct), d.ambiguous, d.descriptor_ms,
+      d.candidates_ms, d.ranking_ms, d.verification_ms, d.verified_queries,
       d.verification_ms_per_query, d.prepare_ms_per_query, d.correlative_ms_per_query,
       d.coarse_ms_per_query, d.fine_ms_per_query, d.overlap_ms_per_query,
       d.registrations_per_query);
@@ -651,14 +664,17 @@ int main(int argc, char** argv) {
     std::printf(
         "db %5d keyframes [%s, coarse %s]: insert %.3f ms | per query: descriptor %.3f, "
         "candidates %.3f (%.0f), ranking %.3f (%.1f), verification %.2f (%.1f pairs; prepare "
-        "%.2f, correlative %.2f, coarse gicp %.2f, fine %.2f of which target %.2f (%.1f), "
-        "overlap %.2f), total %.2f ms, correct %d/%d (accepted %d), %d ambiguous rejected | "
-        "place recognition: tree %.3f ms, brute force %.3f ms, ratio %.1f",
+        "%.2f, correlative %.2f, coarse gicp %.2f, fine %.2f of which target %.2f (%.1f, "
+        "%.1f iterations each), "
+        "overlap %.2f), total %.2f ms, correct %d/%d (accepted %d; error mean %.1f max %.1f mm), "
+        "%d ambiguous rejected | place recognition: tree %.3f ms, brute force %.3f ms, ratio %.1f",
         r.size, method.c_str(), r.coarse.c_str(), r.insert_ms, r.descriptor_ms, r.candidates_ms,
         r.phase1_mean, r.ranking_ms, r.phase2_mean, r.verification_ms, r.registrations_mean,
         r.prepare_ms, r.correlative_ms, r.coarse_ms, r.fine_ms, r.fine_target_ms,
-        r.fine_registrations, r.overlap_ms, r.total_ms, r.correct, r.queries, r.accepted,
-        r.ambiguous, r.tree_retrieval_ms, r.brute_retrieval_ms,
+        r.fine_registrations, r.fine_iterations / std::max(1e-9, r.fine_registrations),
+        r.overlap_ms, r.total_ms, r.correct, r.queries, r.accepted,
+        1000.0 * r.sum_error_m / std::max(1, r.correct), 1000.0 * r.max_error_m, r.ambiguous,
+        r.tree_retrieval_ms, r.brute_retrieval_ms,
         r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms));
     if (r.reference_verification_ms > 0) {
       std::printf(" | verification on %d queries: %s %.2f ms vs %s %.2f ms, ratio %.1fx",

@@ -56,41 +56,47 @@ TEST(LoopRealScans, CorrelativeStageClosesFrame5WithDriftedOdometry) {
   for (int i = 0; i <= 5; ++i)
     scans.push_back(load("patchwork/00000" + std::to_string(i) + ".bin"));
   const Eigen::Isometry3d reference = chainedReference(scans);
-  LoopDetectorParams params;  // default: correlative coarse stage
-  params.min_accum_distance_gap = 0.0;
-  LoopDetector detector(params);
-  ASSERT_TRUE(detector.addKeyframe(keyframe(0, scans[0], 0.0)));
-  // Back after 200 m (tolerance 4 m, 0.09 rad) with odometry 1.5 m / 0.8 m / 0.04 rad off.
-  LoopKeyframe query = keyframe(5, scans[5], 200.0);
-  query.odom_pose = reference;
-  query.odom_pose.translation() += Eigen::Vector3d(1.5, -0.8, 0.0);
-  query.odom_pose.linear() =
-      Eigen::AngleAxisd(0.04, Eigen::Vector3d::UnitZ()).matrix() * reference.linear();
-  const auto loop = detector.detect(query);
-  ASSERT_TRUE(loop.has_value()) << detector.lastStats().reason;
-  const auto& outcome = detector.lastStats().outcomes.back();
-  const Eigen::Isometry3d delta = reference.inverse() * loop->relative_pose;
-  const double dt = delta.translation().norm();
-  const double dr = Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI;
-  std::cout << "[ loop_real ] correlative 5->0: diff " << dt << " m " << dr << " deg, BEV score "
-            << outcome.bev_score << ", ambiguity " << outcome.ambiguity << ", fitness "
-            << loop->fitness << ", overlap " << loop->overlap << "\n";
-  EXPECT_LT(dt, 0.10);
-  EXPECT_LT(dr, 0.5);
-  EXPECT_LT(outcome.ambiguity, params.max_ambiguity);
-  EXPECT_GT(outcome.bev_score, 0.5);
+  // The default, and the fine stage on every query point (fine_max_source_points 0, the old).
+  for (const int max_source : {LoopDetectorParams().fine_max_source_points, 0}) {
+    SCOPED_TRACE("fine_max_source_points " + std::to_string(max_source));
+    LoopDetectorParams params;  // default: correlative coarse stage
+    params.min_accum_distance_gap = 0.0;
+    params.fine_max_source_points = max_source;
+    LoopDetector detector(params);
+    ASSERT_TRUE(detector.addKeyframe(keyframe(0, scans[0], 0.0)));
+    // Back after 200 m (tolerance 4 m, 0.09 rad) with odometry 1.5 m / 0.8 m / 0.04 rad off.
+    LoopKeyframe query = keyframe(5, scans[5], 200.0);
+    query.odom_pose = reference;
+    query.odom_pose.translation() += Eigen::Vector3d(1.5, -0.8, 0.0);
+    query.odom_pose.linear() =
+        Eigen::AngleAxisd(0.04, Eigen::Vector3d::UnitZ()).matrix() * reference.linear();
+    const auto loop = detector.detect(query);
+    ASSERT_TRUE(loop.has_value()) << detector.lastStats().reason;
+    const auto& outcome = detector.lastStats().outcomes.back();
+    const Eigen::Isometry3d delta = reference.inverse() * loop->relative_pose;
+    const double dt = delta.translation().norm();
+    const double dr = Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI;
+    std::cout << "[ loop_real ] correlative 5->0 (fine_max_source_points " << max_source
+              << "): diff " << dt << " m " << dr << " deg, BEV score " << outcome.bev_score
+              << ", ambiguity " << outcome.ambiguity << ", fitness " << loop->fitness
+              << ", overlap " << loop->overlap << "\n";
+    EXPECT_LT(dt, 0.10);
+    EXPECT_LT(dr, 0.5);
+    EXPECT_LT(outcome.ambiguity, params.max_ambiguity);
+    EXPECT_GT(outcome.bev_score, 0.5);
 
-  // The unrelated KITTI scan claiming, by odometry, to be at frame 0: never accepted.
-  LoopKeyframe wrong_query = keyframe(6, load("kitti00/000094.bin"), 200.0);
-  const auto wrong = detector.detect(wrong_query);
-  std::cout << "[ loop_real ] correlative, unrelated scan: " << (wrong ? "ACCEPTED" : "rejected")
-            << " (" << detector.lastStats().reason << ")\n";
-  for (const auto& o : detector.lastStats().outcomes) {
-    std::cout << "   candidate " << o.id << " BEV score " << o.bev_score << " ambiguity "
-              << o.ambiguity << " fitness " << o.fitness << " overlap " << o.overlap << " -> "
-              << o.verdict << "\n";
+    // The unrelated KITTI scan claiming, by odometry, to be at frame 0: never accepted.
+    LoopKeyframe wrong_query = keyframe(6, load("kitti00/000094.bin"), 200.0);
+    const auto wrong = detector.detect(wrong_query);
+    std::cout << "[ loop_real ] correlative, unrelated scan: " << (wrong ? "ACCEPTED" : "rejected")
+              << " (" << detector.lastStats().reason << ")\n";
+    for (const auto& o : detector.lastStats().outcomes) {
+      std::cout << "   candidate " << o.id << " BEV score " << o.bev_score << " ambiguity "
+                << o.ambiguity << " fitness " << o.fitness << " overlap " << o.overlap << " -> "
+                << o.verdict << "\n";
+    }
+    EXPECT_FALSE(wrong.has_value());
   }
-  EXPECT_FALSE(wrong.has_value());
 }
 
 TEST(LoopRealScans, Frame5ClosesOnFrame0AndUnrelatedScanIsRejected) {

@@ -110,6 +110,41 @@ TEST(RegistrationTest, RecoversKnownSyntheticTransformExactly) {
   EXPECT_LT(result.fitness, 1e-6);
 }
 
+// max_source_points: a bound at or above the source's size changes nothing (bit for bit); a
+// bound below it aligns an evenly spread subset (covariances still from all source points) and
+// lands within millimetres of the full alignment on the KITTI pair.
+TEST(RegistrationTest, SourceSubsetStaysCloseToTheFullAlignment) {
+  OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("kitti00/000095.bin"));
+  const auto pair = loadKittiPair();
+  auto run = [&](int max_source_points) {
+    RegistrationParams params;
+    params.num_threads = 1;  // the same summation order in every run
+    params.max_source_points = max_source_points;
+    auto reg = createRegistration(params);
+    reg->setTarget(pair.target);
+    return reg->align(pair.source, Eigen::Isometry3d::Identity());
+  };
+  const auto full = run(0);
+  ASSERT_TRUE(full.converged) << full.message;
+  const auto bounded_above = run(static_cast<int>(pair.source->size()));
+  ASSERT_TRUE(bounded_above.converged);
+  EXPECT_TRUE(bounded_above.transform.isApprox(full.transform, 0.0));
+  EXPECT_EQ(bounded_above.fitness, full.fitness);
+  const int subset = static_cast<int>(pair.source->size() / 3);
+  const auto part = run(subset);
+  ASSERT_TRUE(part.converged) << part.message;
+  const double et = translationError(full.transform, part.transform);
+  const double er = rotationErrorDeg(full.transform, part.transform);
+  std::cout << "[kitti 94->95 fast_gicp, " << subset << " of " << pair.source->size()
+            << " source points] " << et * 1000 << " mm, " << er << " deg from all points; "
+            << translationError(pair.truth, part.transform) * 100 << " cm from the truth ("
+            << translationError(pair.truth, full.transform) * 100 << " cm with all)\n";
+  EXPECT_LT(et, 0.01);
+  EXPECT_LT(er, 0.05);
+  EXPECT_LT(translationError(pair.truth, part.transform), 0.03);
+  EXPECT_NEAR(part.fitness, full.fitness, 0.2 * full.fitness);
+}
+
 // A recent target set again is reused (target_cache_size, the loop detector's candidate
 // cache) with its lazily computed covariances: the same result as a fresh back-end, for both
 // our methods and with more points matched the second time (a wider correspondence search).

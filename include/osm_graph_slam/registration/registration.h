@@ -46,6 +46,11 @@ struct RegistrationParams {
   /// least recently used dropped first (fast_gicp / fast_vgicp; ~0.5 MB each at 5k points). Not
   /// read from the parameter files: the loop detector sets it (candidate_cache_size).
   int target_cache_size = 1;
+  /// Source points aligned at most (fast_gicp / fast_vgicp; 0: all): evenly spaced in the
+  /// source KD-tree's leaf order (so spread evenly in space); every source point still serves as
+  /// a neighbour for the covariances, and the overlap is measured as before. Not read from the
+  /// parameter files: the loop detector sets it (fine_max_source_points).
+  int max_source_points = 0;
 };
 
 /// Back-ends may keep the preprocessing (KD-tree, covariances) of the cloud objects they were
