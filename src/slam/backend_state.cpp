@@ -21,7 +21,7 @@ int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) 
   graph.addVertexSE2(b.vertex_id, b.pose, fixed);
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   const double std_xy =
-      gnss_anchored ? p.building_prior_std_xy : p.building_prior_std_xy_without_gnss;
+      gnssAnchored() ? p.building_prior_std_xy : p.building_prior_std_xy_without_gnss;
   info(0, 0) = info(1, 1) = 1.0 / (std_xy * std_xy);
   info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
   if (datumStdXy(p) > 0.0 && !fixed)
@@ -45,14 +45,14 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   info(0, 0) = info(1, 1) = 1.0 / (datumStdXy(p) * datumStdXy(p));
   info(2, 2) = 1.0 / (std_theta * std_theta);
-  const std::string& kernel = gnss_anchored ? p.osm_datum_kernel : p.osm_datum_kernel_without_gnss;
+  const std::string& kernel = gnssAnchored() ? p.osm_datum_kernel : p.osm_datum_kernel_without_gnss;
   graph.addPriorSE2(id, Pose2(), info,
                     EdgeOptions{1, kernelNamed(kernel, p.osm_datum_kernel_width)});
   return id;
 }
 
 double BackendState::datumStdXy(const GraphBackendParams& p) const {
-  return gnss_anchored ? p.osm_datum_std_xy : p.osm_datum_std_xy_without_gnss;
+  return gnssAnchored() ? p.osm_datum_std_xy : p.osm_datum_std_xy_without_gnss;
 }
 
 int BackendState::gnssBiasWindow(double stamp, const GraphBackendParams& p) const {
@@ -84,11 +84,12 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p, doub
   const auto before = gnss_bias_vertices.lower_bound(k);  // windows are met in time order
   // A fix mode whose accuracy differs by more than 1.5x (RTK lost or regained) has a bias of its
   // own: it starts afresh instead of continuing the previous window's.
-  const auto newMode = [&](int j) {
-    const double r = scale / gnss_bias_scales.at(j);
-    return !(r > 1.0 / 1.5 && r < 1.5);
-  };
-  if (before == gnss_bias_vertices.begin() || newMode(std::prev(before)->first)) {
+  bool fresh = before == gnss_bias_vertices.begin();
+  if (!fresh) {
+    const double r = scale / gnss_bias_scales.at(std::prev(before)->first);
+    fresh = !(r > 1.0 / 1.5 && r < 1.5);
+  }
+  if (fresh) {
     graph.addVertexPointXYZ(id, Eigen::Vector3d::Zero());
     graph.addPriorPointXYZ(id, Eigen::Vector3d::Zero(), var.cwiseInverse().asDiagonal());
   } else {

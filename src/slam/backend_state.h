@@ -54,11 +54,11 @@ struct BackendState {
   bool heading_initialized = false;
   std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
-  /// GNSS priors hold the trajectory (gnss_prior_std > 0, a known heading, at least two fixes):
-  /// building and datum priors created from then on take their tighter deviations
+  size_t gnss_priors = 0;               ///< GNSS prior edges added
+  /// GNSS priors hold the trajectory (at least two fixes; one origin anchors no better than the
+  /// soft anchor): building and datum priors created from then on take their tighter deviations
   /// (GraphBackendParams::building_prior_std_xy vs ..._without_gnss).
-  bool gnss_anchored = false;
-  size_t gnss_priors = 0;  ///< GNSS prior edges added
+  bool gnssAnchored() const { return gnss_priors >= 2; }
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
   std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
   std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex

@@ -437,9 +437,7 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
   const Eigen::Vector3d fix(in.gnss_position->x(), in.gnss_position->y(),
                             altitude ? *in.gnss_altitude : 0.0);
   const double scale = gnssAccuracyScale(in);
-  // One fix (an origin) anchors no better than the soft anchor; from the second on the fixes
-  // hold the run and the map's priors created from then on take their tighter deviations.
-  if (++s.gnss_priors >= 2) s.gnss_anchored = true;
+  ++s.gnss_priors;  // from the second on the map's priors tighten (BackendState::gnssAnchored)
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();  // no altitude: z uninformed
   info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss_prior_std * scale, 2);
   if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss_altitude_std * scale, 2);
