@@ -94,12 +94,18 @@ double chi2Of(const std::vector<ActiveResidual>& residuals) {
   return sum;
 }
 
-ceres::SparseLinearAlgebraLibraryType sparseLibrary(SparseLibrary wanted = SparseLibrary::kAuto) {
-  if (wanted == SparseLibrary::kEigenSparse) return ceres::EIGEN_SPARSE;
-  if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
-    return ceres::SUITE_SPARSE;
-  }
-  return ceres::EIGEN_SPARSE;
+ceres::SparseLinearAlgebraLibraryType suiteSparseIfAvailable() {
+  return ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)
+             ? ceres::SUITE_SPARSE
+             : ceres::EIGEN_SPARSE;
+}
+
+ceres::SparseLinearAlgebraLibraryType sparseLibrary(const OptimizerOptions& options,
+                                                    int free_vertices) {
+  const bool eigen = options.sparse_library == SparseLibrary::kEigenSparse ||
+                     (options.sparse_library == SparseLibrary::kAuto &&
+                      free_vertices <= options.auto_eigen_max_free_vertices);
+  return eigen ? ceres::EIGEN_SPARSE : suiteSparseIfAvailable();
 }
 
 }  // namespace
@@ -141,7 +147,8 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
   solver.minimizer_type = ceres::TRUST_REGION;
   solver.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver.sparse_linear_algebra_library_type = sparseLibrary(options.sparse_library);
+  solver.sparse_linear_algebra_library_type =
+      sparseLibrary(options, result.num_vertices - result.num_fixed_vertices);
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;
@@ -200,7 +207,7 @@ bool PoseGraph::marginalCovariance(int vertex_id, Eigen::MatrixXd* covariance, i
   if (it->second.fixed) return true;  // a fixed vertex has no uncertainty
 
   ceres::Covariance::Options options;
-  options.sparse_linear_algebra_library_type = sparseLibrary();
+  options.sparse_linear_algebra_library_type = suiteSparseIfAvailable();
   options.algorithm_type = ceres::SPARSE_QR;
   ceres::Covariance cov(options);
   const std::vector<std::pair<const double*, const double*>> blocks = {{block, block}};

@@ -20,8 +20,7 @@ int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) 
   const bool fixed = p.mode == OsmMode::kPrior || heldAtPrior(b, p);
   graph.addVertexSE2(b.vertex_id, b.pose, fixed);
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
-  const double std_xy =
-      gnssAnchored() ? p.building_prior_std_xy : p.building_prior_std_xy_without_gnss;
+  const double std_xy = mapWeighting(p).building_std_xy;
   info(0, 0) = info(1, 1) = 1.0 / (std_xy * std_xy);
   info(2, 2) = 1.0 / (p.building_prior_std_theta * p.building_prior_std_theta);
   if (datumStdXy(p) > 0.0 && !fixed)
@@ -45,14 +44,18 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   info(0, 0) = info(1, 1) = 1.0 / (datumStdXy(p) * datumStdXy(p));
   info(2, 2) = 1.0 / (std_theta * std_theta);
-  const std::string& kernel = gnssAnchored() ? p.osm_datum_kernel : p.osm_datum_kernel_without_gnss;
-  graph.addPriorSE2(id, Pose2(), info,
-                    EdgeOptions{1, kernelNamed(kernel, p.osm_datum_kernel_width)});
+  graph.addPriorSE2(
+      id, Pose2(), info,
+      EdgeOptions{1, kernelNamed(mapWeighting(p).datum_kernel, p.osm_datum_kernel_width)});
   return id;
 }
 
-double BackendState::datumStdXy(const GraphBackendParams& p) const {
-  return gnssAnchored() ? p.osm_datum_std_xy : p.osm_datum_std_xy_without_gnss;
+BackendState::MapWeighting BackendState::mapWeighting(const GraphBackendParams& p) const {
+  if (gnssAnchored())
+    return {p.building_prior_std_xy, p.osm_datum_std_xy, p.osm_datum_kernel,
+            p.osm_datum_reassociate_distance};
+  return {p.building_prior_std_xy_without_gnss, p.osm_datum_std_xy_without_gnss,
+          p.osm_datum_kernel_without_gnss, p.osm_datum_reassociate_distance_without_gnss};
 }
 
 int BackendState::gnssBiasWindow(double stamp, const GraphBackendParams& p) const {

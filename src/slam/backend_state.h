@@ -59,6 +59,15 @@ struct BackendState {
   /// soft anchor): building and datum priors created from then on take their tighter deviations
   /// (GraphBackendParams::building_prior_std_xy vs ..._without_gnss).
   bool gnssAnchored() const { return gnss_priors >= 2; }
+  /// The map's weighting for gnssAnchored() or not (GraphBackendParams: the map's deviations,
+  /// datum kernel and re-association distance, each with a ..._without_gnss twin).
+  struct MapWeighting {
+    double building_std_xy;
+    double datum_std_xy;  ///< <= 0: no datum
+    std::string datum_kernel;
+    double datum_reassociate_distance;
+  };
+  MapWeighting mapWeighting(const GraphBackendParams& p) const;
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
   std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
   std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex
@@ -105,7 +114,7 @@ struct BackendState {
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
   int datumVertex(const GraphBackendParams& p);
   /// The datum's deviation for this run (with or without GNSS priors); <= 0: no datum.
-  double datumStdXy(const GraphBackendParams& p) const;
+  double datumStdXy(const GraphBackendParams& p) const { return mapWeighting(p).datum_std_xy; }
   /// Whether an answered OSM query covers the position.
   bool covered(const Eigen::Vector2d& position) const;
 

@@ -148,7 +148,7 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
   flushFloors(report);
   flushLoops(report);
   flushBuildings(report);
-  if (params_.use_osm) osm_->process(*state_, report);
+  if (params_.use_osm) processOsm(report);
   if (state_->dirty || force_optimize) {
     std::optional<uint64_t> window = force_optimize ? std::nullopt : windowStart();
     optimizePhases(report, window);
@@ -160,13 +160,19 @@ BackendUpdateReport GraphBackend::update(bool force_optimize) {
     state_->dirty = false;
     // Keyframes matched while the datum was elsewhere are matched again where it is now.
     if (params_.use_osm && osm_->reassociateAfterDatumMoved(*state_, report) > 0) {
-      osm_->process(*state_, report);
-      optimizePhases(report, window);
+      processOsm(report);
+      optimizePhases(report, window, false);  // level 0 did not change: no phase 1
     }
     reportOdometryScale();
   }
   report.total_ms = msSince(t0);
   return report;
+}
+
+void GraphBackend::processOsm(BackendUpdateReport& report) {
+  const auto t0 = Clock::now();
+  osm_->process(*state_, report);
+  report.stage_ms.osm += msSince(t0);
 }
 
 void GraphBackend::reportOdometryScale() {
@@ -665,8 +671,8 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
   return disagrees;
 }
 
-void GraphBackend::optimizePhases(BackendUpdateReport& report,
-                                  std::optional<uint64_t> window_start) {
+void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
+                                  bool phase1) {
   BackendState& s = *state_;
   const OptimizerOptions& options = params_.optimizer;
   report.window_start = window_start;
@@ -674,9 +680,12 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report,
       window_start ? s.holdOutsideWindow(*window_start, params_) : std::vector<int>{};
 
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
-  report.phase1 = s.graph.optimize(0, options);
+  if (phase1) {
+    report.phase1 = s.graph.optimize(0, options);
+    report.stage_ms.phase1 += report.phase1.time_ms;
+    s.readRobotPoses();
+  }
   report.optimized = true;
-  s.readRobotPoses();
 
   bool have_buildings = false;
   for (const auto& [bid, b] : s.buildings) have_buildings |= b.vertex_id >= 0;
@@ -691,20 +700,27 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report,
     constraints_->addSharedWallEdges(s, report);
   const std::vector<int> unfix = s.fixRobots();
   report.phase2 = s.graph.optimize(1, options);
+  report.stage_ms.phase2 += report.phase2.time_ms;
   s.readBuildingPoses(params_);
   if (params_.building_edge_gate_chi2 > 0.0 && constraints_->gateBuildingEdges(s, report) > 0) {
     report.phase2 = s.graph.optimize(1, options);
+    report.stage_ms.phase2 += report.phase2.time_ms;
     s.readBuildingPoses(params_);
   }
   if (params_.joint_optimization) {
     // Phase 3 (level 1): everything together, from phase 2's buildings.
     for (int vid : unfix) s.graph.setFixed(vid, false);
     report.joint = s.graph.optimize(1, options);
+    report.stage_ms.joint += report.joint.time_ms;
     s.readRobotPoses();
     s.readBuildingPoses(params_);
     s.fixRobots();
   }
-  if (params_.resolve_overlaps) constraints_->resolveOverlaps(s, report);
+  if (params_.resolve_overlaps) {
+    const auto t0 = Clock::now();
+    constraints_->resolveOverlaps(s, report);
+    report.stage_ms.overlaps += msSince(t0);
+  }
   for (int vid : unfix) s.graph.setFixed(vid, false);
   s.release(held, params_);
   updateMapToOdom();

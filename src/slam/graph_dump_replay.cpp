@@ -20,6 +20,8 @@ BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend
     total.local_rejected += r.local_rejected;
     total.global_priors += r.global_priors;
     total.global_rejected += r.global_rejected;
+    total.stage_ms += r.stage_ms;
+    total.total_ms += r.total_ms;
   };
   int since_update = 0;
   for (const auto& kf : dump.keyframes) {
@@ -35,13 +37,15 @@ BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend
   }
   report = backend.update(true);
   accumulate(report);
-  // Counts summed over every update; the optimisation results are the last update's.
+  // Counts and times summed over every update; the optimisation results are the last update's.
   report.building_edges = total.building_edges;
   report.local_attempts = total.local_attempts;
   report.local_unseen = total.local_unseen;
   report.local_rejected = total.local_rejected;
   report.global_priors = total.global_priors;
   report.global_rejected = total.global_rejected;
+  report.stage_ms = total.stage_ms;
+  report.total_ms = total.total_ms;
   return report;
 }
 

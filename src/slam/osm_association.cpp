@@ -215,12 +215,13 @@ Eigen::Matrix3d OsmAssociation::localInformation(const LineMatchResult& match) c
 size_t OsmAssociation::reassociateAfterDatumMoved(BackendState& s,
                                                   BackendUpdateReport& report) const {
   const std::optional<Pose2> datum = s.graph.vertexSE2(GraphBackend::kOsmDatumVertex);
-  if (!datum || params_.osm_datum_reassociate_distance <= 0.0) return 0;
+  const double distance = s.mapWeighting(params_).datum_reassociate_distance;
+  if (!datum || distance <= 0.0) return 0;
   std::set<uint64_t> stale;
   for (auto& [id, kf] : s.keyframes) {
     if (!kf.matched_with_datum) continue;
     const double moved = (kf.matched_with_datum->translation() - datum->translation()).norm();
-    if (moved > params_.osm_datum_reassociate_distance) stale.insert(id);
+    if (moved > distance) stale.insert(id);
   }
   if (stale.empty()) return 0;
   std::vector<BuildingEdgeRecord> keep;

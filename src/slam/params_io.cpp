@@ -118,6 +118,8 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   if (!readKernelName(r, "osm_datum_kernel_without_gnss", p.osm_datum_kernel_without_gnss, error))
     ok = false;
   r.param("osm_datum_reassociate_distance", p.osm_datum_reassociate_distance);
+  r.param("osm_datum_reassociate_distance_without_gnss",
+          p.osm_datum_reassociate_distance_without_gnss);
   r.param("optimization_window", p.optimization_window);
   r.param("window_loop_chi2", p.window_loop_chi2);
   r.param("joint_optimization", p.joint_optimization);
@@ -167,6 +169,7 @@ bool readParams(const ParamReader& r, OptimizerOptions& p, std::string* error) {
                         : p.sparse_library == SparseLibrary::kEigenSparse ? "eigen_sparse"
                                                                           : "auto";
   r.param("sparse_library", library);
+  r.param("auto_eigen_max_free_vertices", p.auto_eigen_max_free_vertices);
   if (library == "auto") {
     p.sparse_library = SparseLibrary::kAuto;
   } else if (library == "suite_sparse") {

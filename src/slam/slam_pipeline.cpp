@@ -255,6 +255,7 @@ void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.windowed_updates += report.window_start.has_value();
   timings_.loop_full_batches += report.full_batch_for_loop;
   timings_.slowest_update_ms = std::max(timings_.slowest_update_ms, report.total_ms);
+  timings_.backend_stage_ms += report.stage_ms;
 }
 
 std::string SlamPipeline::scaleLine() const {
@@ -304,11 +305,14 @@ std::string SlamPipeline::timingTable() const {
                 k.matched, k.failed_matches, k.rejected_scans, k.reanchors, k.lost_events,
                 k.scans_while_lost, k.longest_no_keyframe_s, t.pre_tracker_ms,
                 k.lost_events ? "  <-- WARNING: part of the drive has no keyframe" : "");
-  char updates[256];
+  char updates[512];
+  const BackendUpdateReport::StageMs& st = t.backend_stage_ms;
   std::snprintf(updates, sizeof(updates),
                 "back-end: %zu updates (%zu windowed, %zu full batches for a loop), slowest %.0f "
-                "ms\n",
-                t.updates, t.windowed_updates, t.loop_full_batches, t.slowest_update_ms);
+                "ms; OSM matching %.0f ms, phase 1 %.0f ms, phase 2 %.0f ms, joint %.0f ms, "
+                "overlaps %.0f ms\n",
+                t.updates, t.windowed_updates, t.loop_full_batches, t.slowest_update_ms, st.osm,
+                st.phase1, st.phase2, st.joint, st.overlaps);
   char floor[256];
   std::snprintf(floor, sizeof(floor),
                 "floor: found on %zu keyframes, none on %zu; %zu plane edges, %zu slope changes\n",
@@ -349,7 +353,13 @@ std::string SlamPipeline::timingJson() const {
                          {{"all", t.updates},
                           {"windowed", t.windowed_updates},
                           {"loop_full_batches", t.loop_full_batches},
-                          {"slowest_ms", t.slowest_update_ms}}},
+                          {"slowest_ms", t.slowest_update_ms},
+                          {"stage_ms",
+                           {{"osm_matching", t.backend_stage_ms.osm},
+                            {"phase1", t.backend_stage_ms.phase1},
+                            {"phase2", t.backend_stage_ms.phase2},
+                            {"joint", t.backend_stage_ms.joint},
+                            {"overlaps", t.backend_stage_ms.overlaps}}}}},
                         {"floor",
                          {{"found", t.floors_found},
                           {"missing", t.floors_missing},

@@ -185,6 +185,10 @@ int main(int argc, char** argv) {
             << last.local_unseen << "); last update: " << last.overlap_edges << " overlap edges, "
             << last.overlaps_remaining << " overlaps left, chi2 " << last.phase1.final_chi2 << " / "
             << last.joint.final_chi2 << "\n";
+  const BackendUpdateReport::StageMs& st = last.stage_ms;
+  std::cout << "back-end updates " << last.total_ms << " ms: OSM matching " << st.osm
+            << " ms, phase 1 " << st.phase1 << " ms, phase 2 " << st.phase2 << " ms, joint "
+            << st.joint << " ms, overlaps " << st.overlaps << " ms\n";
   if (args.count("edges")) {
     // Analysis (doc/backend.md): every robot<->building edge with the priors' reference poses.
     std::ofstream f(args["edges"]);

@@ -761,22 +761,21 @@ struct ShiftedMapRun {
   Pose2 datum;
 };
 
-/// The drive with exact odometry through a prior shifted as a whole by 2.5 m (plus 0.2 m per
-/// building), the first keyframe fixed at its exact fix: everything OSM does to the trajectory
-/// is damage.
-ShiftedMapRun shiftedMapRun(double datum_std, const std::string& datum_kernel = "none",
-                            double building_prior_std = 0.0) {
-  const auto odom = drive().odometry(0.0, 1.0);
-  const auto prior = drive().perturbedPrior(0.2, 0.0, Pose2(1.5, -2.0, 0.0), 17);
+/// Exact odometry, honest deviations, the first keyframe fixed at its exact fix.
+GraphBackendParams shiftedMapParams() {
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   params.anchor_std_xy = 0.0;
-  // No GNSS after the first fix: the map's priors take their ..._without_gnss deviations.
-  params.osm_datum_std_xy_without_gnss = datum_std;
-  params.osm_datum_kernel_without_gnss = datum_kernel;
-  if (building_prior_std > 0.0) params.building_prior_std_xy_without_gnss = building_prior_std;
   params.odometry.max_std_xyz = 0.05;  // exact odometry, honest deviations
+  return params;
+}
+
+/// The drive through a prior shifted as a whole by 2.5 m (plus 0.2 m per building): everything
+/// OSM does to the trajectory is damage. gnss: exact fixes on every keyframe.
+ShiftedMapRun shiftedMapRun(const GraphBackendParams& params, bool gnss) {
+  const auto odom = drive().odometry(0.0, 1.0);
+  const auto prior = drive().perturbedPrior(0.2, 0.0, Pose2(1.5, -2.0, 0.0), 17);
   GraphBackend backend(params);
-  drive().feed(backend, odom, prior);
+  drive().feed(backend, odom, prior, std::nullopt, 0, gnss);
   ShiftedMapRun run;
   // Updates every 6 keyframes, as the nodelet's timer would: the datum is learnt on the way.
   for (int i = 0; i < 8; ++i) run.reassociated += backend.update(true).osm_reassociated;
@@ -786,6 +785,16 @@ ShiftedMapRun shiftedMapRun(double datum_std, const std::string& datum_kernel = 
       evaluateBuildings(backend.correctedBuildings(), drive().truth).mean_corner_error;
   run.datum = backend.osmDatum().value_or(Pose2());
   return run;
+}
+
+/// ... with no GNSS after the first fix: the map's priors take their ..._without_gnss deviations.
+ShiftedMapRun shiftedMapRun(double datum_std, const std::string& datum_kernel = "none",
+                            double building_prior_std = 0.0) {
+  GraphBackendParams params = shiftedMapParams();
+  params.osm_datum_std_xy_without_gnss = datum_std;
+  params.osm_datum_kernel_without_gnss = datum_kernel;
+  if (building_prior_std > 0.0) params.building_prior_std_xy_without_gnss = building_prior_std;
+  return shiftedMapRun(params, false);
 }
 
 }  // namespace
@@ -814,6 +823,26 @@ TEST(GraphBackend, ARobustDatumLetsGoOfAMapShiftedFarBeyondItsDeviation) {
               tight.ate, tight.datum.x, tight.datum.y, robust.ate, robust.datum.x, robust.datum.y);
   EXPECT_LT(robust.ate, 0.5 * tight.ate);
   EXPECT_GT(robust.datum.translation().norm(), 1.5);
+}
+
+TEST(GraphBackend, TheDatumsReassociationDistanceFollowsWhetherFixesHoldTheRun) {
+  // Each run reads its own distance: with fixes on every keyframe osm_datum_reassociate_distance,
+  // with the first fix only ..._without_gnss (the datum travels metres there).
+  auto reassociated = [](bool gnss, double distance, double distance_without_gnss) {
+    GraphBackendParams params = shiftedMapParams();
+    params.osm_datum_reassociate_distance = distance;
+    params.osm_datum_reassociate_distance_without_gnss = distance_without_gnss;
+    return shiftedMapRun(params, gnss).reassociated;
+  };
+  const size_t with_fixes = reassociated(true, 0.3, 0.0);
+  const size_t first_fix_only = reassociated(false, 0.0, 0.3);
+  std::printf("[reassociation] with fixes %zu keyframes, first fix only %zu\n", with_fixes,
+              first_fix_only);
+  EXPECT_GT(with_fixes, 0u);
+  EXPECT_GT(first_fix_only, 0u);
+  EXPECT_EQ(reassociated(true, 0.0, 0.3), 0u);
+  EXPECT_EQ(reassociated(false, 0.3, 0.0), 0u);
+  EXPECT_EQ(reassociated(true, 100.0, 0.3), 0u);
 }
 
 namespace {

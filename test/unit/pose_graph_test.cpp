@@ -87,6 +87,40 @@ TEST(PoseGraph, NoiseFreeSE3LoopConvergesToExactOptimum) {
   }
 }
 
+TEST(PoseGraph, AutoSolvesSmallProblemsWithEigenAndLargerOnesWithSuiteSparse) {
+  // 23 free vertices: below auto_eigen_max_free_vertices Eigen's simplicial Cholesky (faster on
+  // windows and 1.5 km drives), above it SuiteSparse's supernodal one; both reach the optimum.
+  const int n = 24;
+  const auto truth = helixTruth(n);
+  struct Case {
+    SparseLibrary library;
+    int eigen_bound;
+    std::string expected;
+  };
+  for (const Case& c : {Case{SparseLibrary::kAuto, 2000, "EIGEN_SPARSE"},
+                        Case{SparseLibrary::kAuto, 22, "SUITE_SPARSE"},
+                        Case{SparseLibrary::kAuto, 23, "EIGEN_SPARSE"},
+                        Case{SparseLibrary::kSuiteSparse, 2000, "SUITE_SPARSE"},
+                        Case{SparseLibrary::kEigenSparse, 0, "EIGEN_SPARSE"}}) {
+    PoseGraph g;
+    for (int i = 0; i < n; ++i)
+      ASSERT_TRUE(
+          g.addVertexSE3(i, truth[i] * makeSE3(0.1 * (i % 3), -0.1, 0.05, 0, 0, 0.02 * i), i == 0));
+    for (int i = 0; i < n; ++i)
+      ASSERT_GE(g.addEdgeSE3(i, (i + 1) % n, truth[i].inverse() * truth[(i + 1) % n],
+                             se3Information(100, 400)),
+                0);
+    OptimizerOptions options;
+    options.sparse_library = c.library;
+    options.auto_eigen_max_free_vertices = c.eigen_bound;
+    options.function_tolerance = options.parameter_tolerance = 1e-12;
+    const OptimizationResult r = g.optimize(0, options);
+    EXPECT_NE(r.linear_solver.find(c.expected), std::string::npos)
+        << r.linear_solver << " with bound " << c.eigen_bound;
+    EXPECT_LT(r.final_chi2, 1e-10) << r.linear_solver;
+  }
+}
+
 TEST(PoseGraph, NoiseFreeSE2LoopConvergesToExactOptimum) {
   const int n = 30;
   std::vector<Pose2> truth;

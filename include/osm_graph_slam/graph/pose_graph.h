@@ -123,8 +123,14 @@ struct OptimizerOptions {
   double function_tolerance = 1e-6;  ///< Ceres relative cost-change tolerance
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
-  int num_threads = 1;                                  ///< residual/Jacobian evaluation threads
-  SparseLibrary sparse_library = SparseLibrary::kAuto;  ///< auto: SuiteSparse when Ceres has it
+  int num_threads = 1;  ///< residual/Jacobian evaluation threads
+  /// auto: Eigen's simplicial Cholesky for problems of at most auto_eigen_max_free_vertices free
+  /// vertices, SuiteSparse's supernodal one (when Ceres has it) for larger ones. Measured
+  /// (doc/backend.md, session 35): Eigen 0.74-0.93x the back-end time of the 1.5 km drives
+  /// (windows of 300 keyframes, full batches of 800), but 1.42x on sphere2500 and 1.58x on a
+  /// full batch of 4,000 keyframes with a loop at each.
+  SparseLibrary sparse_library = SparseLibrary::kAuto;
+  int auto_eigen_max_free_vertices = 2000;
   /// Levenberg–Marquardt starting radius. Large (nearly Gauss–Newton first steps) suits pose
   /// graphs: 3–7 iterations on the public datasets instead of 7–29 with Ceres' default 1e4;
   /// rejected steps shrink it quickly when the start is poor.

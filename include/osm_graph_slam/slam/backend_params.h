@@ -205,8 +205,13 @@ struct GraphBackendParams {
   double osm_datum_std_xy_without_gnss = 3.0;          ///< [m] only the first fix anchors the run
   std::string osm_datum_kernel_without_gnss = "none";  ///< ... and its kernel
   /// [m] keyframes matched while the datum was this far from its current estimate are matched
-  /// again (their walls were paired at the map's stale position). 0 = never.
-  double osm_datum_reassociate_distance = 0.5;
+  /// again (their walls were paired at the map's stale position). 0 = never. With GNSS priors
+  /// the datum is learnt against the fixes and wanders by tenths of a metre: 0.5 m re-matched
+  /// 2.2x the keyframes (+38 % back-end time at 1.5 km) for no accuracy (doc/backend.md,
+  /// session 35). With one anchor the datum travels metres (real drive: 3.4 m) and the finer
+  /// re-association is what keeps the walls aligned.
+  double osm_datum_reassociate_distance = 1.0;
+  double osm_datum_reassociate_distance_without_gnss = 0.5;  ///< [m]
   // --- optimisation ---
   OptimizerOptions optimizer;  ///< every optimize() call (phase 1, phase 2, overlaps)
   /// Bounded cost while driving (doc/backend.md "Windowed updates"): > 0 frees only the newest

@@ -106,6 +106,17 @@ struct BackendUpdateReport {
   std::optional<uint64_t> window_start;
   bool full_batch_for_loop = false;
   double total_ms = 0.0;
+  /// Where total_ms went [ms]: OSM matching (association and re-association) and each
+  /// optimisation phase, summed over every time the update ran it (the consistency gate repeats
+  /// phase 2, a re-association all phases). Adds up (StageMs::operator+=) over updates.
+  struct StageMs {
+    double osm = 0.0, phase1 = 0.0, phase2 = 0.0, joint = 0.0, overlaps = 0.0;
+    StageMs& operator+=(const StageMs& o) {
+      osm += o.osm, phase1 += o.phase1, phase2 += o.phase2, joint += o.joint;
+      overlaps += o.overlaps;
+      return *this;
+    }
+  } stage_ms;
 };
 
 struct KeyframeState {
@@ -223,6 +234,8 @@ class GraphBackend {
  private:
   /// Logs once when an estimated odometry scale is more than kOdometryScaleWarning from 1.
   void reportOdometryScale();
+  /// OSM association of the keyframes not matched yet, timed into report.stage_ms.osm.
+  void processOsm(BackendUpdateReport& report);
   /// 1 %: twice what a KITTI HDL-64E's vertical-angle bias gives (0.46 % in the simulator).
   static constexpr double kOdometryScaleWarning = 0.01;
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
@@ -253,8 +266,10 @@ class GraphBackend {
   void flushFloors(BackendUpdateReport& report);
   void linkFloor(KeyframeState& kf, BackendUpdateReport& report);
   /// The three phases over every vertex, or (window_start) with the keyframes before it and the
-  /// buildings none of the free keyframes observes held fixed.
-  void optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start);
+  /// buildings none of the free keyframes observes held fixed. phase1 false: from phase 2 on,
+  /// the robots where the last joint phase left them (only building edges changed since).
+  void optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
+                      bool phase1 = true);
   /// The oldest keyframe a routine update frees (optimization_window), nullopt: all of them.
   std::optional<uint64_t> windowStart() const;
   /// Loops added since the last check that reach from the window to a held keyframe and still

@@ -24,7 +24,8 @@ bool readGraphDump(const std::string& directory, GraphDump& dump, std::string* e
 
 /// Feeds the dump in keyframe order, calling update() every `optimize_every` keyframes as the
 /// offline pipeline does (loops arrive with their newer keyframe; buildings are available from
-/// the start). Returns the last update's report with the match counts summed over all updates.
+/// the start). Returns the last update's report with the match counts and times (total_ms,
+/// stage_ms) summed over all updates.
 BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend,
                                     int optimize_every);
 

@@ -64,7 +64,8 @@ struct PipelineTimings {
   /// the slowest one.
   size_t updates = 0, windowed_updates = 0, loop_full_batches = 0;
   double slowest_update_ms = 0;
-  double wall_time_s = 0;  ///< from the first scan to finish()
+  BackendUpdateReport::StageMs backend_stage_ms;  ///< inside backend_ms, summed over the updates
+  double wall_time_s = 0;                         ///< from the first scan to finish()
   TrackingStats tracking;  ///< failed matches, lost tracks, the longest span without keyframe
   /// The first heading, when global matching against OSM found it (no IMU heading given).
   std::optional<BackendUpdateReport::HeadingFromMap> heading_from_map;
