@@ -147,7 +147,73 @@ void BuildingConstraints::resolveOverlaps(BackendState& s, BackendUpdateReport& 
     overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
   }
   if (datum) s.graph.setFixed(GraphBackend::kOsmDatumVertex, false);
+  if (!overlaps.empty() && params_.overlap_projection_max_translation > 0.0) {
+    const size_t before = overlaps.size();
+    overlaps = projectOutOfOverlaps(s, order, outlines, std::move(overlaps));
+    report.overlaps_projected += before - overlaps.size();
+  }
   report.overlaps_remaining = overlaps.size();
+}
+
+std::vector<std::pair<size_t, size_t>> BuildingConstraints::projectOutOfOverlaps(
+    BackendState& s, const std::vector<BuildingState*>& order, std::vector<Building>& outlines,
+    std::vector<std::pair<size_t, size_t>> overlaps) const {
+  // A building's pose after the hard edges is where its evidence puts it; the non-overlap
+  // constraint then asks for the nearest pose that satisfies it: with an isotropic prior, the
+  // shortest translation (the edges' compromise never reaches it when two neighbours push).
+  for (int pass = 0; pass < 3 && !overlaps.empty(); ++pass) {
+    for (const auto& [i, j] : overlaps) {
+      // The less observed of the two, unless it is held (at its prior, or outside the window).
+      auto movable = [&](size_t k) {
+        return order[k]->vertex_id >= 0 && !s.graph.isFixed(order[k]->vertex_id);
+      };
+      const bool i_first = order[i]->observations <= order[j]->observations;
+      const size_t first = i_first ? i : j, second = i_first ? j : i;
+      if (!movable(first) && !movable(second)) continue;
+      const size_t mover = movable(first) ? first : second;
+      BuildingState& b = *order[mover];
+      const std::optional<Eigen::Vector2d> t = clearingTranslation(mover, outlines);
+      if (!t) continue;
+      b.pose = Pose2(b.pose.x + t->x(), b.pose.y + t->y(), b.pose.theta);
+      s.graph.setVertexSE2(b.vertex_id, b.pose);
+      outlines[mover] = b.corrected();
+    }
+    overlaps = findOverlappingBuildings(outlines, params_.overlap_min_area);
+  }
+  return overlaps;
+}
+
+std::optional<Eigen::Vector2d> BuildingConstraints::clearingTranslation(
+    size_t mover, const std::vector<Building>& outlines) const {
+  const double reach = params_.overlap_projection_max_translation;
+  const Polygon2& outline = outlines[mover].outline_enu;
+  std::vector<const Polygon2*> near;
+  {
+    std::vector<const Polygon2*> all;
+    for (const Building& b : outlines) all.push_back(&b.outline_enu);
+    for (const auto& [a, b] : nearbyPolygonPairs(all, reach)) {
+      if (a == mover) near.push_back(all[b]);
+      if (b == mover) near.push_back(all[a]);
+    }
+  }
+  const double limit = 0.5 * params_.overlap_min_area;
+  auto clear = [&](const Eigen::Vector2d& t) {
+    Polygon2 moved = outline;
+    for (auto& v : moved) v += t;
+    for (const Polygon2* other : near)
+      if (polygonOverlapArea(moved, *other) > limit) return false;
+    return true;
+  };
+  constexpr double kStep = 0.01;  // [m]
+  constexpr int kDirections = 36;
+  for (double d = kStep; d <= reach + 1e-9; d += kStep) {
+    for (int k = 0; k < kDirections; ++k) {
+      const double a = 2.0 * M_PI * k / kDirections;
+      const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+      if (clear(d * dir)) return (d + params_.overlap_clearance) * dir;
+    }
+  }
+  return std::nullopt;
 }
 
 }  // namespace osm_graph_slam

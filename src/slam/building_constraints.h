@@ -3,6 +3,7 @@
 // edges, shared walls between touching buildings, and overlap resolution (OSM thesis Alg. 3.2).
 // Internal to src/slam/.
 #include <map>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -36,6 +37,18 @@ class BuildingConstraints {
   void findNewContacts(const BackendState& s);
   /// One overlap-removal edge moving the less observed of the two; false if none separates them.
   bool addSeparationEdge(BackendState& s, BuildingState* a, BuildingState* b);
+  /// The overlaps the hard edges left (a building wedged between neighbours that both moved
+  /// towards it: their edges push it back and forth): the less observed building of each pair
+  /// is moved by the shortest translation that clears it of every outline. Returns the pairs
+  /// still overlapping.
+  std::vector<std::pair<size_t, size_t>> projectOutOfOverlaps(
+      BackendState& s, const std::vector<BuildingState*>& order, std::vector<Building>& outlines,
+      std::vector<std::pair<size_t, size_t>> overlaps) const;
+  /// The shortest translation (rings of 1 cm, 10 degree steps, at most
+  /// overlap_projection_max_translation) after which outline `mover` overlaps no other by more
+  /// than half of overlap_min_area, plus overlap_clearance; nullopt if there is none.
+  std::optional<Eigen::Vector2d> clearingTranslation(size_t mover,
+                                                     const std::vector<Building>& outlines) const;
 
   const GraphBackendParams& params_;
   LineMatcher matcher_;

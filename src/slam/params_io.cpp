@@ -143,6 +143,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   r.param("overlap_information", p.overlap_information);
   r.param("overlap_min_area", p.overlap_min_area);
   r.param("overlap_clearance", p.overlap_clearance);
+  r.param("overlap_projection_max_translation", p.overlap_projection_max_translation);
   r.param("use_shared_walls", p.use_shared_walls);
   r.param("unobserved_buildings_fixed", p.unobserved_buildings_fixed);
   r.param("shared_wall_std", p.shared_wall_std);

@@ -364,6 +364,45 @@ TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
   }
 }
 
+TEST(GraphBackend, AnOverlapTheEdgesLeaveIsClearedByTheShortestTranslationOfOneBuilding) {
+  // No separation edge at all (0 iterations): the projection alone must clear building 3's 2 m
+  // overlap with building 4, moving one of the two by about 2 m and nothing else.
+  const auto odom = drive().odometry(0.0, 1.0);
+  std::vector<Building> prior = drive().truth;
+  const double push = outlineMinX(prior[4]) - outlineMaxX(prior[3]) + 2.0;
+  prior[3] = toBuilding(prior[3].id, transformPolygon(prior[3].outline_enu, Pose2(push, 0, 0)));
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.local_edge_std_xy = 100.0;  // the scans barely move buildings
+  params.local_edge_std_theta = 10.0;
+  params.overlap_max_iterations = 0;
+  auto run = [&](double reach) {
+    params.overlap_projection_max_translation = reach;
+    GraphBackend backend(params);
+    drive().feed(backend, odom, prior);
+    const BackendUpdateReport r = backend.update();
+    return std::make_pair(r, backend.correctedBuildings());
+  };
+  const auto [left, unprojected] = run(0.0);
+  EXPECT_EQ(left.overlaps_remaining, 1u);
+  const auto [r, projected] = run(2.5);
+  EXPECT_EQ(r.overlaps_projected, 1u);
+  EXPECT_EQ(r.overlaps_remaining, 0u);
+  EXPECT_TRUE(findOverlappingBuildings(projected).empty());
+  EXPECT_EQ(run(1.5).first.overlaps_remaining, 1u) << "2 m is beyond a 1.5 m reach";
+  ASSERT_EQ(projected.size(), unprojected.size());
+  std::vector<double> moved;
+  for (size_t i = 0; i < projected.size(); ++i) {
+    moved.push_back(
+        (projected[i].reference_pose.translation() - unprojected[i].reference_pose.translation())
+            .norm());
+    if (projected[i].id != prior[3].id && projected[i].id != prior[4].id)
+      EXPECT_LT(moved.back(), 1e-9) << "building " << projected[i].id << " is not involved";
+  }
+  std::sort(moved.begin(), moved.end());
+  EXPECT_NEAR(moved.back(), 2.0, 0.04) << "the shortest way out, plus the clearance";
+  EXPECT_LT(moved[moved.size() - 2], 1e-9) << "only one of the two moves";
+}
+
 namespace {
 
 /// Priors with buildings 3 and 5 pushed along the street into building 4 from both sides.

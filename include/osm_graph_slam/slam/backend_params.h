@@ -249,6 +249,10 @@ struct GraphBackendParams {
   /// [m] separated buildings are placed this much further apart than flush, so that buildings
   /// separated from two neighbours at once do not end overlapping by a compromise of millimetres.
   double overlap_clearance = 0.01;
+  /// [m] Overlaps the hard edges leave (a building wedged between two neighbours whose edges
+  /// push it back and forth) are cleared by moving the less observed building by the shortest
+  /// translation that frees it, at most this far (0 = off; doc/backend.md, session 35).
+  double overlap_projection_max_translation = 0.5;
   /// Non-rigid mode: buildings whose facing walls (nearly) coincide in the prior keep them
   /// coinciding (two wall-end-on-wall edges per pair, level 1, Huber kernel). A building seen
   /// through one facade is then placed along its street by the neighbours it touches, and a

@@ -83,7 +83,8 @@ struct BackendUpdateReport {
   size_t building_edges_gated = 0;  ///< removed by the consistency gate
   size_t osm_reassociated = 0;      ///< keyframes matched again after the OSM datum moved
   size_t overlap_iterations = 0, overlap_edges = 0, overlaps_remaining = 0;
-  size_t shared_walls = 0;  ///< building pairs tied by a shared wall in this update
+  size_t overlaps_projected = 0;  ///< pairs the edges left, cleared by moving one building
+  size_t shared_walls = 0;        ///< building pairs tied by a shared wall in this update
   /// Floor plane-pair edges added; consecutive floors not tied because the slope changed or
   /// they lie too far apart (along the path, or in time: stamped before the previous one).
   size_t floor_edges = 0, floor_slope_changes = 0, floor_gaps = 0;
