@@ -258,6 +258,21 @@ TEST(GraphBackend, NonRigidModeCorrectsEachBuilding) {
             << after.mean_corner_error << " m, ATE " << ate(backend) << " m\n";
 }
 
+TEST(GraphBackend, TheReportSaysWhereTheUpdatesTimeWent) {
+  // Each stage is timed inside the update: all ran, and together they fit in its total.
+  GraphBackend backend(baseParams(OsmMode::kNonRigid));
+  drive().feed(backend, drive().odometry(0.0005, 1.001), drive().perturbedPrior(0.8, 0.03, {}, 5));
+  const BackendUpdateReport r = backend.update();
+  const BackendUpdateReport::StageMs& t = r.stage_ms;
+  for (double ms : {t.osm, t.phase1, t.phase2, t.joint, t.overlaps}) EXPECT_GT(ms, 0.0);
+  EXPECT_LE(t.osm + t.phase1 + t.phase2 + t.joint + t.overlaps, r.total_ms);
+  BackendUpdateReport::StageMs sum;
+  sum += t;
+  sum += t;
+  EXPECT_DOUBLE_EQ(sum.joint, 2.0 * t.joint);
+  EXPECT_DOUBLE_EQ(sum.overlaps, 2.0 * t.overlaps);
+}
+
 // The default: no global priors, buildings and robots optimised together. Every building is
 // misplaced on its own (0.8 m, 1.7 deg) and odometry drifts; the buildings' priors, each counted
 // once however often it is seen, correct both the drift and the buildings.
