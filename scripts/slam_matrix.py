@@ -537,6 +537,7 @@ def parse_metrics(evaluation, timing_osm=None, timing_no_osm=None, sim_info=None
     m["bld_matched"] = n(dig(ev, "buildings_corrected", "matched"))
     m["seen_prior"] = n(dig(ev, "buildings_prior_observed", "mean_corner_error_m"))
     m["seen_corrected"] = n(dig(ev, "buildings_corrected_observed", "mean_corner_error_m"))
+    m["seen_shape"] = n(dig(ev, "buildings_corrected_observed", "mean_corner_error_shape_m"))
     m["seen_matched"] = n(dig(ev, "buildings_corrected_observed", "matched"))
     m["overlaps"] = n(dig(ev, "buildings_corrected", "overlapping_pairs"))
     m["overlaps_prior"] = n(dig(ev, "buildings_prior", "overlapping_pairs"))
@@ -906,6 +907,7 @@ COLUMNS = [
     ("bld_corrected", "B_corr", 7, f3, "max"),
     ("seen_prior", "S_prior", 7, f3, "max"),
     ("seen_corrected", "S_corr", 7, f3, "max"),
+    ("seen_shape", "S_shp", 5, f2, "max"),
     ("offset_bound", "B_bnd", 5, f2, "max"),
     ("overlaps", "ovl", 4, fint, "max"),
     ("scans_per_s", "sc/s", 5, f1, "min"),

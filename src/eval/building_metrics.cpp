@@ -43,6 +43,7 @@ BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
   for (const auto& b : truth) truth_by_id[b.id] = &b;
   double corner_sum = 0.0, heading_sum = 0.0, vertex_sum = 0.0;
   size_t vertex_count = 0;
+  std::vector<Eigen::Vector2d> corner_offsets;
   for (const auto& est : estimate) {
     const auto it = truth_by_id.find(est.id);
     if (it == truth_by_id.end()) continue;
@@ -54,7 +55,8 @@ BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
     }
     ++out.matched;
     const size_t ref = lowestXVertex(t);
-    const double corner = (e[ref] - t[ref]).norm();
+    corner_offsets.push_back(e[ref] - t[ref]);
+    const double corner = corner_offsets.back().norm();
     corner_sum += corner;
     out.max_corner_error = std::max(out.max_corner_error, corner);
     heading_sum += std::abs(fitRotation(e, t)) * 180.0 / M_PI;
@@ -65,6 +67,12 @@ BuildingErrors evaluateBuildings(const std::vector<Building>& estimate,
     out.mean_corner_error = corner_sum / static_cast<double>(out.matched);
     out.mean_heading_error_deg = heading_sum / static_cast<double>(out.matched);
     out.mean_vertex_error = vertex_sum / static_cast<double>(vertex_count);
+    Eigen::Vector2d common = Eigen::Vector2d::Zero();
+    for (const auto& d : corner_offsets) common += d;
+    common /= static_cast<double>(corner_offsets.size());
+    out.common_offset = common.norm();
+    for (const auto& d : corner_offsets) out.mean_corner_error_shape += (d - common).norm();
+    out.mean_corner_error_shape /= static_cast<double>(corner_offsets.size());
   }
   return out;
 }

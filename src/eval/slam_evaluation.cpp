@@ -36,6 +36,8 @@ json buildingsJson(const BuildingSetEvaluation& b) {
           {"max_corner_error_m", b.errors.max_corner_error},
           {"mean_heading_error_deg", b.errors.mean_heading_error_deg},
           {"mean_vertex_error_m", b.errors.mean_vertex_error},
+          {"common_offset_m", b.errors.common_offset},
+          {"mean_corner_error_shape_m", b.errors.mean_corner_error_shape},
           {"overlapping_pairs", b.overlapping_pairs}};
 }
 

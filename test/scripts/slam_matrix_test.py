@@ -313,7 +313,8 @@ class ParseTest(unittest.TestCase):
              "buildings_prior": {"matched": 28, "mean_corner_error_m": 1.432, "overlapping_pairs": 10},
              "buildings_corrected": {"matched": 28, "mean_corner_error_m": 0.380, "overlapping_pairs": 0},
              "buildings_prior_observed": {"matched": 25, "mean_corner_error_m": 1.431},
-             "buildings_corrected_observed": {"matched": 25, "mean_corner_error_m": 0.252}}
+             "buildings_corrected_observed": {"matched": 25, "mean_corner_error_m": 0.252,
+                                              "mean_corner_error_shape_m": 0.118}}
 
     def test_todays_keys(self):
         m = sm.parse_metrics(self.TODAY, {"keyframes": 154, "loops": 7, "scans_per_second": 21.0},
@@ -323,6 +324,7 @@ class ParseTest(unittest.TestCase):
         self.assertAlmostEqual(m["rpe_ratio"], 1.0)
         self.assertEqual((m["bld_prior"], m["bld_corrected"]), (1.432, 0.380))
         self.assertEqual((m["seen_prior"], m["seen_corrected"], m["seen_matched"]), (1.431, 0.252, 25))
+        self.assertEqual(m["seen_shape"], 0.118)
         self.assertEqual((m["overlaps"], m["overlaps_prior"]), (0, 10))
         self.assertEqual((m["keyframes"], m["loops"], m["revisits"]), (154, 7, 3))
         self.assertIsNone(m["recall"])

@@ -13,6 +13,12 @@ struct BuildingErrors {
   double max_corner_error = 0.0;   ///< [m]
   double mean_heading_error_deg = 0.0;  ///< |rotation| of the best 2D fit estimate -> truth
   double mean_vertex_error = 0.0;       ///< [m] over all corresponding vertices
+  /// The set's common offset: |mean reference-corner displacement| [m]. A map can only be as
+  /// close to the truth as its absolute references (fixes, the map's own mean offset) put it.
+  double common_offset = 0.0;
+  /// Mean corner error once the common offset is removed [m]: the map's shape, what scans and
+  /// building priors decide (doc/matrix.md, "S_shp").
+  double mean_corner_error_shape = 0.0;
 };
 
 /// Compares buildings by OSM id. Vertices correspond by order (a prior is a perturbed copy of
