@@ -161,12 +161,13 @@ std::vector<std::pair<size_t, size_t>> BuildingConstraints::projectOutOfOverlaps
   // A building's pose after the hard edges is where its evidence puts it; the non-overlap
   // constraint then asks for the nearest pose that satisfies it: with an isotropic prior, the
   // shortest translation (the edges' compromise never reaches it when two neighbours push).
+  // A held building (at its prior, or outside the window) stays where it is.
+  auto movable = [&](size_t k) {
+    return order[k]->vertex_id >= 0 && !s.graph.isFixed(order[k]->vertex_id);
+  };
   for (int pass = 0; pass < 3 && !overlaps.empty(); ++pass) {
     for (const auto& [i, j] : overlaps) {
-      // The less observed of the two, unless it is held (at its prior, or outside the window).
-      auto movable = [&](size_t k) {
-        return order[k]->vertex_id >= 0 && !s.graph.isFixed(order[k]->vertex_id);
-      };
+      // The less observed of the two, unless it is held.
       const bool i_first = order[i]->observations <= order[j]->observations;
       const size_t first = i_first ? i : j, second = i_first ? j : i;
       if (!movable(first) && !movable(second)) continue;
