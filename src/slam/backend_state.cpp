@@ -41,12 +41,12 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   graph.addVertexSE2(id, Pose2());
   // Translation only unless a rotation deviation is given (1e-5 rad: 2 mm at 200 m).
   const double std_theta = p.osm_datum_std_theta > 0.0 ? p.osm_datum_std_theta : 1e-5;
+  const MapWeighting w = mapWeighting(p);
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
-  info(0, 0) = info(1, 1) = 1.0 / (datumStdXy(p) * datumStdXy(p));
+  info(0, 0) = info(1, 1) = 1.0 / (w.datum_std_xy * w.datum_std_xy);
   info(2, 2) = 1.0 / (std_theta * std_theta);
-  graph.addPriorSE2(
-      id, Pose2(), info,
-      EdgeOptions{1, kernelNamed(mapWeighting(p).datum_kernel, p.osm_datum_kernel_width)});
+  graph.addPriorSE2(id, Pose2(), info,
+                    EdgeOptions{1, kernelNamed(w.datum_kernel, p.osm_datum_kernel_width)});
   return id;
 }
 

@@ -678,11 +678,15 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uin
   report.window_start = window_start;
   const std::vector<int> held =
       window_start ? s.holdOutsideWindow(*window_start, params_) : std::vector<int>{};
+  // One optimisation at `level` into `result`, its time added to the update's stage.
+  auto solve = [&](int level, OptimizationResult& result, double& stage_ms) {
+    result = s.graph.optimize(level, options);
+    stage_ms += result.time_ms;
+  };
 
   // Phase 1 (level 0): robot poses from odometry, loops and global priors; buildings untouched.
   if (phase1) {
-    report.phase1 = s.graph.optimize(0, options);
-    report.stage_ms.phase1 += report.phase1.time_ms;
+    solve(0, report.phase1, report.stage_ms.phase1);
     s.readRobotPoses();
   }
   report.optimized = true;
@@ -699,19 +703,16 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uin
   if (params_.use_shared_walls && params_.mode == OsmMode::kNonRigid)
     constraints_->addSharedWallEdges(s, report);
   const std::vector<int> unfix = s.fixRobots();
-  report.phase2 = s.graph.optimize(1, options);
-  report.stage_ms.phase2 += report.phase2.time_ms;
+  solve(1, report.phase2, report.stage_ms.phase2);
   s.readBuildingPoses(params_);
   if (params_.building_edge_gate_chi2 > 0.0 && constraints_->gateBuildingEdges(s, report) > 0) {
-    report.phase2 = s.graph.optimize(1, options);
-    report.stage_ms.phase2 += report.phase2.time_ms;
+    solve(1, report.phase2, report.stage_ms.phase2);
     s.readBuildingPoses(params_);
   }
   if (params_.joint_optimization) {
     // Phase 3 (level 1): everything together, from phase 2's buildings.
     for (int vid : unfix) s.graph.setFixed(vid, false);
-    report.joint = s.graph.optimize(1, options);
-    report.stage_ms.joint += report.joint.time_ms;
+    solve(1, report.joint, report.stage_ms.joint);
     s.readRobotPoses();
     s.readBuildingPoses(params_);
     s.fixRobots();
