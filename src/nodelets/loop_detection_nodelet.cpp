@@ -86,8 +86,8 @@ class LoopDetectionNodelet : public nodelet::Nodelet {
     }
     publisher_ = nh.advertise<osm_graph_slam::LoopClosure>("loop_closures", 16);
     // Keyframes arrive on a queue and thread of their own and are searched on a worker: on the
-    // manager's shared threads, behind a slow search, the subscription overflowed (the 60-minute
-    // soak of session 20 never gave 2,563 keyframes to loop_detection).
+    // manager's shared threads, behind a slow search, the subscription overflowed (a 60-minute
+    // soak never gave 2,563 keyframes to loop_detection; doc/loop.md "The nodelet's threads").
     ros::NodeHandle input_nh(nh);
     input_nh.setCallbackQueue(&input_queue_);
     subscriber_ = input_nh.subscribe("keyframe", std::max(1, np.input_queue_size),

@@ -126,7 +126,7 @@ struct OptimizerOptions {
   int num_threads = 1;  ///< residual/Jacobian evaluation threads
   /// auto: Eigen's simplicial Cholesky for problems of at most auto_eigen_max_free_vertices free
   /// vertices, SuiteSparse's supernodal one (when Ceres has it) for larger ones. Measured
-  /// (doc/backend.md, session 35): Eigen 0.74-0.93x the back-end time of the 1.5 km drives
+  /// (doc/backend.md): Eigen 0.74-0.93x the back-end time of the 1.5 km drives
   /// (windows of 300 keyframes, full batches of 800), but 1.42x on sphere2500 and 1.58x on a
   /// full batch of 4,000 keyframes with a loop at each.
   SparseLibrary sparse_library = SparseLibrary::kAuto;

@@ -47,7 +47,7 @@ struct LocalizationParams {
   /// Diverged (re-localise globally) when divergence_scans of the last divergence_window
   /// corrections were rejected. A window of divergence_scans or less: rejections in a row. A
   /// filter carried off to a wrong place has corrections there accepted and rejected in turn,
-  /// which a count in a row misses for seconds (doc/localization.md, session 28).
+  /// which a count in a row misses for seconds (doc/localization.md "Divergence over a window").
   int divergence_scans = 5;
   int divergence_window = 10;
   /// The window actually used: never shorter than divergence_scans.

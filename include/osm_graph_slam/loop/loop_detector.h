@@ -69,7 +69,8 @@ struct LoopDetectorParams {
   /// Query points aligned in the fine stage at most (0: all), evenly spread; the covariances
   /// still use all of the query's points as neighbours, the target and the overlap are unchanged
   /// (fast_gicp / fast_vgicp; RegistrationParams::max_source_points). 2000 of the ~4,200 points
-  /// at 0.6 m: fine stage 0.57x, the same loops, errors +0.1 mm mean (doc/loop.md session 34).
+  /// at 0.6 m: fine stage 0.57x, the same loops, errors +0.1 mm mean (doc/loop.md "The fine
+  /// stage on a subset of the query's points").
   int fine_max_source_points = 2000;
   /// Voxel filter of the clouds: "own" (voxelCentroids: pcl::VoxelGrid's voxels and centroids,
   /// ~2.5x faster) | "pcl" (pcl::VoxelGrid, the baseline).

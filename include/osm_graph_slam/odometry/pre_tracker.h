@@ -16,8 +16,8 @@
 namespace osm_graph_slam {
 
 struct PreTrackerParams {
-  // Coarse scales (doc/frontend.md "Session 15"): the pre-tracker only has to bring the
-  // tracker into its basin, and its cost is the per-scan preparation of both scales.
+  // Coarse scales (doc/frontend.md "why 4.0/2.0 m are the defaults"): the pre-tracker only has
+  // to bring the tracker into its basin, and its cost is the per-scan preparation of both scales.
   double coarse_voxel = 4.0;               ///< [m] leaf of the coarse scale
   double fine_voxel = 2.0;                 ///< [m] leaf of the finer scale
   double coarse_max_correspondence = 4.0;  ///< [m]

@@ -52,8 +52,8 @@ struct SimulationParams {
   RouteParams route;
   LidarModel lidar = LidarModel::hdl64e();
   bool motion_distortion = false;
-  /// With motion_distortion: points moved to the stamp's frame by the true motion (until
-  /// session 24 the only behaviour), instead of left in their column's frame as a raw driver does.
+  /// With motion_distortion: points moved to the stamp's frame by the true motion (a perfectly
+  /// compensating driver), instead of left in their column's frame as a raw driver does.
   bool compensated_sweep = false;
   PriorPerturbationParams prior;
   /// GNSS/INS errors of the oxts/ records (default consumer-grade; nav.rtk = true: exact).
