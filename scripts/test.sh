@@ -26,7 +26,7 @@ export ROS_HOME="$WS/ros_home"
 export ROS_LOG_DIR="$WS/ros_home/log"
 mkdir -p "$ROS_LOG_DIR"
 
-# A full run leaves 2.2 GB in build_ws (build, simulated drives, bags, maps; session 25) and
+# A full run leaves 2.2 GB in build_ws (build, simulated drives, bags, maps) and
 # writes < 1 GB to /tmp; a full disk otherwise shows up as unrelated write errors in the tests.
 free_gb() { df -P -k "$1" 2>/dev/null | awk 'NR == 2 { printf "%.1f", $4 / 1048576 }'; }
 for dir in "$WS" "${TMPDIR:-/tmp}"; do
