@@ -325,7 +325,7 @@ TEST_F(FrontendDropout, KeyframesAndOdometryContinueThroughTheGap) {
     EXPECT_EQ(a.scans, size_t(kScans - c->firstAfterGap()));
     EXPECT_GT(a.travelled, 10.0);
     // Measured 2.8 / 2.4 cm and 0.052 / 0.039 deg (gap5 / gap20, deterministic); ~3x that.
-    // Session 24, deskewing: 2.8 / 13.0 cm (the first scan after the hole), final 1.7 / 5.4 cm,
+    // With deskewing: 2.8 / 13.0 cm (the first scan after the hole), final 1.7 / 5.4 cm,
     // 0.090 / 0.137 deg.
     EXPECT_LT(a.max_err_t, c->max_err_t);
     EXPECT_LT(a.final_err_t, 0.085);

@@ -247,9 +247,9 @@ size_t openFileDescriptors() {
                                            std::filesystem::directory_iterator{}));
 }
 
-// fuzz_osm_file (session 22): after ~44,000 inputs the target stopped with a UBSan report inside
-// std::system_error, thrown because libosmium could no longer open its input file: the process
-// had run out of file descriptors. libosmium 2.19's Reader leaks the descriptor of every file whose
+// fuzz_osm_file (finding 7, doc/reliability.md): after ~44,000 inputs the target stopped with a
+// UBSan report inside std::system_error, thrown because libosmium could no longer open its input
+// file: the process had run out of file descriptors. libosmium 2.19's Reader leaks the descriptor of every file whose
 // parsing fails (PBF, gzip and bzip2 alike; one per pass, three passes per read). The reader now
 // parses a mapping of the file, so no read, good or bad, leaves a descriptor open.
 TEST_F(FuzzRegression, ReadingBadOsmFilesLeavesNoFileDescriptorOpen) {

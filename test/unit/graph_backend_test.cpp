@@ -998,7 +998,7 @@ TEST(GraphBackend, AWindowedUpdateHoldsTheOldKeyframesAndADisagreeingLoopCallsAF
 }
 
 // A free scale of an old path window would keep every old odometry edge in a windowed update's
-// problem (session 28: the 1.5 km Karlsruhe replay's back-end took 48 % longer with the scale on).
+// problem (measured: the 1.5 km Karlsruhe replay's back-end took 48 % longer with the scale on).
 TEST(GraphBackend, AWindowedUpdateHoldsTheScalesOfOldPathWindows) {
   constexpr int kN = 40, kWindow = 10;
   GraphBackendParams params = noOsmKnownHeading();

@@ -808,8 +808,8 @@ TEST(Localizer, GnssFixesExposeATrackOnALookAlikePlace) {
 }
 
 // A filter carried to a wrong place may have corrections there accepted and rejected in turn
-// (session 28: a kidnap at rate 1 through ROS took 2.4 s to detect). Every other scan from 32 m
-// ahead: rejections are never 5 in a row, but 5 of the last 10.
+// (counted in a row, a kidnap at rate 1 through ROS took 2.4 s to detect). Every other scan from
+// 32 m ahead: rejections are never 5 in a row, but 5 of the last 10.
 TEST(Localizer, AlternatingRejectionsAreADivergence) {
   const TownMap& town = townMap();
   LocalizationParams params = defaultParams();

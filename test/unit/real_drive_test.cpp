@@ -133,7 +133,7 @@ TEST_F(RealDrive, Kitti0005RunsEndToEndWithAndWithoutOsm) {
 
   // Without ground truth: the accumulated walls agree with the corrected outlines far better than
   // with the OSM prior (measured: median of the observed buildings' medians 1.82 -> 0.264 m over
-  // 17 buildings with walls; deskewed (session 24): 1.79 -> 0.267 m: see doc/real_data.md).
+  // 17 buildings with walls; deskewed: 1.79 -> 0.267 m: see doc/real_data.md).
   ASSERT_EQ(run("'" + tool("evaluate_map") + "' --json --run '" + (kTmp / "osm").string() +
                     "' --baseline '" + (kTmp / "no_osm").string() + "'",
                 &log),
@@ -150,10 +150,10 @@ TEST_F(RealDrive, Kitti0005RunsEndToEndWithAndWithoutOsm) {
   EXPECT_GT(prior_walls, 1.2);  // the real OSM errors this product exists to correct
   EXPECT_LT(corrected_walls, 0.5 * prior_walls);
   EXPECT_LE(corrected_walls, 0.30);  // issue 28's target (measured 0.264 m over 17 buildings)
-  // Issue 28 asks within 1 %. Measured -0.5 % on raw scans; with deskewing (session 24) both maps
-  // are 20-25 % sharper and the OSM run's bend showed: +5.4 %; with the odometry scale, the
-  // Hessian and the prediction error as defaults (session 28) +0.92 % (doc/real_data.md). A wrong
-  // sweep direction costs +12 %, the session-24 defaults +5.4 %.
+  // Issue 28 asks within 1 %. Measured -0.5 % on raw scans; with deskewing both maps are 20-25 %
+  // sharper and the OSM run's bend showed: +5.4 %; with the odometry scale, the Hessian and the
+  // prediction error as defaults +0.92 % (doc/real_data.md "Map sharpness"). A wrong sweep
+  // direction costs +12 %, the odometry edge without those three +5.4 %.
   EXPECT_LT(m["baseline"]["sharpness_change"].get<double>(), 0.0125);
   EXPECT_LT(m["baseline"]["trajectory_difference_max_m"].get<double>(), 0.5);
   EXPECT_TRUE(m["walls"]["overlapping_pairs"].empty()) << m["walls"]["overlapping_pairs"].dump();
