@@ -249,9 +249,10 @@ size_t openFileDescriptors() {
 
 // fuzz_osm_file (finding 7, doc/reliability.md): after ~44,000 inputs the target stopped with a
 // UBSan report inside std::system_error, thrown because libosmium could no longer open its input
-// file: the process had run out of file descriptors. libosmium 2.19's Reader leaks the descriptor of every file whose
-// parsing fails (PBF, gzip and bzip2 alike; one per pass, three passes per read). The reader now
-// parses a mapping of the file, so no read, good or bad, leaves a descriptor open.
+// file: the process had run out of file descriptors. libosmium 2.19's Reader leaks the descriptor
+// of every file whose parsing fails (PBF, gzip and bzip2 alike; one per pass, three passes per
+// read). The reader now parses a mapping of the file, so no read, good or bad, leaves a descriptor
+// open.
 TEST_F(FuzzRegression, ReadingBadOsmFilesLeavesNoFileDescriptorOpen) {
   const std::string bad_pbf = write("bad.osm.pbf", std::string("\0\0\0\x0d\x0a\x07OSMData", 13));
   const std::string bad_gz = write("bad.osm.gz", "\x1f\x8b\x08\0garbage that is not deflate");
