@@ -1,7 +1,7 @@
-"""Tests of scripts/slam_matrix.py without the real tools: the grid of each preset, summary,
-check limits, result parsing with missing keys, resume, and whole drives run with fake
-simulate_urban / offline_slam / evaluate_slam programs (small Python scripts in a temporary bin
-folder).
+"""Tests of scripts/slam_matrix.py and its package scripts/drive_matrix without the real tools:
+the grid of each preset, summary, check limits, result parsing with missing keys, resume, whole
+drives run with fake simulate_urban / offline_slam / evaluate_slam programs (small Python scripts
+in a temporary bin folder), and the entry point and the package's layout.
 
     /usr/bin/python3 -m unittest discover -s test/scripts -p '*_test.py'     (from the repo root)
 """
@@ -12,7 +12,9 @@ import json
 import math
 import os
 import shutil
+import re
 import stat
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -20,10 +22,25 @@ import unittest
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
 SCRIPT = os.path.join(REPO, "scripts", "slam_matrix.py")
+PACKAGE = os.path.join(REPO, "scripts", "drive_matrix")
 
+# The entry point, loaded by path as a tool would; it puts scripts/ on the module path, so the
+# package's modules import below.
 spec = importlib.util.spec_from_file_location("slam_matrix", SCRIPT)
 sm = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(sm)
+
+from drive_matrix.drives import (KARLSRUHE, PRIOR_MODELS, SENSORS, Drive, MatrixError, World,  # noqa: E402
+                                 parse_burst, parse_world)
+from drive_matrix.evaluation import parse_metrics  # noqa: E402
+from drive_matrix.ground_truth import kitti_stamp_ns, stamp_text, write_full_ground_truth  # noqa: E402
+from drive_matrix.grid import axes_from_args, build_grid  # noqa: E402
+from drive_matrix.one_drive import drive_row  # noqa: E402
+from drive_matrix.own_metrics import (absolute_offset_metrics, gnss_mean_error, offset_bound,  # noqa: E402
+                                      orientation_metrics, own_coverage, quat_conj, quat_mul)
+from drive_matrix.scheduler import plan, run_matrix  # noqa: E402
+from drive_matrix.table import check_rows, format_table, summarize, worst_drive  # noqa: E402
+from drive_matrix.tools import TOOLS, Context  # noqa: E402
 
 # One program for the three tools, dispatching on its name. FAKE_CALLS: a file each call is
 # appended to. Behaviour by environment: FAKE_OLD_SIM (simulate_urban prints its usage for the new
@@ -117,7 +134,7 @@ elif name == "evaluate_slam":
 
 def make_fake_bin(folder):
     os.makedirs(folder, exist_ok=True)
-    for tool in sm.TOOLS + ("replay_backend",):
+    for tool in TOOLS + ("replay_backend",):
         path = os.path.join(folder, tool)
         with open(path, "w") as f:
             f.write(FAKE_TOOL)
@@ -135,7 +152,7 @@ def run_main(argv):
 
 def preset_drives(name, extra=()):
     args = sm.build_parser().parse_args(["--preset", name] + list(extra))
-    return sm.build_grid(*sm.axes_from_args(args))
+    return build_grid(*axes_from_args(args))
 
 
 class GridTest(unittest.TestCase):
@@ -150,11 +167,11 @@ class GridTest(unittest.TestCase):
         for w in worlds:
             self.assertGreaterEqual(len({d.seed for d in drives if d.world.label == w}), 3)
         self.assertEqual({d.length for d in drives}, {300, 1500})
-        self.assertEqual({d.prior_model for d in drives}, set(sm.PRIOR_MODELS))
-        self.assertEqual({d.sensor for d in drives}, set(sm.SENSORS))
+        self.assertEqual({d.prior_model for d in drives}, set(PRIOR_MODELS))
+        self.assertEqual({d.sensor for d in drives}, set(SENSORS))
         self.assertEqual({d.gnss for d in drives}, {"noisy"})
         # every prior model and sensor meets both worlds and both lengths
-        for attr, values in (("prior_model", sm.PRIOR_MODELS), ("sensor", sm.SENSORS)):
+        for attr, values in (("prior_model", PRIOR_MODELS), ("sensor", SENSORS)):
             for v in values:
                 mine = [d for d in drives if getattr(d, attr) == v]
                 self.assertEqual({d.world.label for d in mine}, worlds, (attr, v))
@@ -208,20 +225,20 @@ class GridTest(unittest.TestCase):
         drives = preset_drives("default", ["--sensor", "os1_64", "--seed", "7,8"])
         self.assertEqual({d.sensor for d in drives}, {"os1_64"})
         self.assertEqual({d.seed for d in drives}, {7, 8})
-        self.assertEqual({d.prior_model for d in drives}, set(sm.PRIOR_MODELS))
+        self.assertEqual({d.prior_model for d in drives}, set(PRIOR_MODELS))
         drives = preset_drives("quick", ["--world", "city"])
         self.assertEqual({d.world.label for d in drives}, {"city"})
 
     def test_without_preset_the_product_of_the_axes(self):
         args = sm.build_parser().parse_args(["--world", "city", "--seed", "1,2", "--length", "100",
                                              "--length", "200", "--manoeuvres", "sharp_turn,stop"])
-        drives = sm.build_grid(*sm.axes_from_args(args))
+        drives = build_grid(*axes_from_args(args))
         self.assertEqual(len(drives), 4)
         self.assertEqual({d.manoeuvres for d in drives}, {"sharp_turn,stop"})
 
     def test_worlds_take_a_comma_list_like_the_other_axes(self):
         args = sm.build_parser().parse_args(["--world", "karlsruhe,city", "--seed", "1"])
-        drives = sm.build_grid(*sm.axes_from_args(args))
+        drives = build_grid(*axes_from_args(args))
         self.assertEqual(sorted(d.world.label for d in drives), ["city", "karlsruhe"])
 
     def test_bad_axis_values_are_one_clear_error(self):
@@ -232,35 +249,35 @@ class GridTest(unittest.TestCase):
             self.assertNotIn("Traceback", text)
 
     def test_flags_map_one_to_one_and_defaults_are_omitted(self):
-        city = sm.World("city")
-        d = sm.Drive(city, 1, 300)
+        city = World("city")
+        d = Drive(city, 1, 300)
         self.assertEqual(d.sim_flags(), ["--seed", "1", "--length", "300"])
         self.assertEqual(d.name, "city_s1_300m_independent_hdl64e_noisy")
-        d = sm.Drive(sm.World("k", "/x.osm"), 2, 150, "global", "os1_64", "rtk", "sharp_turn,stop", 0.05, 5)
+        d = Drive(World("k", "/x.osm"), 2, 150, "global", "os1_64", "rtk", "sharp_turn,stop", 0.05, 5)
         self.assertEqual(d.sim_flags(), ["--seed", "2", "--length", "150", "--osm", "/x.osm", "--prior-model",
                                          "global", "--sensor", "os1_64", "--rtk", "--manoeuvres",
                                          "sharp_turn,stop", "--drop-scans", "0.05", "--dropout-burst", "5"])
         self.assertEqual(d.name, "k_s2_150m_global_os1_64_rtk_man-sharp_turn+stop_drop0.05_burst5")
-        d = sm.Drive(city, 1, 300, dropout_burst="20@30.5")
+        d = Drive(city, 1, 300, dropout_burst="20@30.5")
         self.assertEqual(d.sim_flags()[-2:], ["--dropout-burst", "20@30.5"])
         self.assertEqual(d.name, "city_s1_300m_independent_hdl64e_noisy_burst20at30.5")
-        self.assertEqual(sm.Drive(city, 1, 300, dropout_burst="0"), sm.Drive(city, 1, 300))
-        d = sm.Drive(city, 1, 300, "mixed", map_shift="2")
+        self.assertEqual(Drive(city, 1, 300, dropout_burst="0"), Drive(city, 1, 300))
+        d = Drive(city, 1, 300, "mixed", map_shift="2")
         self.assertEqual(d.sim_flags()[-2:], ["--prior-global-offset", "2,2"])
         self.assertEqual(d.name, "city_s1_300m_mixed_hdl64e_noisy_shift2")
-        self.assertNotEqual(d, sm.Drive(city, 1, 300, "mixed"))
+        self.assertNotEqual(d, Drive(city, 1, 300, "mixed"))
         args = sm.build_parser().parse_args(["--world", "city", "--prior-model", "global", "--map-shift", "0,1.5"])
-        self.assertEqual([d.map_shift for d in sm.build_grid(*sm.axes_from_args(args))], [0.0, 1.5])
-        with self.assertRaises(sm.MatrixError):
-            sm.parse_burst("x@1")
+        self.assertEqual([d.map_shift for d in build_grid(*axes_from_args(args))], [0.0, 1.5])
+        with self.assertRaises(MatrixError):
+            parse_burst("x@1")
 
     def test_world_specs(self):
-        self.assertEqual(sm.parse_world("city").path, None)
-        self.assertEqual(sm.parse_world("karlsruhe").label, "karlsruhe")
-        self.assertEqual(sm.parse_world(os.path.join(REPO, sm.KARLSRUHE)).label, "karlsruhe")
-        w = sm.parse_world("berlin=/data/b.osm.pbf")
+        self.assertEqual(parse_world("city").path, None)
+        self.assertEqual(parse_world("karlsruhe").label, "karlsruhe")
+        self.assertEqual(parse_world(os.path.join(REPO, KARLSRUHE)).label, "karlsruhe")
+        w = parse_world("berlin=/data/b.osm.pbf")
         self.assertEqual((w.label, w.path), ("berlin", "/data/b.osm.pbf"))
-        self.assertEqual(sm.parse_world("/data/kitti_00.osm").label, "kitti_00")
+        self.assertEqual(parse_world("/data/kitti_00.osm").label, "kitti_00")
 
 
 def row(name, status="ok", **metrics):
@@ -274,7 +291,7 @@ class SummaryAndCheckTest(unittest.TestCase):
                 row("b", coverage=0.8, ate_change_pct=10.0, scans_per_s=15.0, false_loops=2),
                 row("c", coverage=0.9, ate_change_pct=-10.0, scans_per_s=None),
                 row("d", "error: simulate: boom", coverage=0.1, ate_change_pct=99.0)]
-        s = sm.summarize(rows)
+        s = summarize(rows)
         self.assertAlmostEqual(s["coverage"]["median"], 0.9)
         self.assertEqual((s["coverage"]["worst"], s["coverage"]["worst_drive"]), (0.8, "b"))
         self.assertEqual((s["ate_change_pct"]["worst"], s["ate_change_pct"]["worst_drive"]), (10.0, "b"))
@@ -283,8 +300,8 @@ class SummaryAndCheckTest(unittest.TestCase):
         self.assertEqual(s["scans_per_s"]["count"], 2)
         self.assertEqual(s["false_loops"]["worst"], 2)
         self.assertIsNone(s["keyframes"]["median"])
-        self.assertEqual(sm.worst_drive(rows)[0], "b")
-        table = sm.format_table(rows, s)
+        self.assertEqual(worst_drive(rows)[0], "b")
+        table = format_table(rows, s)
         self.assertEqual(len(table.splitlines()), 1 + 4 + 2)
         self.assertIn("error: simulate: boom", table)
         self.assertIn("-", table.splitlines()[3])
@@ -295,15 +312,15 @@ class SummaryAndCheckTest(unittest.TestCase):
                 row("unmeasured", ate_ratio=0.9, rpe_ratio=1.0, bld_corrected=0.3)]
         limits = {"max_ate_ratio": 1.0, "min_coverage": 0.9, "max_rpe_ratio": None,
                   "max_false_loops": None, "max_building_error": 0.5}
-        v = sm.check_rows(rows, limits)
+        v = check_rows(rows, limits)
         self.assertEqual(len(v), 3, v)
         self.assertTrue(any(x.startswith("bad:") and "--max-ate-ratio 1" in x for x in v))
         self.assertTrue(any(x.startswith("bad:") and "--min-coverage 0.9" in x for x in v))
         self.assertTrue(any(x.startswith("unmeasured:") and "not measured" in x for x in v))
-        self.assertEqual(sm.check_rows(rows[:1], limits), [])
-        v = sm.check_rows([row("x", "error: evaluate: boom")], limits)
+        self.assertEqual(check_rows(rows[:1], limits), [])
+        v = check_rows([row("x", "error: evaluate: boom")], limits)
         self.assertEqual(v, ["x: did not finish (error: evaluate: boom)"])
-        self.assertEqual(sm.check_rows(rows, {}), [])
+        self.assertEqual(check_rows(rows, {}), [])
 
 
 class ParseTest(unittest.TestCase):
@@ -317,7 +334,7 @@ class ParseTest(unittest.TestCase):
                                               "mean_corner_error_shape_m": 0.118}}
 
     def test_todays_keys(self):
-        m = sm.parse_metrics(self.TODAY, {"keyframes": 154, "loops": 7, "scans_per_second": 21.0},
+        m = parse_metrics(self.TODAY, {"keyframes": 154, "loops": 7, "scans_per_second": 21.0},
                              None, {"revisits": 3, "scans": 651})
         self.assertAlmostEqual(m["ate_change_pct"], -42.6)
         self.assertAlmostEqual(m["ate_ratio"], 0.133 / 0.231)
@@ -335,7 +352,7 @@ class ParseTest(unittest.TestCase):
     def test_new_keys_win(self):
         ev = dict(self.TODAY, coverage={"fraction": 0.93, "longest_gap_s": 4.0, "untracked_scans": 12},
                   loops={"revisits": 10, "revisits_closed": 7, "recall": 0.7, "accepted": 9, "false": 1})
-        m = sm.parse_metrics(ev, {"loops": 99, "tracking": {"lost_events": 2}}, None, {"revisits": 3},
+        m = parse_metrics(ev, {"loops": 99, "tracking": {"lost_events": 2}}, None, {"revisits": 3},
                              {"fraction": 0.5, "longest_gap_s": 9.0})
         self.assertEqual((m["coverage"], m["coverage_source"], m["longest_gap_s"]), (0.93, "evaluate_slam", 4.0))
         self.assertEqual((m["loops"], m["revisits"], m["recall"], m["false_loops"]), (9, 10, 0.7, 1))
@@ -343,28 +360,28 @@ class ParseTest(unittest.TestCase):
 
     def test_missing_everything_gives_none_not_an_exception(self):
         for ev in ({}, None, {"slam": {}}, {"slam": {"ate_m": "x"}, "odometry": {"ate_m": {"mean": 0}}}):
-            m = sm.parse_metrics(ev, None, "garbage", [])
+            m = parse_metrics(ev, None, "garbage", [])
             self.assertIsNone(m["ate_osm"])
             self.assertIsNone(m["ate_ratio"])
             self.assertIsNone(m["coverage"])
-            sm.format_table([row("x", **m)], sm.summarize([row("x", **m)]))
+            format_table([row("x", **m)], summarize([row("x", **m)]))
 
     def test_other_baseline_label(self):
         ev = {"slam": {"ate_m": {"mean": 0.3}}, "odometry": {"ate_m": {"mean": 0.2}}}
-        m = sm.parse_metrics(ev)
+        m = parse_metrics(ev)
         self.assertAlmostEqual(m["ate_change_pct"], 50.0)
 
     def test_own_coverage(self):
-        c = sm.own_coverage([2.0, 3.0, 8.0], [0.0, 10.0])
+        c = own_coverage([2.0, 3.0, 8.0], [0.0, 10.0])
         self.assertAlmostEqual(c["fraction"], 0.6)
         self.assertAlmostEqual(c["longest_gap_s"], 5.0)
-        self.assertEqual(sm.own_coverage([], [0.0, 10.0])["fraction"], 0.0)
-        self.assertIsNone(sm.own_coverage([1.0], [5.0]))
+        self.assertEqual(own_coverage([], [0.0, 10.0])["fraction"], 0.0)
+        self.assertIsNone(own_coverage([1.0], [5.0]))
 
     def test_offset_bound_is_the_nearest_point_between_the_two_references(self):
-        self.assertAlmostEqual(sm.offset_bound((2.0, 0.0), (-1.0, 0.0)), 0.0)  # opposite: they cancel
-        self.assertAlmostEqual(sm.offset_bound((1.2, 0.0), (1.6, 0.0)), 1.2)  # same way: the smaller
-        self.assertAlmostEqual(sm.offset_bound((1.0, 1.0), (1.0, -1.0)), 1.0)  # the segment's midpoint
+        self.assertAlmostEqual(offset_bound((2.0, 0.0), (-1.0, 0.0)), 0.0)  # opposite: they cancel
+        self.assertAlmostEqual(offset_bound((1.2, 0.0), (1.6, 0.0)), 1.2)  # same way: the smaller
+        self.assertAlmostEqual(offset_bound((1.0, 1.0), (1.0, -1.0)), 1.0)  # the segment's midpoint
         tmp = tempfile.mkdtemp(prefix="offset_bound_")
         try:
             drive = os.path.join(tmp, "drive")
@@ -378,7 +395,7 @@ class ParseTest(unittest.TestCase):
                     "%.9f %.9f 110 0 0 0 0 0" % (lat + dlat, lon) + tail[:-1] + "\n")
                 open(os.path.join(drive, "oxts_true", "data", "%010d.txt" % i), "w").write(
                     "%.9f %.9f 110 0 0 0 0 0" % (lat, lon) + tail)
-            east, north = sm.gnss_mean_error(drive)
+            east, north = gnss_mean_error(drive)
             self.assertAlmostEqual(east, 0.0, places=6)
             self.assertAlmostEqual(north, 2e-5 * math.pi / 180 * 6378137.0, places=4)  # 2.2 m
             open(os.path.join(tmp, "prior_offsets.csv"), "w").write(
@@ -387,11 +404,11 @@ class ParseTest(unittest.TestCase):
             feature = lambda i, n: {"properties": {"id": i, "tags": {"osm_graph_slam:observations": str(n)}}}
             geojson = os.path.join(tmp, "corrected.geojson")
             json.dump({"features": [feature(1, 4), feature(2, 1), feature(3, 0)]}, open(geojson, "w"))
-            m = sm.absolute_offset_metrics(tmp, drive, geojson)
+            m = absolute_offset_metrics(tmp, drive, geojson)
             self.assertAlmostEqual(m["map_mean_offset"], 1.0)  # building 3 was never observed
             self.assertAlmostEqual(m["gnss_mean_error"], north, places=6)
-            self.assertAlmostEqual(m["offset_bound"], sm.offset_bound((-1.0, 0.0), (0.0, north)))
-            self.assertEqual(sm.absolute_offset_metrics(tmp, os.path.join(tmp, "none"), geojson)["offset_bound"], None)
+            self.assertAlmostEqual(m["offset_bound"], offset_bound((-1.0, 0.0), (0.0, north)))
+            self.assertEqual(absolute_offset_metrics(tmp, os.path.join(tmp, "none"), geojson)["offset_bound"], None)
         finally:
             shutil.rmtree(tmp)
 
@@ -412,30 +429,30 @@ class ParseTest(unittest.TestCase):
             osm, no_osm = os.path.join(tmp, "osm"), os.path.join(tmp, "no")
             os.makedirs(osm)
             os.makedirs(no_osm)
-            truth = [sm.quat_mul(q("z", 90.0), q("y", 2.0 * ((i + 1) % 2))) for i in range(5)]
+            truth = [quat_mul(q("z", 90.0), q("y", 2.0 * ((i + 1) % 2))) for i in range(5)]
             # Heading 1, 2, 3, 4, 5 deg off; the truth's own 2 deg pitch steps are no tilt error.
             write(os.path.join(osm, "trajectory_tum.txt"),
-                  [sm.quat_mul(q("z", i + 1.0), t) for i, t in enumerate(truth)])
+                  [quat_mul(q("z", i + 1.0), t) for i, t in enumerate(truth)])
             write(os.path.join(osm, "ground_truth_tum.txt"), truth)
             # Raw odometry from the identity, tilting 0, 3, 6, 9, 12 deg about its own x axis.
             write(os.path.join(no_osm, "odometry_tum.txt"),
-                  [sm.quat_mul(sm.quat_conj(truth[0]), sm.quat_mul(t, q("x", 3.0 * i)))
+                  [quat_mul(quat_conj(truth[0]), quat_mul(t, q("x", 3.0 * i)))
                    for i, t in enumerate(truth)])
             write(os.path.join(no_osm, "ground_truth_tum.txt"), truth)
-            m = sm.orientation_metrics(osm, no_osm)
+            m = orientation_metrics(osm, no_osm)
             self.assertAlmostEqual(m["heading_deg"], 3.0, places=6)
             self.assertAlmostEqual(m["heading_max_deg"], 5.0, places=6)
             self.assertAlmostEqual(m["odo_tilt_deg"], 12.0, places=6)
             # Missing files: no numbers, no exception.
-            m = sm.orientation_metrics(os.path.join(tmp, "x"), os.path.join(tmp, "y"))
+            m = orientation_metrics(os.path.join(tmp, "x"), os.path.join(tmp, "y"))
             self.assertIsNone(m["heading_deg"])
             self.assertIsNone(m["odo_tilt_deg"])
 
     def test_kitti_stamps(self):
-        self.assertEqual(sm.kitti_stamp_ns("2020-01-01 12:00:00.1"), 1577880000 * 10**9 + 100000000)
-        self.assertEqual(sm.stamp_text(1577880000 * 10**9 + 5), "1577880000.000000005")
+        self.assertEqual(kitti_stamp_ns("2020-01-01 12:00:00.1"), 1577880000 * 10**9 + 100000000)
+        self.assertEqual(stamp_text(1577880000 * 10**9 + 5), "1577880000.000000005")
         with self.assertRaises(ValueError):
-            sm.kitti_stamp_ns("yesterday")
+            kitti_stamp_ns("yesterday")
 
     def test_ground_truth_moves_into_the_first_fix_frame(self):
         with tempfile.TemporaryDirectory() as tmp:
@@ -455,7 +472,7 @@ class ParseTest(unittest.TestCase):
             open(os.path.join(sim, "ground_truth", "poses_imu.txt"), "w").write(
                 "1 0 0 0 0 1 0 0 0 0 1 0\n%r %r 0 10 %r %r 0 5 0 0 1 1\n" % (c, -s, s, c))
             out = os.path.join(tmp, "gt.txt")
-            self.assertEqual(sm.write_full_ground_truth(sim, drive, out), 2)
+            self.assertEqual(write_full_ground_truth(sim, drive, out), 2)
             rows = [list(map(float, line.split())) for line in open(out)]
             self.assertAlmostEqual(rows[0][0], 1577880000.0)
             self.assertAlmostEqual(rows[1][0] - rows[0][0], 0.1, places=6)
@@ -668,31 +685,72 @@ class RunTest(unittest.TestCase):
         self.assertEqual(statuses[1], "ok")
 
     def test_plan_skips_finished_drives(self):
-        drives = [sm.Drive(sm.World("city"), s, 100) for s in (1, 2, 3)]
+        drives = [Drive(World("city"), s, 100) for s in (1, 2, 3)]
         for d, status in ((drives[0], "ok"), (drives[1], "error: x")):
             os.makedirs(os.path.join(self.out, d.name))
-            json.dump(sm.drive_row(d, status), open(os.path.join(self.out, d.name, "result.json"), "w"))
-        to_run, stored = sm.plan(drives, self.out)
+            json.dump(drive_row(d, status), open(os.path.join(self.out, d.name, "result.json"), "w"))
+        to_run, stored = plan(drives, self.out)
         self.assertEqual(to_run, [drives[2]])
         self.assertEqual(set(stored), {drives[0], drives[1]})
-        self.assertEqual(sm.plan(drives, self.out, retry_failed=True)[0], drives[1:])
-        self.assertEqual(sm.plan(drives, self.out, force=True)[0], drives)
+        self.assertEqual(plan(drives, self.out, retry_failed=True)[0], drives[1:])
+        self.assertEqual(plan(drives, self.out, force=True)[0], drives)
 
     def test_injected_runner(self):
-        drives = [sm.Drive(sm.World("city"), s, 100) for s in (1, 2)]
-        ctx = sm.Context(self.bin, self.config, self.out, [])
+        drives = [Drive(World("city"), s, 100) for s in (1, 2)]
+        ctx = Context(self.bin, self.config, self.out, [])
         seen = []
 
         def runner(drive, ctx):
             seen.append(drive)
             if drive.seed == 2:
                 raise RuntimeError("runner bug")
-            return sm.drive_row(drive, "ok", {"ate_change_pct": 1.0})
+            return drive_row(drive, "ok", {"ate_change_pct": 1.0})
 
-        results = sm.run_matrix(drives, ctx, drives, 2, runner=runner, log=lambda *_: None)
+        results = run_matrix(drives, ctx, drives, 2, runner=runner, log=lambda *_: None)
         self.assertEqual(len(seen), 2)
         self.assertEqual(results[drives[0]]["status"], "ok")
         self.assertEqual(results[drives[1]]["status"], "error: internal: RuntimeError: runner bug")
+
+
+
+class EntryPointAndLayoutTest(unittest.TestCase):
+    def run_script(self, *argv):
+        with tempfile.TemporaryDirectory() as cwd:  # not the repo: the script finds its package itself
+            return subprocess.run([sys.executable, SCRIPT] + list(argv), cwd=cwd, stdin=subprocess.DEVNULL,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=60)
+
+    def test_the_script_runs_as_a_program(self):
+        p = self.run_script("--help")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("usage: slam_matrix.py", p.stdout)
+        self.assertIn("--replay FROM", p.stdout)
+        p = self.run_script("--world", "city", "--seed", "1,2", "--length", "300", "--list")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("city_s2_300m_independent_hdl64e_noisy", p.stdout)
+        self.assertIn("2 drives", p.stdout)
+        p = self.run_script("--world", "city", "--list", "--seed", "x")
+        self.assertEqual((p.returncode, p.stdout), (2, ""))
+        self.assertEqual(p.stderr, "slam_matrix: --seed takes a number, not 'x'\n")
+
+    def modules(self):
+        return sorted(f for f in os.listdir(PACKAGE) if f.endswith(".py") and f != "__init__.py")
+
+    def test_modules_stay_small(self):
+        for name in self.modules() + ["__init__.py"]:
+            with open(os.path.join(PACKAGE, name)) as f:
+                self.assertLessEqual(len(f.readlines()), 500, name)
+
+    def test_each_module_imports_only_those_listed_above_it(self):
+        # The package's docstring lists the modules in dependency order: a newcomer can read them
+        # top down, and no import cycle can creep in.
+        with open(os.path.join(PACKAGE, "__init__.py")) as f:
+            order = re.findall(r"^    (\w+)\.py ", f.read(), re.M)
+        self.assertEqual(sorted(n + ".py" for n in order), self.modules())
+        for i, name in enumerate(order):
+            with open(os.path.join(PACKAGE, name + ".py")) as f:
+                imported = re.findall(r"^from \.(\w+) import", f.read(), re.M)
+            for other in imported:
+                self.assertIn(other, order[:i], "%s.py imports %s.py, listed below it" % (name, other))
 
 
 if __name__ == "__main__":
