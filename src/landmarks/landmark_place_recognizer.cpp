@@ -4,7 +4,7 @@
 #include <chrono>
 #include <map>
 
-#include "osm_graph_slam/loop/dynamic_kd_index.h"
+#include "osm_graph_slam/common/dynamic_kd_index.h"
 
 namespace osm_graph_slam {
 

@@ -705,4 +705,16 @@ LineMatchResult LineMatcher::removeOverlap(const Polygon2& building_a, const Pos
   return result;
 }
 
+Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
+                                  double std_theta, const LineMatcherParams& m) {
+  Eigen::Matrix3d info = matcher_info;
+  const double sxy = 1.0 / (std_xy * std_xy * m.edge_information_xy);
+  const double sth = 1.0 / (std_theta * std_theta * m.edge_information_theta);
+  info.topLeftCorner<2, 2>() *= sxy;
+  info(2, 2) *= sth;
+  info.topRightCorner<2, 1>() *= std::sqrt(sxy * sth);
+  info.bottomLeftCorner<1, 2>() *= std::sqrt(sxy * sth);
+  return info;
+}
+
 }  // namespace osm_graph_slam

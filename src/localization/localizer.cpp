@@ -13,12 +13,11 @@
 #include <unordered_map>
 #include <vector>
 
+#include "osm_graph_slam/cloud/map_cloud.h"
 #include "osm_graph_slam/cloud/voxel_filter.h"
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/localization/osm_wall_matcher.h"
-#include "osm_graph_slam/slam/graph_backend.h"
-#include "osm_graph_slam/slam/map_export.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -73,9 +72,7 @@ class MapGrid {
 
 PointCloudPtr voxelize(const PointCloudConstPtr& cloud, double leaf) {
   // The back-end's hash-grid voxel filter (no 32-bit index overflow on city-sized maps).
-  KeyframeState all;
-  all.cloud = cloud;
-  return buildMapCloud({all}, leaf);
+  return mergeClouds({{Eigen::Isometry3d::Identity(), cloud}}, leaf);
 }
 
 }  // namespace
@@ -336,7 +333,7 @@ double Localizer::ownPlaceOverlap(size_t index) const {
   const MapKeyframe& kf = map_->keyframes[index];
   const Eigen::Vector2d& centre = impl_->keyframe_xy[index];
   const double radius = globalSearchRadius();
-  std::vector<KeyframeState> others;
+  std::vector<PosedCloud> others;
   std::vector<Eigen::Vector2d> picked{centre};
   for (size_t j = 0; j < map_->keyframes.size(); ++j) {
     const Eigen::Vector2d& xy = impl_->keyframe_xy[j];
@@ -345,12 +342,10 @@ double Localizer::ownPlaceOverlap(size_t index) const {
     for (const auto& q : picked) near = near || (xy - q).norm() < kOwnSpacing;
     if (near) continue;
     picked.push_back(xy);
-    KeyframeState& o = others.emplace_back();
-    o.map_pose = map_->keyframes[j].pose;
-    o.cloud = map_->keyframes[j].cloud;
+    others.push_back({map_->keyframes[j].pose, map_->keyframes[j].cloud});
   }
   const PointCloudPtr target =
-      MapGrid(buildMapCloud(others, params_.map_voxel_size), 10.0).crop(centre, radius);
+      MapGrid(mergeClouds(others, params_.map_voxel_size), 10.0).crop(centre, radius);
   if (target->size() < static_cast<size_t>(params_.min_points)) return -1.0;
   return overlapAt(*kf.cloud, kf.pose, target, centre, radius).overlap;
 }

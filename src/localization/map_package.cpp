@@ -17,8 +17,6 @@
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/slam/graph_backend.h"
-#include "osm_graph_slam/slam/map_export.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -74,33 +72,6 @@ std::string mapYaml(const MapPackage& p) {
 }
 
 }  // namespace
-
-MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
-                                 const ScanContextParams& scan_context) {
-  MapPackage p;
-  const std::vector<KeyframeState> keyframes = backend.keyframes();
-  p.map_cloud = buildMapCloud(keyframes, resolution);
-  p.map_resolution = resolution;
-  p.scan_context = scan_context;
-  for (const auto& kf : keyframes) {
-    if (!kf.cloud || kf.cloud->empty()) continue;
-    MapKeyframe m;
-    m.id = kf.id;
-    m.stamp = kf.stamp;
-    m.pose = kf.map_pose;
-    m.cloud = kf.cloud;
-    m.descriptor = computeScanContext(*kf.cloud, scan_context);
-    p.keyframes.push_back(std::move(m));
-  }
-  if (const auto origin = backend.origin()) {
-    p.has_origin = true;
-    p.origin_lat = origin->originLat();
-    p.origin_lon = origin->originLon();
-    p.origin_alt = origin->originAlt();
-    p.buildings = backend.correctedBuildings();
-  }
-  return p;
-}
 
 bool writeMapPackage(const MapPackage& package, const std::string& directory, std::string* error) {
   if (directory.empty()) return fail(error, "no map package folder given");

@@ -12,7 +12,7 @@
 #include <unordered_map>
 
 #include "osm_graph_slam/cloud/voxel_filter.h"
-#include "osm_graph_slam/loop/dynamic_kd_index.h"
+#include "osm_graph_slam/common/dynamic_kd_index.h"
 #include "osm_graph_slam/loop/landmark_loop_source.h"
 
 namespace osm_graph_slam {

@@ -33,15 +33,16 @@
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/keyframe_conversions.h"
 #include "osm_graph_slam/ros/nodelet_logging.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/keyframe_input.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/optimization_schedule.h"
 #include "osm_graph_slam/slam/params_io.h"
-#include "osm_graph_slam/slam/sensor_inputs.h"
 
 namespace osm_graph_slam {
 
@@ -67,7 +68,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     std::string error;
     if (!readParams(RosParamReader(pnh), params, &error))
       NODELET_ERROR("graph_backend: %s; keeping its default", error.c_str());
-    inputs_ = std::make_unique<SensorInputs>(params.inputs);
+    aiding_ = std::make_unique<KeyframeAiding>(
+        params.inputs,
+        params.initial_yaw_known ? std::optional<double>(params.initial_yaw) : std::nullopt,
+        /*heading_from_imu=*/true, /*keep_fixes=*/params.gnss_prior_std > 0.0);
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
 
@@ -113,25 +117,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   // --- inputs (input thread: convert and queue only, never wait for the optimisation) ----------
   void onKeyframe(const KeyFrameConstPtr& msg) {
     KeyframeInput kf;
-    kf.id = msg->id;
-    kf.stamp = msg->header.stamp.toSec();
-    kf.odom_pose = fromPoseMsg(msg->odom_pose);
-    kf.accum_distance = msg->accum_distance;
-    kf.odom_fitness = msg->fitness;
-    kf.reanchored = msg->tracking_recovered;
-    kf.odom_prediction_error = {msg->prediction_error.x, msg->prediction_error.y,
-                                msg->prediction_error.z};
-    if (msg->odom_hessian.size() == 21)
-      kf.odom_hessian = upperTriangleToMatrix(msg->odom_hessian, 0, 6);
-    auto cloud = std::make_shared<PointCloud>();
     std::string error;
-    if (fromPointCloud2(msg->cloud, *cloud, &error)) {
-      kf.cloud = cloud;
-    } else {
+    if (!fromKeyFrameMsg(*msg, kf, &error))
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
-    }
     addSensorInputs(kf);
     backend_->addKeyframe(std::move(kf));
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
@@ -171,49 +161,28 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     return last_stamp_;
   }
 
-  /// The keyframe's IMU attitude and heading and GNSS position (SensorInputs matches them by time);
-  /// the first keyframe also decides the initial heading and the map -> odom published until the
-  /// first optimisation.
+  /// The keyframe's IMU attitude, INS yaw and GNSS position (matched by time); the first
+  /// keyframe's heading, when the IMU decides it, goes to the back-end, and the map -> odom
+  /// published until the first optimisation follows it.
   void addSensorInputs(KeyframeInput& kf) {
-    if (const auto imu = inputs_->attitudeAt(kf.stamp)) {
-      kf.gravity_roll_pitch = Eigen::Vector2d(imu->roll, imu->pitch);
-      kf.ins_yaw = imu->yaw;  // a heading prior only with ins_heading_std > 0
+    const std::optional<FirstHeading> first = aiding_->aid(aiding_->at(kf.stamp), kf);
+    if (!first) return;
+    if (!first->warning.empty()) NODELET_WARN("%s", first->warning.c_str());
+    if (first->from_imu && first->yaw) {
+      backend_->setInitialHeading(*first->yaw);
+      NODELET_INFO("initial heading %.1f deg from imu/data", *first->yaw * 180.0 / M_PI);
     }
-    // Every keyframe's GNSS position when GNSS is evidence (gnss_prior_std > 0); otherwise only
-    // the first keyframe's, which anchors the map.
-    if (!first_keyframe_seen_ || gnssPriors()) {
-      if (const auto gnss = inputs_->gnssPositionAt(kf.stamp)) {
-        kf.gnss_position = gnss->xy;
-        if (gnss->std_xy > 0.0) kf.gnss_std = gnss->std_xy;
-        kf.gnss_altitude = gnss->altitude;
-      }
-    }
-    if (first_keyframe_seen_) return;
     first_keyframe_seen_ = true;
-    if (!gnssPriors()) inputs_->stopKeepingFixes();
-    // The heading of the first keyframe: the IMU's when there is one (ART-SLAM's initial
-    // orientation), else the parameter or the first global matching (OSM thesis §3.4).
-    std::optional<double> yaw;
-    if (backend_->params().initial_yaw_known) {
-      yaw = backend_->params().initial_yaw;
-    } else {
-      const InitialHeading heading = inputs_->initialHeading(kf.stamp);
-      if (!heading.warning.empty()) NODELET_WARN("%s", heading.warning.c_str());
-      if (heading.yaw) {
-        yaw = heading.yaw;
-        backend_->setInitialHeading(*yaw);
-        NODELET_INFO("initial heading %.1f deg from imu/data", *yaw * 180.0 / M_PI);
-      }
-    }
     std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
-    map_to_odom_ =
-        initialMapToOdom(kf.odom_pose, yaw, kf.gnss_position.value_or(Eigen::Vector2d::Zero()));
+    map_to_odom_ = initialMapToOdom(kf.odom_pose, first->yaw,
+                                    kf.gnss_position.value_or(Eigen::Vector2d::Zero()));
   }
 
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
     if (msg->orientation_covariance[0] < 0.0) return;  // REP-145: no orientation
     const auto& q = msg->orientation;
-    inputs_->addOrientation(msg->header.stamp.toSec(), Eigen::Quaterniond(q.w, q.x, q.y, q.z));
+    aiding_->sensors().addOrientation(msg->header.stamp.toSec(),
+                                      Eigen::Quaterniond(q.w, q.x, q.y, q.z));
   }
 
   void onFix(const sensor_msgs::NavSatFixConstPtr& msg) {
@@ -224,14 +193,12 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       return;
     }
     // NaN altitude: unknown (then the fix holds x and y only).
-    if (!inputs_->addFix({msg->header.stamp.toSec(), msg->latitude, msg->longitude, msg->altitude,
-                          navSatFixStd(*msg)}))
+    if (!aiding_->sensors().addFix({msg->header.stamp.toSec(), msg->latitude, msg->longitude,
+                                    msg->altitude, navSatFixStd(*msg)}))
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
                             "gps/fix at %.3f has a non-finite position (%f, %f); ignored",
                             msg->header.stamp.toSec(), msg->latitude, msg->longitude);
   }
-
-  bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
     std::vector<LineSegment2> segments;
@@ -283,7 +250,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     const double altitude = std::isfinite(fix->altitude) ? fix->altitude : 0.0;
     origin_.emplace(fix->latitude, fix->longitude, altitude);
     backend_->setOrigin(fix->latitude, fix->longitude, altitude);
-    inputs_->setOrigin(fix->latitude, fix->longitude, fix->altitude);
+    aiding_->sensors().setOrigin(fix->latitude, fix->longitude, fix->altitude);
     NODELET_INFO("map origin (ENU) at %.7f, %.7f", fix->latitude, fix->longitude);
   }
 
@@ -468,7 +435,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
-  std::unique_ptr<SensorInputs> inputs_;  ///< imu/data and gps/fix by time
+  std::unique_ptr<KeyframeAiding> aiding_;  ///< imu/data and gps/fix by time, the first heading
   std::atomic<bool> first_keyframe_seen_{false};
   /// Subscriptions and the TF timer (subscribeInputs); outlives them (they unregister from it).
   ros::CallbackQueue input_queue_;

@@ -26,6 +26,7 @@
 #include <optional>
 
 #include "osm_graph_slam/LocalizationReport.h"
+#include "osm_graph_slam/cloud/map_cloud.h"
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/imu_reading_buffer.h"
 #include "osm_graph_slam/localization/localizer.h"
@@ -38,8 +39,6 @@
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/ros/sensor_mount_lookup.h"
 #include "osm_graph_slam/ros/wall_matching_params.h"
-#include "osm_graph_slam/slam/graph_backend.h"
-#include "osm_graph_slam/slam/map_export.h"
 
 namespace osm_graph_slam {
 
@@ -145,11 +144,11 @@ class LocalizationNodelet : public nodelet::Nodelet {
   }
 
   void publishMapPoints() {
-    KeyframeState all;
-    all.cloud = map_->map_cloud;
-    const PointCloudPtr cloud = node_params_.map_points_voxel > 0.0
-                                    ? buildMapCloud({all}, node_params_.map_points_voxel)
-                                    : std::make_shared<PointCloud>(*map_->map_cloud);
+    const PointCloudPtr cloud =
+        node_params_.map_points_voxel > 0.0
+            ? mergeClouds({{Eigen::Isometry3d::Identity(), map_->map_cloud}},
+                          node_params_.map_points_voxel)
+            : std::make_shared<PointCloud>(*map_->map_cloud);
     boost::shared_ptr<sensor_msgs::PointCloud2> msg(new sensor_msgs::PointCloud2);
     toPointCloud2(*cloud, *msg);
     msg->header.frame_id = node_params_.map_frame;

@@ -16,15 +16,16 @@
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/ScanMatchingStatus.h"
-#include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/odometry/imu_orientation_buffer.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/odometry/tracking_health.h"
 #include "osm_graph_slam/ros/conversions.h"
+#include "osm_graph_slam/ros/keyframe_conversions.h"
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/ros/sensor_mount_lookup.h"
+#include "osm_graph_slam/slam/keyframe_input.h"
 
 namespace osm_graph_slam {
 
@@ -164,19 +165,10 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void publishKeyframe(const sensor_msgs::PointCloud2& cloud, const TrackResult& result) {
     const Keyframe& kf = tracker_->keyframe();
     boost::shared_ptr<KeyFrame> msg(new KeyFrame);
+    toKeyFrameMsg(keyframeInput(kf, result), *msg);
     msg->header.stamp = cloud.header.stamp;
     msg->header.frame_id = node_params_.odom_frame;
-    msg->id = kf.id;
-    msg->odom_pose = toPoseMsg(kf.pose);
-    msg->accum_distance = kf.accum_distance;
-    msg->fitness = result.registration.converged ? result.registration.fitness : -1.0;
-    msg->tracking_recovered = result.reanchored;
     msg->recovery_gap = result.gap;
-    if (result.registration.converged && !result.registration.hessian.isZero())
-      msg->odom_hessian = upperTriangle(result.registration.hessian);
-    msg->prediction_error.x = result.prediction_error.x();
-    msg->prediction_error.y = result.prediction_error.y();
-    msg->prediction_error.z = result.prediction_error.z();
     if (kf.cloud && tracker_->params().deskew) {
       // The keyframe holds the deskewed scan: walls, loops and the map must get that one.
       toPointCloud2(*kf.cloud, msg->cloud);

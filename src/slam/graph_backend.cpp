@@ -12,7 +12,7 @@
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/building_set.h"
-#include "osm_graph_slam/slam/information.h"
+#include "osm_graph_slam/graph/information.h"
 
 namespace osm_graph_slam {
 namespace {

@@ -1,15 +1,13 @@
 #include "osm_graph_slam/slam/map_export.h"
 
-#include <pcl/common/transforms.h>
-
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <limits>
 #include <sstream>
-#include <unordered_map>
 
+#include "osm_graph_slam/cloud/map_cloud.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/common/xml_escape.h"
@@ -25,19 +23,6 @@ namespace osm_graph_slam {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct VoxelSum {
-  double x = 0, y = 0, z = 0, intensity = 0;
-  size_t n = 0;
-};
-
-int64_t voxelKey(const PointT& p, double inv) {
-  // 21 bits per axis: ±1,048,576 voxels, i.e. ±105 km at 0.1 m.
-  const auto q = [inv](float v) {
-    return static_cast<int64_t>(std::floor(v * inv)) & ((int64_t{1} << 21) - 1);
-  };
-  return (q(p.x) << 42) | (q(p.y) << 21) | q(p.z);
-}
 
 /// Writes one save's files into a StagedFolder: each file is recorded, or the first failure.
 struct Writer {
@@ -86,45 +71,37 @@ std::string missingText(size_t missing) {
 }  // namespace
 
 PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double resolution) {
-  auto map = std::make_shared<PointCloud>();
-  PointCloud transformed;
-  if (resolution <= 0.0) {
-    for (const auto& kf : keyframes) {
-      if (!kf.cloud) continue;
-      pcl::transformPointCloud(*kf.cloud, transformed, kf.map_pose.matrix().cast<float>());
-      *map += transformed;
-    }
-    return map;
-  }
-  const double inv = 1.0 / resolution;
-  std::unordered_map<int64_t, VoxelSum> voxels;
+  std::vector<PosedCloud> clouds;
+  clouds.reserve(keyframes.size());
+  for (const auto& kf : keyframes) clouds.push_back({kf.map_pose, kf.cloud});
+  return mergeClouds(clouds, resolution);
+}
+
+MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
+                                 const ScanContextParams& scan_context) {
+  MapPackage p;
+  const std::vector<KeyframeState> keyframes = backend.keyframes();
+  p.map_cloud = buildMapCloud(keyframes, resolution);
+  p.map_resolution = resolution;
+  p.scan_context = scan_context;
   for (const auto& kf : keyframes) {
-    if (!kf.cloud) continue;
-    pcl::transformPointCloud(*kf.cloud, transformed, kf.map_pose.matrix().cast<float>());
-    for (const auto& p : transformed) {
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
-      VoxelSum& v = voxels[voxelKey(p, inv)];
-      v.x += p.x;
-      v.y += p.y;
-      v.z += p.z;
-      v.intensity += p.intensity;
-      ++v.n;
-    }
+    if (!kf.cloud || kf.cloud->empty()) continue;
+    MapKeyframe m;
+    m.id = kf.id;
+    m.stamp = kf.stamp;
+    m.pose = kf.map_pose;
+    m.cloud = kf.cloud;
+    m.descriptor = computeScanContext(*kf.cloud, scan_context);
+    p.keyframes.push_back(std::move(m));
   }
-  map->reserve(voxels.size());
-  for (const auto& [key, v] : voxels) {
-    PointT p;
-    const double n = static_cast<double>(v.n);
-    p.x = static_cast<float>(v.x / n);
-    p.y = static_cast<float>(v.y / n);
-    p.z = static_cast<float>(v.z / n);
-    p.intensity = static_cast<float>(v.intensity / n);
-    map->push_back(p);
+  if (const auto origin = backend.origin()) {
+    p.has_origin = true;
+    p.origin_lat = origin->originLat();
+    p.origin_lon = origin->originLon();
+    p.origin_alt = origin->originAlt();
+    p.buildings = backend.correctedBuildings();
   }
-  map->width = static_cast<uint32_t>(map->size());
-  map->height = 1;
-  map->is_dense = true;
-  return map;
+  return p;
 }
 
 std::string buildingsToOsmXml(const std::vector<Building>& buildings) {

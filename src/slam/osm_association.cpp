@@ -6,7 +6,7 @@
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/lines/line_geometry.h"
-#include "osm_graph_slam/slam/information.h"
+#include "osm_graph_slam/graph/information.h"
 
 namespace osm_graph_slam {
 

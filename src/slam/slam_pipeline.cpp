@@ -47,7 +47,13 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
       floor_health_(params.floor.warn_after_missing),
       walls_(params.wall, logger_),
       segments_(params.segments),
-      loop_search_in_map_(params.loop.search_frame == "map") {
+      loop_search_in_map_(params.loop.search_frame == "map"),
+      // Offline, the runner states the drive's start heading as the known one (initial_yaw);
+      // without it the first global matching sets the heading, never the IMU.
+      aiding_(params.backend.inputs,
+              params.backend.initial_yaw_known ? std::optional<double>(params.backend.initial_yaw)
+                                               : std::nullopt,
+              /*heading_from_imu=*/false, /*keep_fixes=*/true) {
   GraphBackendParams backend = params.backend;
   backend.use_osm = backend.use_osm && osm_source_ != nullptr;
   backend_ = std::make_unique<GraphBackend>(backend, logger_);
@@ -124,25 +130,10 @@ void SlamPipeline::startClock() {
 void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
                                    const ScanAiding& aiding) {
   ++timings_.keyframes;
-  KeyframeInput input;
-  input.id = kf.id;
-  input.stamp = kf.stamp;
-  input.odom_pose = kf.pose;
-  input.accum_distance = kf.accum_distance;
-  if (track.registration.converged) {
-    input.odom_fitness = track.registration.fitness;
-    input.odom_hessian = track.registration.hessian;
-    input.odom_prediction_error = track.prediction_error;
-  }
-  input.reanchored = track.reanchored;
-  input.cloud = kf.cloud;
-  input.gravity_roll_pitch = aiding.gravity_roll_pitch;
-  input.gnss_position = aiding.gnss_position;
-  if (aiding.gnss_position) {
-    input.gnss_std = aiding.gnss_std;
-    input.gnss_altitude = aiding.gnss_altitude;
-  }
-  if (aiding.imu_orientation) input.ins_yaw = yawOf(*aiding.imu_orientation);
+  KeyframeInput input = keyframeInput(kf, track);
+  const std::optional<FirstHeading> first = aiding_.aid(aiding, input);
+  if (first && first->from_imu && first->yaw) backend_->setInitialHeading(*first->yaw);
+  if (first && !first->warning.empty()) logger_->warn(first->warning);
   if (params_.floor.enabled) {
     StageTimer t(timings_.floor_ms);
     const FloorDetection floor = floor_.detect(*kf.cloud);

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 
 using namespace osm_graph_slam;
 

@@ -2,7 +2,7 @@
 #include <cstdio>
 #include <string>
 
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 
 using namespace osm_graph_slam;
 

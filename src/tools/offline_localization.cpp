@@ -36,6 +36,7 @@
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/common/memory_tuning.h"
+#include "osm_graph_slam/drive_io/drive_source.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
@@ -44,7 +45,6 @@
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/ros/drive_source.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 
 using namespace osm_graph_slam;

@@ -17,6 +17,7 @@
 
 #include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/drive_io/drive_source.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/localization/osm_localizer.h"
@@ -24,7 +25,6 @@
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_map_source.h"
-#include "osm_graph_slam/ros/drive_source.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/slam_pipeline.h"
 

@@ -36,6 +36,7 @@
 #include <thread>
 
 #include "osm_graph_slam/common/memory_tuning.h"
+#include "osm_graph_slam/drive_io/drive_source.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/loop_closure_file.h"
@@ -43,7 +44,6 @@
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_map_source.h"
-#include "osm_graph_slam/ros/drive_source.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/slam_pipeline.h"

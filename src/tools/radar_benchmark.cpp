@@ -6,7 +6,7 @@
 #include <string>
 
 #include "osm_graph_slam/io/yaml_param_reader.h"
-#include "osm_graph_slam/radar/radar_evaluation.h"
+#include "osm_graph_slam/eval/radar_evaluation.h"
 
 using namespace osm_graph_slam;
 

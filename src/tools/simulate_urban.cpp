@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/forest_world.h"
 #include "osm_graph_slam/sim/radar_sim.h"
 #include "osm_graph_slam/sim/simulator.h"

@@ -29,7 +29,7 @@
 #include "osm_graph_slam/LocalizationReport.h"
 #include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
-#include "osm_graph_slam/ros/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "slam_regression_common.h"
 

@@ -18,7 +18,7 @@
 #include <mutex>
 
 #include "osm_graph_slam/OsmLocalizationReport.h"
-#include "osm_graph_slam/ros/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "slam_regression_common.h"
 

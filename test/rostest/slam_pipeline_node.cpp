@@ -50,7 +50,7 @@
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 #include "osm_graph_slam/ros/conversions.h"
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "overpass_server_fixture.h"
 #include "test_data.h"

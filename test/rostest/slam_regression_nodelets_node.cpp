@@ -23,7 +23,7 @@
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/SaveMap.h"
-#include "osm_graph_slam/ros/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "overpass_server_fixture.h"
 #include "slam_regression_common.h"
 

@@ -4,7 +4,7 @@
 
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/graph/pose_graph.h"
-#include "osm_graph_slam/graph/reference_formulation.h"
+#include "osm_graph_slam/eval/reference_formulation.h"
 #include "test_data.h"
 
 namespace osm_graph_slam {

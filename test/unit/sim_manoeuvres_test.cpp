@@ -11,8 +11,8 @@
 
 #include "osm_graph_slam/common/geometry2d.h"
 #include "osm_graph_slam/io/kitti_raw.h"
-#include "osm_graph_slam/ros/bag_drive_reader.h"
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "test_data.h"
 

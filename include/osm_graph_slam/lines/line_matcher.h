@@ -151,4 +151,9 @@ class LineMatcher {
   LineMatcherParams params_;
 };
 
+/// The line matcher's information (§3.3.5: by feature type, scaled by fitness) rescaled so that
+/// the best possible match (edge feature, full fitness) has the given standard deviations.
+Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
+                                  double std_theta, const LineMatcherParams& m);
+
 }  // namespace osm_graph_slam

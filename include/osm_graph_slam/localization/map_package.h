@@ -23,8 +23,6 @@
 
 namespace osm_graph_slam {
 
-class GraphBackend;
-
 constexpr int kMapPackageVersion = 1;
 constexpr const char* kMapPackageFormat = "osm_graph_slam_map";
 
@@ -46,11 +44,6 @@ struct MapPackage {
   std::vector<Building> buildings;  ///< corrected; ENU filled on load when the origin is known
   ScanContextParams scan_context;   ///< the parameters the descriptors were made with
 };
-
-/// The package of a back-end's current state: optimised keyframe poses and clouds, the map cloud
-/// at `resolution`, corrected buildings, the origin; descriptors computed with scan_context.
-MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
-                                 const ScanContextParams& scan_context);
 
 /// Writes the package atomically (see above). An existing DIR is replaced only once the new one
 /// is complete. False with the reason in error.

@@ -3,6 +3,7 @@
 // field with these as fallback and config/graph_backend.yaml repeats them with comments.
 #include <string>
 
+#include "osm_graph_slam/graph/information.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/slam/building_contacts.h"
@@ -18,39 +19,6 @@ enum class OsmMode {
 };
 const char* toString(OsmMode mode);
 bool parseOsmMode(const std::string& text, OsmMode* mode);
-
-/// Odometry edge information from the registration fitness (hdl_graph_slam style): the standard
-/// deviations grow linearly from min to max as the fitness grows to max_fitness. Standard
-/// deviations are in metres and radians and are squared into variances.
-struct InformationParams {
-  double min_std_xyz = 0.01, max_std_xyz = 0.23;    ///< [m]
-  double min_std_rot = 0.001, max_std_rot = 0.005;  ///< [rad] roll and pitch (doc/backend.md)
-  /// [rad] yaw (about the keyframe's z axis) separately: scan matching measures heading far
-  /// better than roll/pitch or translation (simulated: 0.03 mrad vs 5 mm per 2 m keyframe), and a
-  /// loose yaw let robot<->building edges kink the heading (rotation RPE 1.8-2.9x odometry's).
-  double min_std_yaw = 0.0001, max_std_yaw = 0.001;
-  double max_fitness = 0.5;  ///< fitness [m^2] at and above which the max deviations apply
-  /// Translation deviations across the direction of motion (sideways and vertical) relative to
-  /// the deviation along it. Scan matching in streets errs along the street (simulated 1.5 km:
-  /// along-track step error std 9 mm, lateral 3 mm), and isotropic deviations let
-  /// robot<->building edges jitter keyframes sideways.
-  double lateral_std_ratio = 0.3;
-  /// Geometry as evidence: this times the match's own information (its GICP Hessian, moved to
-  /// the edge's error coordinates) is added to the fitness-based information, so a direction the
-  /// scene constrains well (along a square's walls) is held where the fitness model, which only
-  /// knows streets, assumes it weak. The Hessian counts neighbouring points as independent, so
-  /// the weight is far below 1 (doc/backend.md). 0 = off; keyframes without a Hessian (PCL
-  /// registration, old dumps) get the fitness model alone. 0.0025 by default since session 28,
-  /// with the odometry scale and prediction_error_scale 1 (see odometry_scale_window).
-  double hessian_weight = 0.0025;
-  /// A keyframe whose match lay an offset e from the motion model's prediction (TrackResult::
-  /// prediction_error: the scan was deskewed by a motion that did not happen) gets
-  /// (scale * e)(scale * e)^T added to its translation covariance: along e the step is
-  /// uncertain by about that much, whatever fitness and Hessian say. 0 = off (alone: neutral
-  /// on the quick matrix, 0.4-1.1 % more ATE on the manoeuvre drives; doc/backend.md). 1 by
-  /// default since session 28, with the Hessian and the odometry scale.
-  double prediction_error_scale = 1.0;
-};
 
 struct GraphBackendParams {
   bool use_osm = true;

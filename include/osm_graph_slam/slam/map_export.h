@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 
@@ -15,10 +16,13 @@ struct MapExportResult {
   std::vector<std::string> files;
 };
 
-/// Keyframe clouds in the map frame, merged and reduced to one point (the centroid) per voxel.
-/// resolution <= 0 keeps every point. A hash grid instead of pcl::VoxelGrid: the latter's 32-bit
-/// voxel index overflows on city-sized maps at fine resolutions.
+/// Keyframe clouds in the map frame, merged and reduced to voxel centroids (mergeClouds).
 PointCloudPtr buildMapCloud(const std::vector<KeyframeState>& keyframes, double resolution);
+
+/// The package of a back-end's current state: optimised keyframe poses and clouds, the map cloud
+/// at `resolution`, corrected buildings, the origin; descriptors computed with scan_context.
+MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
+                                 const ScanContextParams& scan_context);
 
 /// The corrected buildings as OSM XML: original way ids and tags, corrected coordinates (nodes
 /// get new negative ids, as editors expect for new geometry). Loadable in JOSM.

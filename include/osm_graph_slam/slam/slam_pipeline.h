@@ -15,6 +15,7 @@
 #include "osm_graph_slam/odometry/tracking_health.h"
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/keyframe_input.h"
 
 namespace osm_graph_slam {
 
@@ -30,22 +31,6 @@ struct SlamPipelineParams {
   GraphBackendParams backend;
   /// The nodelet optimises on a timer (3 s = 30 scans at 10 Hz); offline, every N keyframes.
   int optimize_every_keyframes = 15;
-};
-
-/// What the vehicle's other sensors say at a scan's time; every field is optional.
-struct ScanAiding {
-  /// base_link roll and pitch against gravity from an IMU [rad] (attitude priors).
-  std::optional<Eigen::Vector2d> gravity_roll_pitch;
-  /// base_link's GNSS position in the map frame [m] (the first keyframe is fixed there; with
-  /// gnss_prior_std > 0 every keyframe gets a prior).
-  std::optional<Eigen::Vector2d> gnss_position;
-  /// That fix's horizontal standard deviation [m], when the receiver reports it.
-  std::optional<double> gnss_std;
-  /// Its altitude in the map frame (up from the map origin) [m], if known.
-  std::optional<double> gnss_altitude;
-  /// base_link's orientation in ENU from an IMU/INS: the tracker's imu guesses use its change
-  /// between scans, and with ins_heading_std > 0 its yaw is a heading prior on keyframes.
-  std::optional<Eigen::Quaterniond> imu_orientation;
 };
 
 /// Milliseconds spent per stage over the whole run.
@@ -131,6 +116,7 @@ class SlamPipeline {
   std::unique_ptr<LoopDetector> loops_;
   std::unique_ptr<OsmBuffer> osm_buffer_;
   std::unique_ptr<GraphBackend> backend_;
+  KeyframeAiding aiding_;
   PipelineTimings timings_;
   size_t keyframes_since_update_ = 0;
   std::chrono::steady_clock::time_point start_;

@@ -1,4 +1,4 @@
-#include "osm_graph_slam/loop/dynamic_kd_index.h"
+#include "osm_graph_slam/common/dynamic_kd_index.h"
 
 #include <algorithm>
 #include <limits>

@@ -1,4 +1,4 @@
-#include "osm_graph_slam/slam/information.h"
+#include "osm_graph_slam/graph/information.h"
 
 #include <algorithm>
 #include <cmath>
@@ -83,18 +83,6 @@ Eigen::Matrix3d leverInformation(const Eigen::Matrix3d& info_at_point,
   J(0, 2) = -lever.y();
   J(1, 2) = lever.x();
   return J.transpose() * info_at_point * J;
-}
-
-Eigen::Matrix3d scaledInformation(const Eigen::Matrix3d& matcher_info, double std_xy,
-                                  double std_theta, const LineMatcherParams& m) {
-  Eigen::Matrix3d info = matcher_info;
-  const double sxy = 1.0 / (std_xy * std_xy * m.edge_information_xy);
-  const double sth = 1.0 / (std_theta * std_theta * m.edge_information_theta);
-  info.topLeftCorner<2, 2>() *= sxy;
-  info(2, 2) *= sth;
-  info.topRightCorner<2, 1>() *= std::sqrt(sxy * sth);
-  info.bottomLeftCorner<1, 2>() *= std::sqrt(sxy * sth);
-  return info;
 }
 
 }  // namespace osm_graph_slam

@@ -1,4 +1,4 @@
-#include "osm_graph_slam/ros/dataset_messages.h"
+#include "osm_graph_slam/drive_io/dataset_messages.h"
 #include "osm_graph_slam/common/attitude.h"
 
 #include <sensor_msgs/PointField.h>

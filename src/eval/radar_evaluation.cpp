@@ -1,4 +1,4 @@
-#include "osm_graph_slam/radar/radar_evaluation.h"
+#include "osm_graph_slam/eval/radar_evaluation.h"
 
 #include <cmath>
 #include <map>

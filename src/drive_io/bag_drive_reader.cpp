@@ -1,4 +1,4 @@
-#include "osm_graph_slam/ros/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 
 #include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>

@@ -1,4 +1,4 @@
-#include "osm_graph_slam/ros/drive_source.h"
+#include "osm_graph_slam/drive_io/drive_source.h"
 
 #include <chrono>
 #include <filesystem>
@@ -6,10 +6,10 @@
 
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/imu_reading_buffer.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/ros/bag_drive_reader.h"
 #include "osm_graph_slam/slam/sensor_inputs.h"
 
 namespace osm_graph_slam {

@@ -1,5 +1,5 @@
 // Baseline: the pose-graph formulation of the Ceres documentation examples, written from the docs.
-#include "osm_graph_slam/graph/reference_formulation.h"
+#include "osm_graph_slam/eval/reference_formulation.h"
 
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/autodiff_manifold.h>

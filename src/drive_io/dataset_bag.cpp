@@ -1,4 +1,4 @@
-#include "osm_graph_slam/ros/dataset_bag.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
@@ -13,10 +13,10 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "osm_graph_slam/drive_io/dataset_messages.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/mulran.h"
 #include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/ros/dataset_messages.h"
 
 namespace osm_graph_slam {
 namespace {
