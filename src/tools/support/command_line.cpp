@@ -161,6 +161,15 @@ CommandLine& CommandLine::flag(const std::string& name, const std::string& descr
   return *this;
 }
 
+CommandLine& CommandLine::flag(const std::string& name, const std::string& description,
+                               std::function<void()> action) {
+  add(name, "", description, [action = std::move(action)](const std::string&) {
+    action();
+    return std::string();
+  });
+  return *this;
+}
+
 CommandLine& CommandLine::positional(const std::string& name, const std::string& description,
                                      std::string* target, bool required) {
   positionals_.push_back({name, description, target, required});

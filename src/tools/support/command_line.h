@@ -50,6 +50,9 @@ class CommandLine {
   /// --name without a value: *target = value_when_given (if target is given); has(name).
   CommandLine& flag(const std::string& name, const std::string& description, bool* target = nullptr,
                     bool value_when_given = true);
+  /// --name without a value: calls `action` (e.g. when the last of several flags wins).
+  CommandLine& flag(const std::string& name, const std::string& description,
+                    std::function<void()> action);
   /// A positional argument, filled in declaration order by the arguments that are no option.
   CommandLine& positional(const std::string& name, const std::string& description,
                           std::string* target, bool required = true);
