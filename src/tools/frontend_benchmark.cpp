@@ -87,7 +87,7 @@ std::vector<Variant> variants() {
   KeyframeTrackerParams recovery;  // the defaults (imu: without IMU data, constant velocity)
   KeyframeTrackerParams pre = recovery;
   pre.guess = "pre_tracker";
-  KeyframeTrackerParams fine = pre;  // the defaults until session 15: 16x the points per scale
+  KeyframeTrackerParams fine = pre;  // a denser pre-tracker: 16x the default's points per scale
   fine.pre_tracker.coarse_voxel = 1.5;
   fine.pre_tracker.fine_voxel = 0.75;
   fine.pre_tracker.coarse_max_correspondence = 3.0;

@@ -1,4 +1,4 @@
-// Landmark place recognition benchmark (issue 24; doc/landmarks.md).
+// Landmark place recognition benchmark (doc/landmarks.md).
 //  1. Drives through the forest worlds (simulate_urban --world forest, 3 densities x N seeds):
 //     keyframes every --spacing metres of a simulated HDL-64E drive, no odometry (place
 //     recognition against every keyframe at least --gap metres back). Per keyframe: landmark

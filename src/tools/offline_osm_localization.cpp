@@ -1,5 +1,5 @@
-// Localisation from OpenStreetMap alone, offline (issue 21 item 4: a fleet vehicle in a new city,
-// no prior drive): LiDAR odometry + GNSS + the scan's walls aligned with the OSM buildings.
+// Localisation from OpenStreetMap alone, offline (a fleet vehicle in a new city, no prior drive):
+// LiDAR odometry + GNSS + the scan's walls aligned with the OSM buildings.
 // The options: offline_osm_localization --help.
 // Runs two filters on the same odometry in one pass: with the OSM walls (the product) and
 // without them (odometry + GNSS), and reports both next to the raw GNSS fixes, so a drive with
