@@ -9,9 +9,9 @@ DIR is what `offline_slam --output DIR` or the `save_map` service writes (src/sl
   map.pcd                      the map cloud (PCD, ascii or binary; x y z used), map frame = ENU
   trajectory_tum.txt           stamp x y z qx qy qz qw, map frame
   buildings_corrected.geojson  the corrected outlines (lon/lat); optional
-  buildings_prior.geojson      the OSM prior, written by dump_graph (`offline_slam --dump`):
-                               looked for in DIR and DIR/dump; optional, or give it with --prior
-                               (GeoJSON or the .osm extract the run used)
+  buildings_prior.geojson      the OSM prior the run used, written by offline_slam and by
+                               dump_graph (`offline_slam --dump`): looked for in DIR and DIR/dump;
+                               optional, or give it with --prior (GeoJSON or the .osm extract)
   origin.txt                   "lat lon alt" of the ENU origin (dump_graph; DIR or DIR/dump), else
                                the origin in DIR/map_package/map.yaml; needed to draw outlines
 --baseline DIR2 adds DIR2/trajectory_tum.txt (e.g. the same drive with --no-osm). Map points are

@@ -1,7 +1,7 @@
 // backend_benchmark: the cost of a back-end update as the graph grows, windowed
 // (optimization_window) against a full batch of the same graph in the same run.
 //
-//   backend_benchmark [--keyframes N] [--window W] [--every K] [--lap L] [--checkpoints C]
+//   (the options: backend_benchmark --help)
 //
 // A vehicle drives laps of a circuit of L keyframes (2 m apart) with drifting, noisy odometry;
 // from the second lap on, every keyframe closes a loop to the one a lap before (as in the soak,
@@ -15,11 +15,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "osm_graph_slam/slam/graph_backend.h"
+#include "support/command_line.h"
 
 namespace {
 
@@ -34,25 +36,21 @@ struct Args {
   int checkpoints = 4;
 };
 
-bool parse(int argc, char** argv, Args& a) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    if (i + 1 >= argc) return false;
-    const int v = std::atoi(argv[++i]);
-    if (k == "--keyframes")
-      a.keyframes = v;
-    else if (k == "--window")
-      a.window = v;
-    else if (k == "--every")
-      a.every = v;
-    else if (k == "--lap")
-      a.lap = v;
-    else if (k == "--checkpoints")
-      a.checkpoints = v;
-    else
-      return false;
-  }
-  return a.keyframes > 0 && a.window > 0 && a.every > 0 && a.lap > 2 && a.checkpoints > 0;
+/// The command line into a; an exit status when the tool should stop (--help, a usage error).
+std::optional<int> parse(int argc, char** argv, Args& a) {
+  tools::CommandLine cli("backend_benchmark",
+                         "The cost of a back-end update as the graph grows, windowed "
+                         "(optimization_window) against a full batch of the same graph in the "
+                         "same run.");
+  cli.option("--keyframes", "N", "keyframes driven", &a.keyframes)
+      .option("--window", "W", "the optimisation window in keyframes", &a.window)
+      .option("--every", "K", "update() every K keyframes", &a.every)
+      .option("--lap", "L", "keyframes per lap of the circuit (2 m apart; > 2)", &a.lap)
+      .option("--checkpoints", "C", "checkpoints with a forced full batch", &a.checkpoints);
+  if (const auto exit_code = cli.parse(argc, argv)) return exit_code;
+  if (!(a.keyframes > 0 && a.window > 0 && a.every > 0 && a.lap > 2 && a.checkpoints > 0))
+    return cli.fail("every value must be > 0 and --lap > 2");
+  return std::nullopt;
 }
 
 /// The true pose of keyframe i: a circle of `lap` keyframes 2 m apart, heading along it.
@@ -121,12 +119,7 @@ double meanError(const GraphBackend& backend, int lap) {
 
 int main(int argc, char** argv) {
   Args a;
-  if (!parse(argc, argv, a)) {
-    std::fprintf(stderr,
-                 "usage: backend_benchmark [--keyframes N] [--window W] [--every K] [--lap L] "
-                 "[--checkpoints C]\n");
-    return 2;
-  }
+  if (const auto exit_code = parse(argc, argv, a)) return *exit_code;
   GraphBackendParams params;
   params.use_osm = false;
   params.initial_yaw_known = true;

@@ -2,7 +2,7 @@
 // (nearbyPolygonPairs, a sweep along x) against testing every pair of bounding boxes (the
 // reference, measured in the same run), on random city blocks of growing size; also the full
 // shared-wall and overlap searches that use it.
-//   building_pairs_benchmark [--buildings N[,N...]] [--margin M] [--repeat N] [--json]
+//   (the options: building_pairs_benchmark --help)
 // --margin defaults to the shared-wall max distance; --repeat (default 5) runs each stage N times
 // and prints the median.
 #include <Eigen/Geometry>
@@ -19,6 +19,7 @@
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/building_contacts.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
@@ -79,26 +80,23 @@ int main(int argc, char** argv) {
   bool json = false;
   int repeat = 5;
   BuildingContactParams contact_params;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--buildings" && i + 1 < argc) {
-      sizes.clear();
-      std::stringstream list(argv[++i]);
-      for (std::string item; std::getline(list, item, ',');)
-        sizes.push_back(std::atoi(item.c_str()));
-    } else if (a == "--repeat" && i + 1 < argc) {
-      repeat = std::atoi(argv[++i]);
-    } else if (a == "--margin" && i + 1 < argc) {
-      contact_params.max_distance = std::atof(argv[++i]);
-    } else if (a == "--json") {
-      json = true;
-    } else {
-      std::fprintf(stderr,
-                   "usage: building_pairs_benchmark [--buildings N[,N...]] [--margin M] [--repeat "
-                   "N] [--json]\n");
-      return 2;
-    }
-  }
+  tools::CommandLine cli(
+      "building_pairs_benchmark",
+      "The candidate search behind shared walls and overlap removal (a sweep along x) against "
+      "testing every pair of bounding boxes, on random city blocks of growing size.");
+  cli.option("--buildings", "N[,N...]", "the city sizes in buildings",
+             [&sizes](const std::string& v) {
+               sizes.clear();
+               for (const auto& item : tools::splitCommaList(v))
+                 sizes.push_back(std::atoi(item.c_str()));
+               return std::string();
+             })
+      .defaultText("170,1000,5000,20000")
+      .option("--margin", "M", "the pairs' distance margin (the shared-wall max distance)",
+              &contact_params.max_distance)
+      .option("--repeat", "N", "runs of each stage; the median counts", &repeat)
+      .flag("--json", "print the results as JSON", &json);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   if (!json)
     std::printf("margin (shared-wall max distance) %.2f m, median of %d runs\n",
                 contact_params.max_distance, repeat);

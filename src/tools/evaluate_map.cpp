@@ -4,7 +4,7 @@
 // variance) and, against a baseline run (e.g. without OSM), its sharpness and the trajectory
 // difference. A run is an offline_slam output folder written with --dump RUN/dump.
 //
-//   evaluate_map --run DIR [--baseline DIR] [--min-z Z] [--max-z Z] [--json]
+//   (the options: evaluate_map --help)
 #include <pcl/io/pcd_io.h>
 
 #include <cstdio>
@@ -25,8 +25,10 @@
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/graph_dump.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
 namespace fs = std::filesystem;
 
 namespace {
@@ -109,110 +111,73 @@ nlohmann::json overlapsJson(const std::vector<Building>& prior,
   return out;
 }
 
-int usage(const std::string& why) {
-  std::cerr << "evaluate_map: " << why << "\n"
-            << "usage: evaluate_map --run DIR [--baseline DIR] [--min-z Z] [--max-z Z] [--json]\n"
-               "  DIR: an offline_slam --output folder written with --dump DIR/dump\n";
-  return 2;
+/// The run's wall points against the prior and the corrected outlines, per building.
+nlohmann::json wallAgreementJson(const Run& run, const std::string& run_dir,
+                                 WallAgreementOptions options) {
+  options.datum = readDatum(run_dir);
+  const WallAgreement w =
+      evaluateWallAgreement(run.keyframes, run.dump.buildings, run.corrected, options);
+  nlohmann::json rows = nlohmann::json::array();
+  for (const auto& b : w.observed)
+    rows.push_back({{"id", b.id},
+                    {"part", b.part},
+                    {"points", b.points},
+                    {"prior_median_m", b.prior_median},
+                    {"prior_p90_m", b.prior_p90},
+                    {"corrected_median_m", b.corrected_median},
+                    {"corrected_p90_m", b.corrected_p90},
+                    {"shift_m", b.shift}});
+  nlohmann::json roofs = nlohmann::json::array();
+  for (const auto& r : w.roof_only)
+    roofs.push_back({{"id", r.id},
+                     {"part", r.part},
+                     {"points_inside_prior", r.inside_prior},
+                     {"points_inside_corrected", r.inside_corrected},
+                     {"shift_m", r.shift}});
+  return {{"observed_buildings", w.observed.size()},
+          {"points", w.points},
+          {"prior_median_m", w.prior_median},
+          {"corrected_median_m", w.corrected_median},
+          {"prior_p90_m", w.prior_p90},
+          {"corrected_p90_m", w.corrected_p90},
+          {"unobserved_buildings", w.unobserved},
+          {"max_unobserved_shift_m", w.max_unobserved_shift},
+          {"max_unobserved_shift_id", w.max_unobserved_shift_id},
+          {"max_unobserved_shift_after_datum_m", w.max_unobserved_shift_after_datum},
+          {"osm_datum", options.datum ? nlohmann::json{{"x_m", options.datum->x()},
+                                                       {"y_m", options.datum->y()},
+                                                       {"yaw_rad", options.datum->z()}}
+                                      : nlohmann::json()},
+          {"overlapping_pairs", overlapsJson(run.dump.buildings, run.corrected)},
+          {"buildings", rows},
+          {"roof_only", roofs}};
 }
 
-}  // namespace
+/// The run against a baseline run: sharpness and trajectory difference.
+nlohmann::json baselineJson(const Run& run, const Run& baseline, const MapSharpness& sharp) {
+  const MapSharpness b = evaluateMapSharpness(baseline.keyframes);
+  std::map<long long, Eigen::Vector3d> base_by_ms;
+  for (const auto& p : baseline.trajectory)
+    base_by_ms[std::llround(p.stamp * 1000.0)] = p.pose.translation();
+  double max_d = 0, sum_d = 0;
+  size_t n = 0;
+  for (const auto& p : run.trajectory) {
+    const auto it = base_by_ms.find(std::llround(p.stamp * 1000.0));
+    if (it == base_by_ms.end()) continue;
+    const double d = (p.pose.translation() - it->second).norm();
+    max_d = std::max(max_d, d), sum_d += d, ++n;
+  }
+  return {
+      {"mean_plane_variance", b.mean_plane_variance},
+      {"sharpness_change",
+       b.mean_plane_variance > 0 ? sharp.mean_plane_variance / b.mean_plane_variance - 1.0 : 0.0},
+      {"common_keyframes", n},
+      {"trajectory_difference_max_m", max_d},
+      {"trajectory_difference_mean_m", n ? sum_d / n : 0.0}};
+}
 
-int main(int argc, char** argv) {
-  std::string run_dir, baseline_dir;
-  bool json = false;
-  WallAgreementOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (a == "--run")
-      run_dir = value();
-    else if (a == "--baseline")
-      baseline_dir = value();
-    else if (a == "--min-z")
-      options.min_z = std::atof(value().c_str());
-    else if (a == "--max-z")
-      options.max_z = std::atof(value().c_str());
-    else if (a == "--json")
-      json = true;
-    else
-      return usage("unexpected argument '" + a + "'");
-  }
-  if (run_dir.empty()) return usage("--run DIR is required");
-  Run run, baseline;
-  std::string error;
-  if (!loadRun(run_dir, run, &error) ||
-      (!baseline_dir.empty() && !loadRun(baseline_dir, baseline, &error))) {
-    std::cerr << "evaluate_map: " << error << "\n";
-    return 1;
-  }
-  nlohmann::json doc = {{"keyframes", run.keyframes.size()}};
-  const MapSharpness sharp = evaluateMapSharpness(run.keyframes);
-  doc["sharpness"] = {{"points", sharp.points}, {"mean_plane_variance", sharp.mean_plane_variance}};
-  if (!run.corrected.empty()) {
-    options.datum = readDatum(run_dir);
-    const WallAgreement w =
-        evaluateWallAgreement(run.keyframes, run.dump.buildings, run.corrected, options);
-    nlohmann::json rows = nlohmann::json::array();
-    for (const auto& b : w.observed)
-      rows.push_back({{"id", b.id},
-                      {"part", b.part},
-                      {"points", b.points},
-                      {"prior_median_m", b.prior_median},
-                      {"prior_p90_m", b.prior_p90},
-                      {"corrected_median_m", b.corrected_median},
-                      {"corrected_p90_m", b.corrected_p90},
-                      {"shift_m", b.shift}});
-    nlohmann::json roofs = nlohmann::json::array();
-    for (const auto& r : w.roof_only)
-      roofs.push_back({{"id", r.id},
-                       {"part", r.part},
-                       {"points_inside_prior", r.inside_prior},
-                       {"points_inside_corrected", r.inside_corrected},
-                       {"shift_m", r.shift}});
-    doc["walls"] = {{"observed_buildings", w.observed.size()},
-                    {"points", w.points},
-                    {"prior_median_m", w.prior_median},
-                    {"corrected_median_m", w.corrected_median},
-                    {"prior_p90_m", w.prior_p90},
-                    {"corrected_p90_m", w.corrected_p90},
-                    {"unobserved_buildings", w.unobserved},
-                    {"max_unobserved_shift_m", w.max_unobserved_shift},
-                    {"max_unobserved_shift_id", w.max_unobserved_shift_id},
-                    {"max_unobserved_shift_after_datum_m", w.max_unobserved_shift_after_datum},
-                    {"osm_datum", options.datum ? nlohmann::json{{"x_m", options.datum->x()},
-                                                                 {"y_m", options.datum->y()},
-                                                                 {"yaw_rad", options.datum->z()}}
-                                                : nlohmann::json()},
-                    {"overlapping_pairs", overlapsJson(run.dump.buildings, run.corrected)},
-                    {"buildings", rows},
-                    {"roof_only", roofs}};
-  }
-  if (!baseline_dir.empty()) {
-    const MapSharpness b = evaluateMapSharpness(baseline.keyframes);
-    std::map<long long, Eigen::Vector3d> base_by_ms;
-    for (const auto& p : baseline.trajectory)
-      base_by_ms[std::llround(p.stamp * 1000.0)] = p.pose.translation();
-    double max_d = 0, sum_d = 0;
-    size_t n = 0;
-    for (const auto& p : run.trajectory) {
-      const auto it = base_by_ms.find(std::llround(p.stamp * 1000.0));
-      if (it == base_by_ms.end()) continue;
-      const double d = (p.pose.translation() - it->second).norm();
-      max_d = std::max(max_d, d), sum_d += d, ++n;
-    }
-    doc["baseline"] = {
-        {"mean_plane_variance", b.mean_plane_variance},
-        {"sharpness_change",
-         b.mean_plane_variance > 0 ? sharp.mean_plane_variance / b.mean_plane_variance - 1.0 : 0.0},
-        {"common_keyframes", n},
-        {"trajectory_difference_max_m", max_d},
-        {"trajectory_difference_mean_m", n ? sum_d / n : 0.0}};
-  }
-  if (json) {
-    std::cout << doc.dump(2) << "\n";
-    return 0;
-  }
+/// The report as text.
+void printReport(const nlohmann::json& doc, const Run& run, const MapSharpness& sharp) {
   std::printf("keyframes %zu; map sharpness (mean plane variance) %.5f m^2 over %zu points\n",
               run.keyframes.size(), sharp.mean_plane_variance, sharp.points);
   if (doc.count("walls")) {
@@ -262,5 +227,41 @@ int main(int argc, char** argv) {
         b["trajectory_difference_max_m"].get<double>(),
         b["trajectory_difference_mean_m"].get<double>(), b["common_keyframes"].get<size_t>());
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string run_dir, baseline_dir;
+  bool json = false;
+  WallAgreementOptions options;
+  CommandLine cli("evaluate_map",
+                  "A run measured without ground truth (a real drive): wall points at the "
+                  "optimised poses against the prior's and the corrected building outlines, the "
+                  "map's sharpness and, against a baseline run, the trajectory difference.");
+  cli.option("--run", "DIR", "an offline_slam --output folder written with --dump DIR/dump",
+             &run_dir)
+      .required()
+      .option("--baseline", "DIR", "a baseline run's folder (e.g. without OSM)", &baseline_dir)
+      .option("--min-z", "Z", "the lowest wall point, base_link z in m", &options.min_z)
+      .option("--max-z", "Z", "the highest wall point, base_link z in m", &options.max_z)
+      .flag("--json", "print the report as JSON", &json);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  Run run, baseline;
+  std::string error;
+  if (!loadRun(run_dir, run, &error) ||
+      (!baseline_dir.empty() && !loadRun(baseline_dir, baseline, &error))) {
+    std::cerr << "evaluate_map: " << error << "\n";
+    return 1;
+  }
+  nlohmann::json doc = {{"keyframes", run.keyframes.size()}};
+  const MapSharpness sharp = evaluateMapSharpness(run.keyframes);
+  doc["sharpness"] = {{"points", sharp.points}, {"mean_plane_variance", sharp.mean_plane_variance}};
+  if (!run.corrected.empty()) doc["walls"] = wallAgreementJson(run, run_dir, options);
+  if (!baseline_dir.empty()) doc["baseline"] = baselineJson(run, baseline, sharp);
+  if (json)
+    std::cout << doc.dump(2) << "\n";
+  else
+    printReport(doc, run, sharp);
   return 0;
 }

@@ -1,12 +1,6 @@
 // evaluate_slam: accuracy of a SLAM run against ground truth (trajectory and buildings).
 //
-//   evaluate_slam --estimate slam.txt --ground-truth gt.txt [--baseline odom.txt]
-//                 [--baseline-label odometry] [--buildings-true true.geojson]
-//                 [--buildings-prior prior.osm] [--buildings-corrected corrected.geojson]
-//                 [--origin LAT,LON] [--alignment none|first|umeyama] [--planar]
-//                 [--max-dt 0.02] [--json] [--plot-dir DIR]
-//                 [--run-report timing.json] [--loops loops.txt] [--min-coverage F]
-//                 [--allowed-gap S]
+// The options: evaluate_slam --help.
 //
 // Coverage: the share of the drive (ground truth, widened by the span of the scans the run read
 // when --run-report gives offline_slam's timing.json) that has estimated poses; --min-coverage
@@ -28,21 +22,12 @@
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
 
 namespace {
-
-int usage(const std::string& why) {
-  std::cerr << "evaluate_slam: " << why << "\n"
-            << "usage: evaluate_slam --estimate FILE --ground-truth FILE [--baseline FILE]\n"
-               "       [--baseline-label NAME] [--buildings-true FILE] [--buildings-prior FILE]\n"
-               "       [--buildings-corrected FILE] [--origin LAT,LON]\n"
-               "       [--alignment none|first|umeyama] [--planar] [--max-dt S] [--json]\n"
-               "       [--plot-dir DIR] [--run-report timing.json] [--loops loops.txt]\n"
-               "       [--min-coverage F] [--allowed-gap S]\n";
-  return 2;
-}
 
 bool loadTrajectory(const std::string& path, Trajectory& out) {
   const TrajectoryReadResult r = readTrajectory(path);
@@ -99,23 +84,39 @@ bool loadRunReport(const std::string& path, SlamEvaluationInput& in) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::map<std::string, std::string> args;
   bool json = false;
+  double min_coverage = 0.0;
   SlamEvaluationInput in;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--json") {
-      json = true;
-    } else if (a == "--planar") {
-      in.options.planar = true;
-    } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
-      args[a.substr(2)] = argv[++i];
-    } else {
-      return usage("unexpected argument '" + a + "'");
-    }
-  }
-  if (!args.count("estimate") || !args.count("ground-truth"))
-    return usage("--estimate and --ground-truth are required");
+  CommandLine cli("evaluate_slam",
+                  "Accuracy of a SLAM run against ground truth: the trajectory (ATE, RPE), the "
+                  "coverage of the drive, loops and buildings.");
+  cli.option("--estimate", "FILE", "the estimated trajectory (KITTI or TUM)")
+      .required()
+      .option("--ground-truth", "FILE", "the ground truth (KITTI or TUM)")
+      .required()
+      .option("--baseline", "FILE", "a second trajectory to compare (e.g. odometry)")
+      .option("--baseline-label", "NAME", "the baseline's name in the report", &in.baseline_label)
+      .option("--buildings-true", "FILE", "the true buildings (.geojson, .osm or .osm.pbf)")
+      .option("--buildings-prior", "FILE", "the prior buildings")
+      .option("--buildings-corrected", "FILE", "the corrected buildings")
+      .option("--origin", "LAT,LON",
+              "the ENU origin of the building sets (default: the first true outline's first "
+              "point)")
+      .option("--alignment", "none|first|umeyama", "how the estimate is aligned to the truth")
+      .defaultText("none")
+      .flag("--planar", "errors in the plane only", &in.options.planar)
+      .option("--max-dt", "S", "the largest stamp difference of associated poses",
+              &in.options.max_time_difference)
+      .flag("--json", "print the evaluation as JSON", &json)
+      .option("--plot-dir", "DIR", "write plot_data.json there and plot it")
+      .option("--run-report", "timing.json",
+              "offline_slam's timing.json: the coverage counts the span of the scans it read")
+      .option("--loops", "loops.txt", "offline_slam's accepted loops: judged, with their recall")
+      .option("--min-coverage", "F", "exit 3 when the coverage (0..1) is below F", &min_coverage)
+      .option("--allowed-gap", "S", "a gap in the estimate up to S s still counts as covered",
+              &in.coverage.allowed_gap);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  std::map<std::string, std::string> args = cli.values();
 
   if (!loadTrajectory(args["estimate"], in.estimate) ||
       !loadTrajectory(args["ground-truth"], in.ground_truth))
@@ -124,18 +125,15 @@ int main(int argc, char** argv) {
     in.baseline.emplace();
     if (!loadTrajectory(args["baseline"], *in.baseline)) return 1;
   }
-  if (args.count("baseline-label")) in.baseline_label = args["baseline-label"];
-  if (args.count("max-dt")) in.options.max_time_difference = std::atof(args["max-dt"].c_str());
   const std::string alignment = args.count("alignment") ? args["alignment"] : "none";
   if (alignment == "first") {
     in.options.alignment = TrajectoryAlignment::kFirstPose;
   } else if (alignment == "umeyama") {
     in.options.alignment = TrajectoryAlignment::kUmeyamaSE3;
   } else if (alignment != "none") {
-    return usage("unknown alignment '" + alignment + "'");
+    return cli.fail("unknown alignment '" + alignment + "'");
   }
 
-  if (args.count("allowed-gap")) in.coverage.allowed_gap = std::atof(args["allowed-gap"].c_str());
   if (args.count("run-report") && !loadRunReport(args["run-report"], in)) return 1;
   if (args.count("loops")) {
     LoopClosureReadResult loops = readLoopClosures(args["loops"]);
@@ -146,8 +144,6 @@ int main(int argc, char** argv) {
     in.loops = std::move(loops.loops);
     in.loop_options.max_time_difference = in.options.max_time_difference;
   }
-  double min_coverage = 0.0;
-  if (args.count("min-coverage")) min_coverage = std::atof(args["min-coverage"].c_str());
 
   const std::pair<const char*, std::vector<Building>*> sets[] = {
       {"buildings-true", &in.buildings_true},
@@ -161,7 +157,7 @@ int main(int argc, char** argv) {
     GeoPoint origin = in.buildings_true.front().outline_geo.front();
     if (args.count("origin") &&
         std::sscanf(args["origin"].c_str(), "%lf,%lf", &origin.lat, &origin.lon) != 2)
-      return usage("--origin takes LAT,LON");
+      return cli.fail("--origin takes LAT,LON");
     const EnuConverter enu(origin.lat, origin.lon);
     for (const auto& [key, target] : sets)
       for (auto& b : *target) enu.project(b);

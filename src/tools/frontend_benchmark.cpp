@@ -5,7 +5,7 @@
 // the constant-velocity tracker without recovery (the reference), and the end pose's distance to
 // the reference's. --stride K keeps every K-th scan (a drive with dropped scans, K-1 in a row).
 //
-//   frontend_benchmark --scans DIR [--stride K] [--max-scans N] [--rate HZ] [--repeat R] [--json]
+//   (the options: frontend_benchmark --help)
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,8 +20,10 @@
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
 namespace fs = std::filesystem;
 
 namespace {
@@ -85,7 +87,7 @@ std::vector<Variant> variants() {
   KeyframeTrackerParams recovery;  // the defaults (imu: without IMU data, constant velocity)
   KeyframeTrackerParams pre = recovery;
   pre.guess = "pre_tracker";
-  KeyframeTrackerParams fine = pre;  // the defaults until session 15: 16x the points per scale
+  KeyframeTrackerParams fine = pre;  // a denser pre-tracker: 16x the default's points per scale
   fine.pre_tracker.coarse_voxel = 1.5;
   fine.pre_tracker.fine_voxel = 0.75;
   fine.pre_tracker.coarse_max_correspondence = 3.0;
@@ -138,13 +140,6 @@ Outcome run(const Variant& v, const Scans& scans) {
   return o;
 }
 
-int usage(const std::string& why) {
-  std::cerr << "frontend_benchmark: " << why << "\n"
-            << "usage: frontend_benchmark --scans DIR [--stride K] [--max-scans N] [--rate HZ]\n"
-               "       [--repeat R] [--json]\n";
-  return 2;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -154,27 +149,22 @@ int main(int argc, char** argv) {
   size_t max_scans = 0;
   double rate = 10.0;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (a == "--scans")
-      dir = value();
-    else if (a == "--stride")
-      stride = std::max(1, std::atoi(value().c_str()));
-    else if (a == "--max-scans")
-      max_scans = std::strtoul(value().c_str(), nullptr, 10);
-    else if (a == "--rate")
-      rate = std::atof(value().c_str());
-    else if (a == "--repeat")
-      repeat = std::max(1, std::atoi(value().c_str()));
-    else if (a == "--json")
-      json = true;
-    else
-      return usage("unexpected argument '" + a + "'");
-  }
-  if (dir.empty()) return usage("--scans DIR is required (a folder of KITTI .bin scans)");
+  CommandLine cli("frontend_benchmark",
+                  "The prefilter's radius outlier removal (PCL octants against our hash grid) and "
+                  "the keyframe tracker's guess and recovery variants on the same prefiltered "
+                  "scans, in the same run.");
+  cli.option("--scans", "DIR", "a folder of KITTI .bin scans", &dir)
+      .required()
+      .option("--stride", "K", "keep every K-th scan (a drive with K-1 dropped in a row)", &stride)
+      .option("--max-scans", "N", "use at most N scans (0: all)", &max_scans)
+      .option("--rate", "HZ", "the scan rate the stamps are made with", &rate)
+      .option("--repeat", "R", "runs of each variant; the fastest counts", &repeat)
+      .flag("--json", "print the results as JSON", &json);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  stride = std::max(1, stride);
+  repeat = std::max(1, repeat);
   const std::vector<std::string> files = listFiles(dir, ".bin");
-  if (files.empty()) return usage("no .bin scans in '" + dir + "'");
+  if (files.empty()) return cli.fail("no .bin scans in '" + dir + "'");
 
   std::vector<std::pair<double, PointCloud>> raw;
   for (size_t i = 0; i < files.size() && (max_scans == 0 || raw.size() < max_scans); i += stride) {

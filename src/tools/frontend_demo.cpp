@@ -1,7 +1,7 @@
 // Offline LiDAR front-end over real scans: prefilter + scan-to-keyframe tracker on the six
 // patchwork scans and the KITTI 00 pair of ../shared/data (or any folder of KITTI .bin scans).
 // Prints per-scan pose, fitness, iterations and milliseconds per stage.
-//   frontend_demo [--data DIR] [--scans DIR ...] [--method fast_gicp|pcl_gicp|pcl_ndt] [--rate HZ]
+//   (the options: frontend_demo --help)
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -15,6 +15,7 @@
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 namespace fs = std::filesystem;
@@ -97,21 +98,20 @@ int main(int argc, char** argv) {
   std::vector<std::string> scan_dirs;
   KeyframeTrackerParams params;
   double rate_hz = 10.0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--data" && i + 1 < argc)
-      data = argv[++i];
-    else if (arg == "--scans" && i + 1 < argc)
-      scan_dirs.push_back(argv[++i]);
-    else if (arg == "--method" && i + 1 < argc)
-      params.registration.method = argv[++i];
-    else if (arg == "--rate" && i + 1 < argc)
-      rate_hz = std::atof(argv[++i]);
-    else {
-      std::cerr << "usage: frontend_demo [--data DIR] [--scans DIR ...] [--method M] [--rate HZ]\n";
-      return 2;
-    }
-  }
+  tools::CommandLine cli("frontend_demo",
+                         "Offline LiDAR front-end over real scans: prefilter + scan-to-keyframe "
+                         "tracker; prints per-scan pose, fitness, iterations and milliseconds per "
+                         "stage.");
+  cli.option("--data", "DIR", "the shared data folder (its patchwork/ and kitti00/ scans)", &data)
+      .option("--scans", "DIR", "a folder of KITTI .bin scans instead; repeatable",
+              [&scan_dirs](const std::string& dir) {
+                scan_dirs.push_back(dir);
+                return std::string();
+              })
+      .option("--method", "fast_gicp|pcl_gicp|pcl_ndt", "the registration",
+              &params.registration.method)
+      .option("--rate", "HZ", "the scan rate the stamps are made with", &rate_hz);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   if (scan_dirs.empty()) {
     scan_dirs = {data + "/patchwork", data + "/kitti00"};
   }

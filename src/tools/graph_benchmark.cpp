@@ -2,9 +2,7 @@
 // reference formulation of the Ceres documentation examples; prints χ², iterations, ms and the
 // time ratio (text, or one JSON object with --json).
 //
-//   graph_benchmark <file.g2o> [--json] [--threads N] [--repeat N] [--max-iterations N]
-//                   [--autodiff] [--radius R] [--eigen-sparse] [--verbose]
-//                   [--repair-information]
+//   graph_benchmark <file.g2o> [options]   (the options: graph_benchmark --help)
 //
 // --repair-information: an edge with an indefinite information matrix (cubicle.g2o has one) is
 // read with the nearest positive semi-definite matrix instead of being refused; every repair is
@@ -15,12 +13,14 @@
 #include <cstdlib>
 #include <ctime>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/graph/pose_graph.h"
 #include "osm_graph_slam/eval/reference_formulation.h"
+#include "support/command_line.h"
 
 namespace {
 
@@ -39,46 +39,29 @@ struct Args {
   double radius = OptimizerOptions().initial_trust_region_radius;
 };
 
-void usage() {
-  std::cerr << "usage: graph_benchmark <file.g2o> [--json] [--threads N] [--repeat N] "
-               "[--max-iterations N] [--autodiff] [--radius R] [--eigen-sparse] [--verbose] "
-               "[--repair-information]\n";
-}
-
-bool parseArgs(int argc, char** argv, Args* args) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next_int = [&](int* value) {
-      if (i + 1 >= argc) return false;
-      *value = std::atoi(argv[++i]);
-      return *value > 0;
-    };
-    if (a == "--json") {
-      args->json = true;
-    } else if (a == "--radius") {
-      if (i + 1 >= argc) return false;
-      args->radius = std::atof(argv[++i]);
-    } else if (a == "--repair-information") {
-      args->repair_information = true;
-    } else if (a == "--eigen-sparse") {
-      args->eigen_sparse = true;
-    } else if (a == "--verbose") {
-      args->verbose = true;
-    } else if (a == "--autodiff") {
-      args->autodiff = true;
-    } else if (a == "--threads") {
-      if (!next_int(&args->threads)) return false;
-    } else if (a == "--repeat") {
-      if (!next_int(&args->repeat)) return false;
-    } else if (a == "--max-iterations") {
-      if (!next_int(&args->max_iterations)) return false;
-    } else if (!a.empty() && a[0] == '-') {
-      return false;
-    } else {
-      args->file = a;
-    }
-  }
-  return !args->file.empty();
+/// The command line into args; an exit status when the tool should stop (--help, a usage error).
+std::optional<int> parseArgs(int argc, char** argv, Args* args) {
+  tools::CommandLine cli("graph_benchmark",
+                         "Optimises a .g2o pose graph with PoseGraph and, in the same run, with "
+                         "the reference formulation of the Ceres documentation examples; prints "
+                         "chi2, iterations, ms and the time ratio.");
+  cli.positional("FILE.g2o", "the pose graph", &args->file)
+      .flag("--json", "print one JSON object", &args->json)
+      .option("--threads", "N", "solver threads", &args->threads)
+      .option("--repeat", "N", "runs of each formulation; the median counts", &args->repeat)
+      .option("--max-iterations", "N", "solver iterations at most", &args->max_iterations)
+      .flag("--autodiff", "automatic instead of analytic Jacobians", &args->autodiff)
+      .option("--radius", "R", "the initial trust region radius", &args->radius)
+      .flag("--eigen-sparse", "Eigen's sparse Cholesky instead of SuiteSparse", &args->eigen_sparse)
+      .flag("--verbose", "the solver's per-iteration log", &args->verbose)
+      .flag("--repair-information",
+            "read an edge with an indefinite information matrix with the nearest positive "
+            "semi-definite one instead of refusing it (reported on stderr and counted)",
+            &args->repair_information);
+  if (const auto exit_code = cli.parse(argc, argv)) return exit_code;
+  if (args->threads <= 0 || args->repeat <= 0 || args->max_iterations <= 0)
+    return cli.fail("--threads, --repeat and --max-iterations must be > 0");
+  return std::nullopt;
 }
 
 double cpuMs() {
@@ -103,10 +86,7 @@ struct Measured {
 
 int main(int argc, char** argv) {
   Args args;
-  if (!parseArgs(argc, argv, &args)) {
-    usage();
-    return 2;
-  }
+  if (const auto exit_code = parseArgs(argc, argv, &args)) return *exit_code;
   PoseGraph graph;
   G2oReadOptions read_options;
   read_options.repair_information = args.repair_information;

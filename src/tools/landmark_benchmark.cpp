@@ -1,4 +1,4 @@
-// Landmark place recognition benchmark (issue 24; doc/landmarks.md).
+// Landmark place recognition benchmark (doc/landmarks.md).
 //  1. Drives through the forest worlds (simulate_urban --world forest, 3 densities x N seeds):
 //     keyframes every --spacing metres of a simulated HDL-64E drive, no odometry (place
 //     recognition against every keyframe at least --gap metres back). Per keyframe: landmark
@@ -10,9 +10,7 @@
 //     observation model: 90 % detection, 0.2 m noise) and queries at revisits: ms per query for
 //     descriptor + query, and Scan Context's ms per query over a 5,000-keyframe database of the
 //     drive scans' descriptors in the same run.
-// Usage: landmark_benchmark [--seeds 1,2,3] [--densities sparse,intermediate,dense]
-//                           [--length M] [--spacing M] [--gap M] [--scale-keyframes N]
-//                           [--scale-queries N] [--no-drives] [--no-scale] [--scans DIR]
+// The options: landmark_benchmark --help.
 //  3. --scans DIR (KITTI .bin scans, e.g. the real drive 0005 unpacked; sensor frame): landmark
 //     extraction per scan against Scan Context's descriptor of the same scan, in the same run.
 #include <algorithm>
@@ -22,6 +20,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -33,6 +32,7 @@
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/sim/forest_world.h"
 #include "osm_graph_slam/sim/simulator.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 using namespace osm_graph_slam::sim;
@@ -333,15 +333,6 @@ ScaleResult runScale(const Options& opt, const std::vector<ScanContext>& sc_pool
   return r;
 }
 
-std::vector<std::string> splitList(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
-
 }  // namespace
 
 /// Extraction on every .bin scan of dir, Scan Context's descriptor of the same scan as the
@@ -379,128 +370,130 @@ int timeRealScans(const std::string& dir) {
   return 0;
 }
 
+/// The command line into opt; an exit status when the tool should stop (--help, a usage error).
+std::optional<int> parseOptions(int argc, char** argv, Options& opt) {
+  tools::CommandLine cli("landmark_benchmark",
+                         "Landmark place recognition (geometric hierarchy) against Scan Context "
+                         "on simulated forest drives, at scale, and on real scans "
+                         "(doc/landmarks.md).");
+  cli.option("--seeds", "1,2,3", "the forest worlds' seeds",
+             [&opt](const std::string& v) {
+               opt.seeds.clear();
+               for (const auto& seed : tools::splitCommaList(v)) {
+                 long long n = 0;
+                 if (!tools::parseInt(seed, &n) || n < 0) return "'" + seed + "' is not a seed";
+                 opt.seeds.push_back(static_cast<uint64_t>(n));
+               }
+               return std::string();
+             })
+      .option("--densities", "sparse,intermediate,dense", "the forest densities",
+              [&opt](const std::string& v) {
+                opt.densities = tools::splitCommaList(v);
+                for (const auto& d : opt.densities) {
+                  ForestParams check;
+                  if (d == "park" || !forestPreset(d, check)) return "unknown density '" + d + "'";
+                }
+                return std::string();
+              })
+      .option("--length", "M", "route length", &opt.length)
+      .option("--spacing", "M", "keyframe spacing", &opt.spacing)
+      .option("--gap", "M", "loop candidates at least this far back along the route", &opt.gap)
+      .option("--scale-keyframes", "N", "keyframes of the scale test (at least 10)",
+              &opt.scale_keyframes)
+      .option("--scale-queries", "N", "queries of the scale test (at least 1)", &opt.scale_queries)
+      .flag("--no-drives", "skip the forest drives", &opt.drives, false)
+      .flag("--no-scale", "skip the scale test", &opt.scale, false)
+      .option("--scans", "DIR",
+              "KITTI .bin scans (sensor frame): landmark extraction against Scan Context's "
+              "descriptor per scan, instead of the rest",
+              &opt.scans_dir);
+  if (const auto exit_code = cli.parse(argc, argv)) return exit_code;
+  opt.scale_keyframes = std::max(10, opt.scale_keyframes);
+  opt.scale_queries = std::max(1, opt.scale_queries);
+  return std::nullopt;
+}
+
+/// The forest drives, a table row per drive and the totals per density; false when a drive
+/// could not be simulated.
+bool runDrives(const Options& opt, std::vector<ScanContext>* sc_pool, double* sc_descriptor_ms) {
+  std::printf(
+      "# Forest drives: %.0f m routes, keyframes every %.1f m, candidates >= %.0f m back, "
+      "revisit = an allowed keyframe within %.0f m\n"
+      "# GH correct = transform within %.1f m / %.1f deg; SC correct = match within %.0f m\n",
+      opt.length, opt.spacing, opt.gap, opt.revisit_radius, opt.gh_translation_tolerance,
+      opt.gh_yaw_tolerance_deg, opt.sc_correct_radius);
+  std::printf(
+      "| density | seed | keyframes | revisits | landmarks/kf | GH precision | GH recall | "
+      "SC@0.30 P/R | SC@0.40 P/R | SC@0.50 P/R | GH t err [m] | extract ms | GH query ms | "
+      "SC ms |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::fflush(stdout);
+  DriveResult total;
+  std::map<std::string, DriveResult> per_density;
+  for (const auto& d : opt.densities)
+    for (uint64_t seed : opt.seeds) {
+      DriveResult r;
+      if (!runDrive(d, seed, opt, r, sc_pool)) return false;
+      const double n = std::max(1, r.keyframes);
+      std::printf(
+          "| %s | %lu | %d | %d | %.1f | %.1f %% (%d/%d) | %.1f %% (%d/%d) | %.0f/%.0f | "
+          "%.0f/%.0f | %.0f/%.0f | %.2f | %.2f | %.2f | %.2f |\n",
+          d.c_str(), (unsigned long)seed, r.keyframes, r.revisits, r.landmarks_mean,
+          pct(r.gh_correct, r.gh_accepted), r.gh_correct, r.gh_accepted,
+          pct(r.gh_recalled, r.revisits), r.gh_recalled, r.revisits,
+          pct(r.sc_correct[1], r.sc_accepted[1]), pct(r.sc_recalled[1], r.revisits),
+          pct(r.sc_correct[2], r.sc_accepted[2]), pct(r.sc_recalled[2], r.revisits),
+          pct(r.sc_correct[3], r.sc_accepted[3]), pct(r.sc_recalled[3], r.revisits),
+          r.gh_correct ? r.gh_translation_error / r.gh_correct : 0.0, r.extract_ms / n,
+          r.gh_query_ms / n, (r.sc_descriptor_ms + r.sc_query_ms) / n);
+      std::fflush(stdout);
+      for (DriveResult* acc : {&total, &per_density[d]}) {
+        acc->keyframes += r.keyframes;
+        acc->revisits += r.revisits;
+        acc->gh_accepted += r.gh_accepted;
+        acc->gh_correct += r.gh_correct;
+        acc->gh_recalled += r.gh_recalled;
+        for (int i = 0; i < kNumSc; ++i) {
+          acc->sc_accepted[i] += r.sc_accepted[i];
+          acc->sc_correct[i] += r.sc_correct[i];
+          acc->sc_recalled[i] += r.sc_recalled[i];
+        }
+        acc->extract_ms += r.extract_ms;
+        acc->gh_query_ms += r.gh_query_ms;
+        acc->gh_insert_ms += r.gh_insert_ms;
+        acc->sc_descriptor_ms += r.sc_descriptor_ms;
+        acc->sc_query_ms += r.sc_query_ms;
+      }
+    }
+  per_density["all"] = total;
+  *sc_descriptor_ms = total.sc_descriptor_ms / std::max(1, total.keyframes);
+  std::printf("\n| set | GH precision | GH recall |");
+  for (double t : kScThresholds) std::printf(" SC@%.2f precision / recall |", t);
+  std::printf(" extract ms | GH query+insert ms | SC descriptor+query ms |\n|---|---|---|");
+  for (int i = 0; i < kNumSc; ++i) std::printf("---|");
+  std::printf("---|---|---|\n");
+  for (const auto& [name, r] : per_density) {
+    const double n = std::max(1, r.keyframes);
+    std::printf("| %s | %.1f %% (%d/%d) | %.1f %% (%d/%d) |", name.c_str(),
+                pct(r.gh_correct, r.gh_accepted), r.gh_correct, r.gh_accepted,
+                pct(r.gh_recalled, r.revisits), r.gh_recalled, r.revisits);
+    for (int i = 0; i < kNumSc; ++i)
+      std::printf(" %.1f %% / %.1f %% |", pct(r.sc_correct[i], r.sc_accepted[i]),
+                  pct(r.sc_recalled[i], r.revisits));
+    std::printf(" %.2f | %.2f | %.2f |\n", r.extract_ms / n, (r.gh_query_ms + r.gh_insert_ms) / n,
+                (r.sc_descriptor_ms + r.sc_query_ms) / n);
+  }
+  std::fflush(stdout);
+  return true;
+}
+
 int main(int argc, char** argv) {
   Options opt;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "landmark_benchmark: %s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--seeds") {
-      opt.seeds.clear();
-      for (const auto& s : splitList(next()))
-        opt.seeds.push_back(std::strtoull(s.c_str(), nullptr, 10));
-    } else if (a == "--densities") {
-      opt.densities = splitList(next());
-      for (const auto& d : opt.densities) {
-        ForestParams check;
-        if (d == "park" || !forestPreset(d, check)) {
-          std::fprintf(stderr, "landmark_benchmark: unknown density '%s'\n", d.c_str());
-          return 2;
-        }
-      }
-    } else if (a == "--length")
-      opt.length = std::atof(next().c_str());
-    else if (a == "--spacing")
-      opt.spacing = std::atof(next().c_str());
-    else if (a == "--gap")
-      opt.gap = std::atof(next().c_str());
-    else if (a == "--scale-keyframes")
-      opt.scale_keyframes = std::max(10, std::atoi(next().c_str()));
-    else if (a == "--scale-queries")
-      opt.scale_queries = std::max(1, std::atoi(next().c_str()));
-    else if (a == "--no-drives")
-      opt.drives = false;
-    else if (a == "--no-scale")
-      opt.scale = false;
-    else if (a == "--scans")
-      opt.scans_dir = next();
-    else {
-      std::fprintf(stderr,
-                   "usage: landmark_benchmark [--seeds 1,2,3] [--densities "
-                   "sparse,intermediate,dense] [--length M] [--spacing M] [--gap M] "
-                   "[--scale-keyframes N] [--scale-queries N] [--no-drives] [--no-scale] "
-                   "[--scans DIR]\n");
-      return 2;
-    }
-  }
+  if (const auto exit_code = parseOptions(argc, argv, opt)) return *exit_code;
   if (!opt.scans_dir.empty()) return timeRealScans(opt.scans_dir);
   std::vector<ScanContext> sc_pool;
   double sc_descriptor_ms = 0.0;  // mean over the drives' keyframes
-  if (opt.drives) {
-    std::printf(
-        "# Forest drives: %.0f m routes, keyframes every %.1f m, candidates >= %.0f m back, "
-        "revisit = an allowed keyframe within %.0f m\n"
-        "# GH correct = transform within %.1f m / %.1f deg; SC correct = match within %.0f m\n",
-        opt.length, opt.spacing, opt.gap, opt.revisit_radius, opt.gh_translation_tolerance,
-        opt.gh_yaw_tolerance_deg, opt.sc_correct_radius);
-    std::printf(
-        "| density | seed | keyframes | revisits | landmarks/kf | GH precision | GH recall | "
-        "SC@0.30 P/R | SC@0.40 P/R | SC@0.50 P/R | GH t err [m] | extract ms | GH query ms | "
-        "SC ms |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-    std::fflush(stdout);
-    DriveResult total;
-    std::map<std::string, DriveResult> per_density;
-    for (const auto& d : opt.densities)
-      for (uint64_t seed : opt.seeds) {
-        DriveResult r;
-        if (!runDrive(d, seed, opt, r, &sc_pool)) return 1;
-        const double n = std::max(1, r.keyframes);
-        std::printf(
-            "| %s | %lu | %d | %d | %.1f | %.1f %% (%d/%d) | %.1f %% (%d/%d) | %.0f/%.0f | "
-            "%.0f/%.0f | %.0f/%.0f | %.2f | %.2f | %.2f | %.2f |\n",
-            d.c_str(), (unsigned long)seed, r.keyframes, r.revisits, r.landmarks_mean,
-            pct(r.gh_correct, r.gh_accepted), r.gh_correct, r.gh_accepted,
-            pct(r.gh_recalled, r.revisits), r.gh_recalled, r.revisits,
-            pct(r.sc_correct[1], r.sc_accepted[1]), pct(r.sc_recalled[1], r.revisits),
-            pct(r.sc_correct[2], r.sc_accepted[2]), pct(r.sc_recalled[2], r.revisits),
-            pct(r.sc_correct[3], r.sc_accepted[3]), pct(r.sc_recalled[3], r.revisits),
-            r.gh_correct ? r.gh_translation_error / r.gh_correct : 0.0, r.extract_ms / n,
-            r.gh_query_ms / n, (r.sc_descriptor_ms + r.sc_query_ms) / n);
-        std::fflush(stdout);
-        for (DriveResult* acc : {&total, &per_density[d]}) {
-          acc->keyframes += r.keyframes;
-          acc->revisits += r.revisits;
-          acc->gh_accepted += r.gh_accepted;
-          acc->gh_correct += r.gh_correct;
-          acc->gh_recalled += r.gh_recalled;
-          for (int i = 0; i < kNumSc; ++i) {
-            acc->sc_accepted[i] += r.sc_accepted[i];
-            acc->sc_correct[i] += r.sc_correct[i];
-            acc->sc_recalled[i] += r.sc_recalled[i];
-          }
-          acc->extract_ms += r.extract_ms;
-          acc->gh_query_ms += r.gh_query_ms;
-          acc->gh_insert_ms += r.gh_insert_ms;
-          acc->sc_descriptor_ms += r.sc_descriptor_ms;
-          acc->sc_query_ms += r.sc_query_ms;
-        }
-      }
-    per_density["all"] = total;
-    sc_descriptor_ms = total.sc_descriptor_ms / std::max(1, total.keyframes);
-    std::printf("\n| set | GH precision | GH recall |");
-    for (double t : kScThresholds) std::printf(" SC@%.2f precision / recall |", t);
-    std::printf(" extract ms | GH query+insert ms | SC descriptor+query ms |\n|---|---|---|");
-    for (int i = 0; i < kNumSc; ++i) std::printf("---|");
-    std::printf("---|---|---|\n");
-    for (const auto& [name, r] : per_density) {
-      const double n = std::max(1, r.keyframes);
-      std::printf("| %s | %.1f %% (%d/%d) | %.1f %% (%d/%d) |", name.c_str(),
-                  pct(r.gh_correct, r.gh_accepted), r.gh_correct, r.gh_accepted,
-                  pct(r.gh_recalled, r.revisits), r.gh_recalled, r.revisits);
-      for (int i = 0; i < kNumSc; ++i)
-        std::printf(" %.1f %% / %.1f %% |", pct(r.sc_correct[i], r.sc_accepted[i]),
-                    pct(r.sc_recalled[i], r.revisits));
-      std::printf(" %.2f | %.2f | %.2f |\n", r.extract_ms / n, (r.gh_query_ms + r.gh_insert_ms) / n,
-                  (r.sc_descriptor_ms + r.sc_query_ms) / n);
-    }
-    std::fflush(stdout);
-  }
+  if (opt.drives && !runDrives(opt, &sc_pool, &sc_descriptor_ms)) return 1;
   if (opt.scale) {
     const ScaleResult s = runScale(opt, sc_pool, sc_descriptor_ms);
     std::printf(

@@ -4,8 +4,7 @@
 //   walls    vs pcl::NormalEstimationOMP (normal_backend = pcl)
 //   segments vs a plain pcl::SACSegmentation line loop
 //   matching vs the brute-force search (every edge pair, no index, no pruning, no early stop)
-// Usage: line_benchmark [--data DIR] [--repeat N] [--threads N] [--json]
-//        [--voxel M] [--k N] [--merge M] [--iterations N]   (parameter studies)
+// The options: line_benchmark --help.
 #include <pcl/ModelCoefficients.h>
 #include <pcl/filters/extract_indices.h>
 #include <pcl/segmentation/sac_segmentation.h>
@@ -29,6 +28,7 @@
 #include "osm_graph_slam/lines/line_matcher.h"
 #include "osm_graph_slam/lines/line_segment_extractor.h"
 #include "osm_graph_slam/sim/wall_scan_simulator.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
@@ -328,32 +328,23 @@ int main(int argc, char** argv) {
   WallPointExtractorParams wp;
   LineSegmentExtractorParams lp;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--json") {
-      json = true;
-    } else if (a == "--data" && i + 1 < argc) {
-      data = argv[++i];
-    } else if (a == "--repeat" && i + 1 < argc) {
-      repeat = std::max(1, std::atoi(argv[++i]));
-    } else if (a == "--voxel" && i + 1 < argc) {
-      wp.voxel_size = std::atof(argv[++i]);
-    } else if (a == "--k" && i + 1 < argc) {
-      wp.k_neighbors = std::atoi(argv[++i]);
-    } else if (a == "--merge" && i + 1 < argc) {
-      lp.merge_resolution = std::atof(argv[++i]);
-    } else if (a == "--iterations" && i + 1 < argc) {
-      lp.max_iterations = std::atoi(argv[++i]);
-    } else if (a == "--threads" && i + 1 < argc) {
-      threads = std::max(1, std::atoi(argv[++i]));
-    } else {
-      std::fprintf(stderr,
-                   "usage: %s [--data DIR] [--repeat N] [--threads N] [--json] [--voxel M] [--k N] "
-                   "[--merge M] [--iterations N]\n",
-                   argv[0]);
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
+  tools::CommandLine cli("line_benchmark",
+                         "Per-keyframe milliseconds of the line stage (wall points, segments, "
+                         "global and local matching) on real KITTI scans and simulated keyframes, "
+                         "each against a reference measured in the same run.");
+  cli.option("--data", "DIR", "the shared data folder (KITTI scans)", &data)
+      .option("--repeat", "N", "runs per stage; the median counts", &repeat)
+      .option("--threads", "N", "threads of the line stage", &threads)
+      .flag("--json", "print the results as JSON", &json)
+      .option("--voxel", "M", "parameter study: the wall points' voxel size", &wp.voxel_size)
+      .option("--k", "N", "parameter study: the wall points' normal neighbours", &wp.k_neighbors)
+      .option("--merge", "M", "parameter study: the segments' merge resolution",
+              &lp.merge_resolution)
+      .option("--iterations", "N", "parameter study: the segments' RANSAC iterations",
+              &lp.max_iterations);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  repeat = std::max(1, repeat);
+  threads = std::max(1, threads);
   Pipeline pl(threads, wp, lp);
   const auto kitti = runKitti(pl, data, repeat);
   const auto sim = runSimulated(pl, repeat);

@@ -11,12 +11,7 @@
 //     geometric_hierarchy, combined) in lockstep on simulated drives through the forest worlds
 //     and the procedural city (sim/loop_drive.h: prefiltered HDL-64E keyframes, drifting
 //     odometry); only this part runs then.
-// Usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N]
-//                       [--sizes 100,1000,5000] [--method fast_gicp] [--reference pcl_gicp|none]
-//                       [--baseline-coarse gicp|none] [--set key=value ...]
-//        loop_benchmark --candidates scan_context,geometric_hierarchy,combined
-//                       [--worlds forest:sparse,forest:intermediate,forest:dense,city]
-//                       [--seeds 1] [--length M] [--spacing M] [--set key=value ...]
+// The options: loop_benchmark --help.
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -34,6 +29,7 @@
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/sim/loop_drive.h"
 #include "osm_graph_slam/sim/synthetic_world.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
@@ -449,14 +445,6 @@ struct CandidateOptions {
   double length = 500.0, spacing = 4.0;
 };
 
-std::vector<std::string> splitList(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(item);
-  return out;
-}
-
 /// Sum of per-drive results of one method (counts added, per-keyframe times weighted).
 void accumulate(DriveResult& sum, const DriveResult& r) {
   sum.method = r.method;
@@ -534,115 +522,108 @@ int runCandidateComparison(const CandidateOptions& opt, bool explain) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Options {
   bool json = false, explain = false;
   int queries = 20, reference_queries = 5;
   std::string method = "fast_gicp", reference = "pcl_gicp", baseline = "gicp";
   std::vector<int> sizes = {100, 1000, 5000};
-  std::string overrides, baseline_overrides;  // --set / --baseline-set key=value as YAML
+  std::string overrides, baseline_overrides;  ///< --set / --baseline-set key=value as YAML
   CandidateOptions candidates;
-  const char* usage =
-      "usage: loop_benchmark [--json] [--explain] [--queries N] [--reference-queries N] [--sizes "
-      "100,1000,5000] [--method fast_gicp|fast_vgicp|pcl_gicp|pcl_ndt] [--reference M|none] "
-      "[--baseline-coarse gicp|correlative|none] [--set key=value]...\n"
-      "       loop_benchmark --candidates scan_context,geometric_hierarchy,combined [--worlds "
-      "forest:sparse,forest:intermediate,forest:dense,city] [--seeds 1,2,3] [--length M] "
-      "[--spacing M] [--set key=value]...\n";
-  for (int i = 1; i < argc; ++i) {
-    const bool has_value = i + 1 < argc;
-    if (!std::strcmp(argv[i], "--json")) {
-      json = true;
-    } else if (!std::strcmp(argv[i], "--explain")) {
-      explain = true;
-    } else if (!std::strcmp(argv[i], "--queries") && has_value) {
-      queries = std::max(1, std::atoi(argv[++i]));
-    } else if (!std::strcmp(argv[i], "--reference-queries") && has_value) {
-      reference_queries = std::max(0, std::atoi(argv[++i]));
-    } else if (!std::strcmp(argv[i], "--method") && has_value) {
-      method = argv[++i];
-    } else if (!std::strcmp(argv[i], "--reference") && has_value) {
-      reference = argv[++i];
-    } else if (!std::strcmp(argv[i], "--baseline-coarse") && has_value) {
-      baseline = argv[++i];
-    } else if ((!std::strcmp(argv[i], "--set") || !std::strcmp(argv[i], "--baseline-set")) &&
-               has_value) {
-      std::string& target = !std::strcmp(argv[i], "--set") ? overrides : baseline_overrides;
-      const std::string kv = argv[++i];
-      const size_t eq = kv.find('=');
-      if (eq == std::string::npos) {
-        std::cerr << usage;
-        return 2;
-      }
-      const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
-      const size_t slash = key.find('/');
-      target += slash == std::string::npos
-                    ? key + ": " + value + "\n"
-                    : key.substr(0, slash) + ": {" + key.substr(slash + 1) + ": " + value + "}\n";
-    } else if (!std::strcmp(argv[i], "--candidates") && has_value) {
-      candidates.methods = splitList(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--worlds") && has_value) {
-      candidates.worlds = splitList(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--seeds") && has_value) {
-      candidates.seeds.clear();
-      for (const auto& seed : splitList(argv[++i])) candidates.seeds.push_back(std::stoull(seed));
-    } else if (!std::strcmp(argv[i], "--length") && has_value) {
-      candidates.length = std::atof(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--spacing") && has_value) {
-      candidates.spacing = std::atof(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--sizes") && has_value) {
-      sizes.clear();
-      std::stringstream ss(argv[++i]);
-      std::string item;
-      while (std::getline(ss, item, ',')) sizes.push_back(std::max(1, std::atoi(item.c_str())));
-    } else {
-      std::cerr << usage;
-      return 2;
-    }
-  }
-  std::vector<Variant> variants;
-  if (!overrides.empty()) {
-    const YamlParamReader yaml = YamlParamReader::fromString(overrides);
-    if (!yaml.ok()) {
-      std::cerr << "--set: " << yaml.error() << "\n" << usage;
-      return 2;
-    }
-    readParams(yaml, g_params);
-  }
-  if (!candidates.methods.empty()) {
-    try {
-      for (const auto& m : candidates.methods) {
-        LoopDetectorParams p = g_params;
-        p.method = m;
-        LoopDetector check(p);
-      }
-    } catch (const std::exception& e) {
-      std::cerr << e.what() << "\n" << usage;
-      return 2;
-    }
-    return runCandidateComparison(candidates, explain);
-  }
-  variants.push_back({g_params.coarse_method, paramsFor(method, g_params.coarse_method)});
+};
+
+/// key=value (nested keys with '/': group/key=value) appended to `yaml` as a YAML line.
+std::string appendOverride(const std::string& kv, std::string& yaml) {
+  const size_t eq = kv.find('=');
+  if (eq == std::string::npos) return "expects key=value, got '" + kv + "'";
+  const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
+  const size_t slash = key.find('/');
+  yaml += slash == std::string::npos
+              ? key + ": " + value + "\n"
+              : key.substr(0, slash) + ": {" + key.substr(slash + 1) + ": " + value + "}\n";
+  return "";
+}
+
+void declareOptions(tools::CommandLine& cli, Options& o) {
+  cli.flag("--json", "print the results as JSON", &o.json)
+      .flag("--explain", "print why each query was accepted or rejected", &o.explain)
+      .option("--queries", "N", "queries per database size (at least 1)", &o.queries)
+      .option("--reference-queries", "N", "queries the reference registration verifies",
+              &o.reference_queries)
+      .option("--sizes", "100,1000,5000", "database sizes in keyframes",
+              [&o](const std::string& v) {
+                o.sizes.clear();
+                std::stringstream ss(v);
+                std::string item;
+                while (std::getline(ss, item, ','))
+                  o.sizes.push_back(std::max(1, std::atoi(item.c_str())));
+                return std::string();
+              })
+      .option("--method", "fast_gicp|fast_vgicp|pcl_gicp|pcl_ndt",
+              "the verification's registration", &o.method)
+      .option("--reference", "M|none", "the reference registration measured in the same run",
+              &o.reference)
+      .option("--baseline-coarse", "gicp|correlative|none",
+              "the previous pipeline's coarse stage, measured in the same run", &o.baseline)
+      .option("--set", "key=value",
+              "override one loop_detection parameter (nested keys with '/'); repeatable",
+              [&o](const std::string& kv) { return appendOverride(kv, o.overrides); })
+      .option("--baseline-set", "key=value",
+              "override one parameter of the baseline only; repeatable",
+              [&o](const std::string& kv) { return appendOverride(kv, o.baseline_overrides); })
+      .option("--candidates", "scan_context,geometric_hierarchy,combined",
+              "compare these candidate sources on simulated drives (only this part runs then)",
+              [&o](const std::string& v) {
+                o.candidates.methods = tools::splitCommaList(v);
+                return std::string();
+              })
+      .option("--worlds", "forest:sparse,forest:intermediate,forest:dense,city",
+              "--candidates: the worlds (world[:forest density])",
+              [&o](const std::string& v) {
+                o.candidates.worlds = tools::splitCommaList(v);
+                return std::string();
+              })
+      .option("--seeds", "1,2,3", "--candidates: the worlds' seeds (default: 1)",
+              [&o](const std::string& v) {
+                o.candidates.seeds.clear();
+                for (const auto& seed : tools::splitCommaList(v)) {
+                  long long n = 0;
+                  if (!tools::parseInt(seed, &n) || n < 0) return "'" + seed + "' is not a seed";
+                  o.candidates.seeds.push_back(static_cast<uint64_t>(n));
+                }
+                return std::string();
+              })
+      .option("--length", "M", "--candidates: drive length", &o.candidates.length)
+      .option("--spacing", "M", "--candidates: keyframe spacing", &o.candidates.spacing);
+}
+
+/// The configured pipeline and the baseline to measure against it; an exit status when a
+/// registration, coarse method or override is not known.
+std::optional<int> makeVariants(const tools::CommandLine& cli, Options& opt,
+                                std::vector<Variant>& variants) {
+  std::string& baseline = opt.baseline;
+  variants.push_back({g_params.coarse_method, paramsFor(opt.method, g_params.coarse_method)});
   const std::string coarse = g_params.coarse_method;
-  if (baseline == coarse && baseline_overrides.empty()) baseline = "none";
+  if (baseline == coarse && opt.baseline_overrides.empty()) baseline = "none";
   try {
-    for (const auto& m : {method, reference}) {
+    for (const auto& m : {opt.method, opt.reference}) {
       if (m != "none") createRegistration(RegistrationParams{m});
     }
     if (baseline != "none") {
-      LoopDetectorParams b = paramsFor(method, baseline);
-      if (!baseline_overrides.empty())
-        readParams(YamlParamReader::fromString(baseline_overrides), b);
-      variants.push_back({baseline_overrides.empty() ? baseline : "baseline", b});
+      LoopDetectorParams b = paramsFor(opt.method, baseline);
+      if (!opt.baseline_overrides.empty())
+        readParams(YamlParamReader::fromString(opt.baseline_overrides), b);
+      variants.push_back({opt.baseline_overrides.empty() ? baseline : "baseline", b});
     }
     for (const auto& v : variants) LoopDetector check(v.params);
   } catch (const std::exception& e) {
-    std::cerr << e.what() << "\n" << usage;
-    return 2;
+    return cli.fail(e.what());
   }
-  // Pool of ray-cast scans around the town (downsampled once like stored keyframes) and the
-  // same places re-scanned at the revisit offset with other noise.
+  return std::nullopt;
+}
+
+/// Pool of ray-cast scans around the town (downsampled once like stored keyframes) and the
+/// same places re-scanned at the revisit offset with other noise.
+SizeWorkload makeSizeWorkload() {
   const SyntheticWorld world = makeLoopTown(200.0, 120.0, 14.0, 7);
   const auto places = loopTownRoute(200.0, 120.0, 0.0, 5.0, 0.0, 0.0);
   SizeWorkload w;
@@ -659,38 +640,111 @@ int main(int argc, char** argv) {
     w.revisit_clouds.push_back(simulateSyntheticScan(world, again.translation().head<2>(), yaw,
                                                      SyntheticLidarParams(), 1000 + i));
   }
-  std::vector<SizeResult> results;
-  auto printSize = [&](const SizeResult& r) {
+  return w;
+}
+
+void printSize(const SizeResult& r, const Options& opt) {
+  const std::string &method = opt.method, &reference = opt.reference;
+  std::printf(
+      "db %5d keyframes [%s, coarse %s]: insert %.3f ms | per query: descriptor %.3f, "
+      "candidates %.3f (%.0f), ranking %.3f (%.1f), verification %.2f (%.1f pairs; prepare "
+      "%.2f, correlative %.2f, coarse gicp %.2f, fine %.2f of which target %.2f (%.1f, "
+      "%.1f iterations each), "
+      "overlap %.2f), total %.2f ms, correct %d/%d (accepted %d; error mean %.1f max %.1f mm), "
+      "%d ambiguous rejected | place recognition: tree %.3f ms, brute force %.3f ms, ratio %.1f",
+      r.size, method.c_str(), r.coarse.c_str(), r.insert_ms, r.descriptor_ms, r.candidates_ms,
+      r.phase1_mean, r.ranking_ms, r.phase2_mean, r.verification_ms, r.registrations_mean,
+      r.prepare_ms, r.correlative_ms, r.coarse_ms, r.fine_ms, r.fine_target_ms,
+      r.fine_registrations, r.fine_iterations / std::max(1e-9, r.fine_registrations), r.overlap_ms,
+      r.total_ms, r.correct, r.queries, r.accepted, 1000.0 * r.sum_error_m / std::max(1, r.correct),
+      1000.0 * r.max_error_m, r.ambiguous, r.tree_retrieval_ms, r.brute_retrieval_ms,
+      r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms));
+  if (r.reference_verification_ms > 0) {
+    std::printf(" | verification on %d queries: %s %.2f ms vs %s %.2f ms, ratio %.1fx",
+                r.reference_queries, reference.c_str(), r.reference_verification_ms, method.c_str(),
+                r.subset_verification_ms,
+                r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
+  }
+  std::printf("\n");
+  std::fflush(stdout);
+}
+
+void printJson(const Options& opt, const std::vector<SizeResult>& results,
+               const std::vector<DriveResult>& drives) {
+  const std::string &method = opt.method, &reference = opt.reference;
+  std::printf("{\"method\":\"%s\",\"reference\":\"%s\",\"database\":[", method.c_str(),
+              reference.c_str());
+  for (size_t i = 0; i < results.size(); ++i) {
+    const auto& r = results[i];
     std::printf(
-        "db %5d keyframes [%s, coarse %s]: insert %.3f ms | per query: descriptor %.3f, "
-        "candidates %.3f (%.0f), ranking %.3f (%.1f), verification %.2f (%.1f pairs; prepare "
-        "%.2f, correlative %.2f, coarse gicp %.2f, fine %.2f of which target %.2f (%.1f, "
-        "%.1f iterations each), "
-        "overlap %.2f), total %.2f ms, correct %d/%d (accepted %d; error mean %.1f max %.1f mm), "
-        "%d ambiguous rejected | place recognition: tree %.3f ms, brute force %.3f ms, ratio %.1f",
-        r.size, method.c_str(), r.coarse.c_str(), r.insert_ms, r.descriptor_ms, r.candidates_ms,
-        r.phase1_mean, r.ranking_ms, r.phase2_mean, r.verification_ms, r.registrations_mean,
-        r.prepare_ms, r.correlative_ms, r.coarse_ms, r.fine_ms, r.fine_target_ms,
-        r.fine_registrations, r.fine_iterations / std::max(1e-9, r.fine_registrations),
-        r.overlap_ms, r.total_ms, r.correct, r.queries, r.accepted,
-        1000.0 * r.sum_error_m / std::max(1, r.correct), 1000.0 * r.max_error_m, r.ambiguous,
-        r.tree_retrieval_ms, r.brute_retrieval_ms,
-        r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms));
-    if (r.reference_verification_ms > 0) {
-      std::printf(" | verification on %d queries: %s %.2f ms vs %s %.2f ms, ratio %.1fx",
-                  r.reference_queries, reference.c_str(), r.reference_verification_ms,
-                  method.c_str(), r.subset_verification_ms,
-                  r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
+        "%s{\"keyframes\":%d,\"coarse\":\"%s\",\"ambiguous\":%d,\"prepare_ms\":%.4f,"
+        "\"correlative_ms\":%.4f,\"coarse_gicp_ms\":%.4f,\"fine_ms\":%.4f,"
+        "\"fine_target_ms\":%.4f,\"overlap_ms\":%.4f,\"insert_ms\":%.4f,\"descriptor_ms\":%.4f,"
+        "\"candidates_ms\":%.4f,"
+        "\"phase1_candidates\":%.1f,\"ranking_ms\":%.4f,\"phase2_candidates\":%.2f,"
+        "\"registrations\":%.2f,\"verification_ms\":%.3f,\"total_ms\":%.3f,\"queries\":%d,"
+        "\"accepted\":%d,\"correct\":%d,\"tree_retrieval_ms\":%.4f,"
+        "\"brute_force_retrieval_ms\":%.4f,\"ratio_brute_over_tree\":%.2f,"
+        "\"reference_queries\":%d,\"reference_verification_ms\":%.3f,"
+        "\"subset_verification_ms\":%.3f,\"ratio_reference_over_method\":%.2f}",
+        i ? "," : "", r.size, r.coarse.c_str(), r.ambiguous, r.prepare_ms, r.correlative_ms,
+        r.coarse_ms, r.fine_ms, r.fine_target_ms, r.overlap_ms, r.insert_ms, r.descriptor_ms,
+        r.candidates_ms, r.phase1_mean, r.ranking_ms, r.phase2_mean, r.registrations_mean,
+        r.verification_ms, r.total_ms, r.queries, r.accepted, r.correct, r.tree_retrieval_ms,
+        r.brute_retrieval_ms, r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms),
+        r.reference_queries, r.reference_verification_ms, r.subset_verification_ms,
+        r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
+  }
+  std::printf("],\"drive\":[");
+  for (size_t i = 0; i < drives.size(); ++i) {
+    if (i) std::printf(",");
+    printDriveJson(drives[i]);
+  }
+  std::printf("]}\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options opt;
+  tools::CommandLine cli(
+      "loop_benchmark",
+      "Loop detection: per-keyframe time of each phase against the database size and "
+      "precision/recall on a simulated drive with revisits, with the configured pipeline and the "
+      "previous one in the same run; or (--candidates) the candidate sources on simulated drives.");
+  declareOptions(cli, opt);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  opt.queries = std::max(1, opt.queries);
+  opt.reference_queries = std::max(0, opt.reference_queries);
+  if (!opt.overrides.empty()) {
+    const YamlParamReader yaml = YamlParamReader::fromString(opt.overrides);
+    if (!yaml.ok()) return cli.fail("--set: " + yaml.error());
+    readParams(yaml, g_params);
+  }
+  if (!opt.candidates.methods.empty()) {
+    try {
+      for (const auto& m : opt.candidates.methods) {
+        LoopDetectorParams p = g_params;
+        p.method = m;
+        LoopDetector check(p);
+      }
+    } catch (const std::exception& e) {
+      return cli.fail(e.what());
     }
-    std::printf("\n");
-    std::fflush(stdout);
-  };
-  for (int size : sizes) {
+    return runCandidateComparison(opt.candidates, opt.explain);
+  }
+  std::vector<Variant> variants;
+  if (const auto exit_code = makeVariants(cli, opt, variants)) return *exit_code;
+  const bool json = opt.json, explain = opt.explain;
+  const std::string &method = opt.method, &reference = opt.reference;
+  const SizeWorkload w = makeSizeWorkload();
+  std::vector<SizeResult> results;
+  for (int size : opt.sizes) {
     const auto measured =
-        benchmarkSize(size, queries, reference_queries, w, variants, reference, explain);
+        benchmarkSize(size, opt.queries, opt.reference_queries, w, variants, reference, explain);
     for (const auto& r : measured) {
       results.push_back(r);
-      if (!json) printSize(r);
+      if (!json) printSize(r, opt);
     }
     if (!json && measured.size() > 1) {
       std::printf("db %5d keyframes: total per query %s / %s = %.2fx (same run, interleaved)\n",
@@ -722,34 +776,6 @@ int main(int argc, char** argv) {
     }
   }
   if (!json) return 0;
-  std::printf("{\"method\":\"%s\",\"reference\":\"%s\",\"database\":[", method.c_str(),
-              reference.c_str());
-  for (size_t i = 0; i < results.size(); ++i) {
-    const auto& r = results[i];
-    std::printf(
-        "%s{\"keyframes\":%d,\"coarse\":\"%s\",\"ambiguous\":%d,\"prepare_ms\":%.4f,"
-        "\"correlative_ms\":%.4f,\"coarse_gicp_ms\":%.4f,\"fine_ms\":%.4f,"
-        "\"fine_target_ms\":%.4f,\"overlap_ms\":%.4f,\"insert_ms\":%.4f,\"descriptor_ms\":%.4f,"
-        "\"candidates_ms\":%.4f,"
-        "\"phase1_candidates\":%.1f,\"ranking_ms\":%.4f,\"phase2_candidates\":%.2f,"
-        "\"registrations\":%.2f,\"verification_ms\":%.3f,\"total_ms\":%.3f,\"queries\":%d,"
-        "\"accepted\":%d,\"correct\":%d,\"tree_retrieval_ms\":%.4f,"
-        "\"brute_force_retrieval_ms\":%.4f,\"ratio_brute_over_tree\":%.2f,"
-        "\"reference_queries\":%d,\"reference_verification_ms\":%.3f,"
-        "\"subset_verification_ms\":%.3f,\"ratio_reference_over_method\":%.2f}",
-        i ? "," : "", r.size, r.coarse.c_str(), r.ambiguous, r.prepare_ms, r.correlative_ms,
-        r.coarse_ms, r.fine_ms, r.fine_target_ms, r.overlap_ms, r.insert_ms, r.descriptor_ms,
-        r.candidates_ms, r.phase1_mean, r.ranking_ms, r.phase2_mean, r.registrations_mean,
-        r.verification_ms, r.total_ms, r.queries, r.accepted, r.correct, r.tree_retrieval_ms,
-        r.brute_retrieval_ms, r.brute_retrieval_ms / std::max(1e-9, r.tree_retrieval_ms),
-        r.reference_queries, r.reference_verification_ms, r.subset_verification_ms,
-        r.reference_verification_ms / std::max(1e-9, r.subset_verification_ms));
-  }
-  std::printf("],\"drive\":[");
-  for (size_t i = 0; i < drives.size(); ++i) {
-    if (i) std::printf(",");
-    printDriveJson(drives[i]);
-  }
-  std::printf("]}\n");
+  printJson(opt, results, drives);
   return 0;
 }

@@ -3,30 +3,21 @@
 #include <string>
 
 #include "osm_graph_slam/drive_io/dataset_bag.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
 int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::fprintf(stderr,
-                 "usage: mulran2bag <sequence_dir> <out.bag> [--absolute-gt] [--skip-missing]\n"
-                 "  sequence_dir holds global_pose.csv and sensor_data/\n");
-    return 2;
-  }
   MulranBagOptions o;
-  o.root = argv[1];
-  o.bag_path = argv[2];
-  for (int i = 3; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--absolute-gt")
-      o.absolute_ground_truth = true;
-    else if (a == "--skip-missing")
-      o.skip_missing = true;
-    else {
-      std::fprintf(stderr, "mulran2bag: unknown option %s\n", a.c_str());
-      return 2;
-    }
-  }
+  tools::CommandLine cli("mulran2bag", "MulRan sequence folder -> rosbag (see doc/simulator.md).");
+  cli.positional("SEQUENCE_DIR", "the sequence: global_pose.csv and sensor_data/", &o.root)
+      .positional("OUT.bag", "the bag to write", &o.bag_path)
+      .flag("--absolute-gt",
+            "global_pose.csv as is (UTM-like numbers; default: relative to the first pose)",
+            &o.absolute_ground_truth)
+      .flag("--skip-missing", "skip scans and images listed in data_stamp.csv but absent",
+            &o.skip_missing);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   const BagConversionResult r = convertMulranToBag(o, stderrProgressBar("mulran2bag"));
   if (!r.ok) {
     std::fprintf(stderr, "\nmulran2bag: %s\n", r.error.c_str());

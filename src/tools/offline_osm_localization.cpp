@@ -1,7 +1,6 @@
-// Localisation from OpenStreetMap alone, offline (issue 21 item 4: a fleet vehicle in a new city,
-// no prior drive): LiDAR odometry + GNSS + the scan's walls aligned with the OSM buildings.
-//   offline_osm_localization --osm FILE (--kitti-raw DIR | --bag FILE | --scans DIR ...)
-//                            --output DIR [--config OVERRIDES.yaml] [--max-scans N] [--json]
+// Localisation from OpenStreetMap alone, offline (a fleet vehicle in a new city, no prior drive):
+// LiDAR odometry + GNSS + the scan's walls aligned with the OSM buildings.
+// The options: offline_osm_localization --help.
 // Runs two filters on the same odometry in one pass: with the OSM walls (the product) and
 // without them (odometry + GNSS), and reports both next to the raw GNSS fixes, so a drive with
 // ground truth shows what the walls add. Writes trajectory_tum.txt (with OSM), gnss_filter_tum.txt
@@ -12,6 +11,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -27,20 +27,15 @@
 #include "osm_graph_slam/osm/osm_map_source.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/slam_pipeline.h"
+#include "support/command_line.h"
+#include "support/drive_options.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-int usage(const std::string& why) {
-  std::cerr << "offline_osm_localization: " << why << "\n"
-            << "usage: offline_osm_localization --osm FILE (--kitti-raw DRIVE_DIR | --bag FILE |\n"
-               "       --scans DIR --origin-oxts FILE) --output DIR [--config OVERRIDES.yaml]\n"
-               "       [--localizer-config FILE] [--max-scans N] [--json]\n";
-  return 2;
-}
 
 /// Mean 2D error of an estimate against the truth at the same scans.
 struct ErrorSum {
@@ -78,84 +73,35 @@ std::string errorLine(const char* label, const ErrorSum& e) {
   return os.str();
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  reuseFreedMemory();
-  std::map<std::string, std::string> args;
-  bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--json") {
-      json = true;
-    } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
-      args[a.substr(2)] = argv[++i];
-    } else {
-      return usage("unexpected argument '" + a + "'");
-    }
-  }
-  if (!args.count("osm")) return usage("--osm is required");
-  if (!args.count("output")) return usage("--output is required");
-
-  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
-  SlamPipelineParams pipeline;
-  std::string error;
-  if (!loadPipelineParams(config_dir, args.count("config") ? args["config"] : "", pipeline,
-                          &error)) {
-    std::cerr << "offline_osm_localization: " << error << "\n";
-    return 1;
-  }
-  const std::string loc_file = args.count("localizer-config")
-                                   ? args["localizer-config"]
-                                   : config_dir + "/osm_localization.yaml";
-  const YamlParamReader loc_yaml = YamlParamReader::fromFile(loc_file);
-  if (!loc_yaml.ok()) {
-    std::cerr << "offline_osm_localization: " << loc_yaml.error() << "\n";
-    return 1;
-  }
-  OsmLocalizerParams with_osm;
-  readParams(loc_yaml, with_osm);
-  OsmLocalizerParams without_osm = with_osm;
-  without_osm.use_osm = false;
-
-  const std::unique_ptr<DriveSource> drive =
-      openDriveSource(args, "offline_osm_localization", &error, pipeline.backend.inputs);
-  if (!drive) {
-    std::cerr << "offline_osm_localization: " << error << "\n";
-    return 1;
-  }
-  pipeline.prefilter.sensor_to_base = drive->sensor_to_base;
-  pipeline.tracker.sensor_to_base = drive->sensor_to_base;  // deskewing: azimuths about the LiDAR
-  std::vector<Building> buildings = loadBuildings(args["osm"], *drive, &error);
-  if (buildings.empty()) {
-    std::cerr << "offline_osm_localization: no buildings from " << args["osm"] << ": " << error
-              << "\n";
-    return 1;
-  }
-  const size_t building_count = buildings.size();
-  OsmLocalizer osm(with_osm, std::move(buildings), pipeline.wall, pipeline.segments,
-                   pipeline.backend.matcher);
-  OsmLocalizer gnss_only(without_osm, {}, pipeline.wall, pipeline.segments,
-                         pipeline.backend.matcher);
-  const CloudPrefilter prefilter(pipeline.prefilter);
-  KeyframeTracker tracker(pipeline.tracker);
-
-  size_t n = drive->size();
-  if (args.count("max-scans")) n = std::min<size_t>(n, std::stoul(args["max-scans"]));
-  ScanPrefetcher prefetcher(*drive, n, 8, [&prefilter](DriveScan& s) {
-    s.filtered = prefilter.filter(*s.cloud);
-    s.cloud.reset();
-  });
+/// The two filters' answers over the drive, their errors against the truth and the time spent.
+struct DriveRun {
   Trajectory est, est_gnss, fixes, truth;
   ErrorSum err_osm, err_gnss_filter, err_fixes, err_osm_seen, err_fixes_seen;
   std::ostringstream status;
+  double prefilter_ms = 0.0, tracking_ms = 0.0, wall_s = 0.0;
+  size_t scans = 0, lost = 0;
+};
+
+/// Both filters on the same odometry, scan by scan (at most n scans of the drive).
+void runFilters(DriveSource& drive, size_t n, const CloudPrefilter& prefilter,
+                KeyframeTracker& tracker, OsmLocalizer& osm, OsmLocalizer& gnss_only,
+                DriveRun& run) {
+  Trajectory &est = run.est, &est_gnss = run.est_gnss, &fixes = run.fixes, &truth = run.truth;
+  ErrorSum &err_osm = run.err_osm, &err_gnss_filter = run.err_gnss_filter,
+           &err_fixes = run.err_fixes, &err_osm_seen = run.err_osm_seen,
+           &err_fixes_seen = run.err_fixes_seen;
+  std::ostringstream& status = run.status;
+  double &prefilter_ms = run.prefilter_ms, &tracking_ms = run.tracking_ms, prev_stamp = -1e300;
+  size_t &scans = run.scans, &lost = run.lost;
+  ScanPrefetcher prefetcher(drive, n, 8, [&prefilter](DriveScan& s) {
+    s.filtered = prefilter.filter(*s.cloud);
+    s.cloud.reset();
+  });
   status << "stamp,status,osm_outcome,osm_fitness,datum_x,datum_y,error_m,gnss_filter_error_m,"
             "osm_message\n";
-  double prefilter_ms = 0.0, tracking_ms = 0.0, prev_stamp = -1e300;
-  size_t scans = 0, lost = 0;
   const auto start = Clock::now();
   DriveScan scan;
-  std::optional<double> first_yaw = drive->initial_yaw;
+  std::optional<double> first_yaw = drive.initial_yaw;
   // A scan seen by the walls: the last accepted match is at most this many scans old.
   int since_accepted = 1 << 20;
   while (scans < n && prefetcher.next(scan)) {
@@ -207,9 +153,20 @@ int main(int argc, char** argv) {
            << "," << a.datum.y() << "," << e_osm << "," << e_gnss << ",\"" << a.osm_message
            << "\"\n";
   }
-  const double wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  run.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+}
 
-  const std::string out = args["output"];
+/// The trajectories, status.csv and the report (timing.json / timing.txt) in `out`; the report
+/// also on stdout.
+void writeOutputs(const DriveRun& run, const OsmLocalizationStats& st, size_t building_count,
+                  const std::string& out, bool json) {
+  const Trajectory &est = run.est, &est_gnss = run.est_gnss, &fixes = run.fixes, &truth = run.truth;
+  const ErrorSum &err_osm = run.err_osm, &err_gnss_filter = run.err_gnss_filter,
+                 &err_fixes = run.err_fixes, &err_osm_seen = run.err_osm_seen,
+                 &err_fixes_seen = run.err_fixes_seen;
+  const std::ostringstream& status = run.status;
+  const double prefilter_ms = run.prefilter_ms, tracking_ms = run.tracking_ms, wall_s = run.wall_s;
+  const size_t scans = run.scans, lost = run.lost;
   std::filesystem::create_directories(out);
   writeTumTrajectory(out + "/trajectory_tum.txt", est);
   writeTumTrajectory(out + "/gnss_filter_tum.txt", est_gnss);
@@ -217,7 +174,6 @@ int main(int argc, char** argv) {
   if (!truth.empty()) writeTumTrajectory(out + "/ground_truth_tum.txt", truth);
   writeFileAtomically(out + "/status.csv", status.str());
 
-  const OsmLocalizationStats& st = osm.stats();
   std::ostringstream report;
   report << std::fixed << std::setprecision(2) << scans << " scans (" << est.size()
          << " localised, " << lost << " without odometry), " << building_count
@@ -252,5 +208,79 @@ int main(int argc, char** argv) {
   writeFileAtomically(out + "/timing.json", j.str() + "\n");
   writeFileAtomically(out + "/timing.txt", report.str());
   std::cout << (json ? j.str() + "\n" : report.str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  reuseFreedMemory();
+  bool json = false;
+  size_t max_scans = std::numeric_limits<size_t>::max();
+  CommandLine cli("offline_osm_localization",
+                  "Localisation from OpenStreetMap alone, offline: LiDAR odometry + GNSS + the "
+                  "scan's walls aligned with the OSM buildings, next to the same filter without "
+                  "the walls and the raw GNSS fixes.");
+  tools::addDriveSourceOptions(cli);
+  cli.option("--osm", "FILE", "the OSM extract (.osm or .pbf)")
+      .required()
+      .option("--output", "DIR", "where the trajectories, status.csv and the report go")
+      .required()
+      .option("--config", "OVERRIDES.yaml", "pipeline parameter overrides (odometry, walls)")
+      .option("--localizer-config", "FILE", "the localiser's parameters")
+      .defaultText("config/osm_localization.yaml")
+      .option("--max-scans", "N", "read at most N scans", &max_scans)
+      .defaultText("all")
+      .flag("--json", "print the report as JSON", &json)
+      .note("Exactly one of --kitti-raw, --bag and --scans names the drive.");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  std::map<std::string, std::string> args = cli.values();
+
+  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
+  SlamPipelineParams pipeline;
+  std::string error;
+  if (!loadPipelineParams(config_dir, args.count("config") ? args["config"] : "", pipeline,
+                          &error)) {
+    std::cerr << "offline_osm_localization: " << error << "\n";
+    return 1;
+  }
+  const std::string loc_file = args.count("localizer-config")
+                                   ? args["localizer-config"]
+                                   : config_dir + "/osm_localization.yaml";
+  const YamlParamReader loc_yaml = YamlParamReader::fromFile(loc_file);
+  if (!loc_yaml.ok()) {
+    std::cerr << "offline_osm_localization: " << loc_yaml.error() << "\n";
+    return 1;
+  }
+  OsmLocalizerParams with_osm;
+  readParams(loc_yaml, with_osm);
+  OsmLocalizerParams without_osm = with_osm;
+  without_osm.use_osm = false;
+
+  const std::unique_ptr<DriveSource> drive =
+      openDriveSource(args, "offline_osm_localization", &error, pipeline.backend.inputs);
+  if (!drive) {
+    std::cerr << "offline_osm_localization: " << error << "\n";
+    return 1;
+  }
+  pipeline.prefilter.sensor_to_base = drive->sensor_to_base;
+  pipeline.tracker.sensor_to_base = drive->sensor_to_base;  // deskewing: azimuths about the LiDAR
+  std::vector<Building> buildings = loadBuildings(args["osm"], *drive, &error);
+  if (buildings.empty()) {
+    std::cerr << "offline_osm_localization: no buildings from " << args["osm"] << ": " << error
+              << "\n";
+    return 1;
+  }
+  const size_t building_count = buildings.size();
+  OsmLocalizer osm(with_osm, std::move(buildings), pipeline.wall, pipeline.segments,
+                   pipeline.backend.matcher);
+  OsmLocalizer gnss_only(without_osm, {}, pipeline.wall, pipeline.segments,
+                         pipeline.backend.matcher);
+  const CloudPrefilter prefilter(pipeline.prefilter);
+  KeyframeTracker tracker(pipeline.tracker);
+
+  const size_t n = std::min(drive->size(), max_scans);
+  DriveRun run;
+  runFilters(*drive, n, prefilter, tracker, osm, gnss_only, run);
+  writeOutputs(run, osm.stats(), building_count, args["output"], json);
   return 0;
 }

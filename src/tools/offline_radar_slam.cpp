@@ -13,20 +13,11 @@
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/radar/radar_drive.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
 namespace {
-
-int usage() {
-  std::fprintf(
-      stderr,
-      "usage: offline_radar_slam --mulran DIR --output DIR [--config radar.yaml] [--json]\n"
-      "       [--max-scans N] [--detector kstrongest|cfar] [--beta S]\n"
-      "       [--no-motion-compensation] [--no-doppler] [--no-registration]\n"
-      "       [--no-loops] [--no-gnss] [--no-imu]\n");
-  return 2;
-}
 
 /// KITTI drift, ATE (first pose aligned, and best-fit aligned) and RPE of a planar trajectory.
 nlohmann::json accuracyOf(const Trajectory& estimate, const Trajectory& truth) {
@@ -112,95 +103,12 @@ std::string loopsCsv(const std::vector<radar::RadarLoop>& loops,
   return csv;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string mulran, output, config;
-  bool json = false;
-  radar::RadarSlamParams slam_params;
-  radar::RadarOdometryParams& params = slam_params.odometry;
-  radar::RadarDriveOptions options;
-  std::string detector, beta;
-  bool no_mc = false, no_doppler = false, no_registration = false, no_loops = false;
-  bool no_gnss = false, no_imu = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "offline_radar_slam: %s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--mulran")
-      mulran = next();
-    else if (a == "--output")
-      output = next();
-    else if (a == "--config")
-      config = next();
-    else if (a == "--json")
-      json = true;
-    else if (a == "--max-scans")
-      options.max_scans = std::atoi(next().c_str());
-    else if (a == "--detector")
-      detector = next();
-    else if (a == "--beta")
-      beta = next();
-    else if (a == "--no-motion-compensation")
-      no_mc = true;
-    else if (a == "--no-doppler")
-      no_doppler = true;
-    else if (a == "--no-registration")
-      no_registration = true;
-    else if (a == "--no-loops")
-      no_loops = true;
-    else if (a == "--no-gnss")
-      no_gnss = true;
-    else if (a == "--no-imu")
-      no_imu = true;
-    else
-      return usage();
-  }
-  if (mulran.empty() || output.empty()) return usage();
-  if (!config.empty()) {
-    const YamlParamReader yaml = YamlParamReader::fromFile(config);
-    std::string error;
-    if (!yaml.ok() || !radar::readSlamParams(yaml, slam_params, &error)) {
-      std::fprintf(stderr, "offline_radar_slam: %s\n",
-                   yaml.ok() ? error.c_str() : yaml.error().c_str());
-      return 2;
-    }
-  }
-  if (!detector.empty()) params.features.detector = detector;
-  if (!beta.empty()) params.motion.doppler_beta = std::atof(beta.c_str());
-  if (no_mc) params.motion.motion_compensation = false;
-  if (no_doppler) params.motion.doppler_correction = false;
-  if (no_registration) params.registration.enabled = false;
-  if (no_loops) slam_params.loop.enabled = false;
-  if (no_gnss) slam_params.nav.gnss_enabled = false;
-  if (no_imu) slam_params.nav.imu_enabled = false;
-
-  const auto t0 = std::chrono::steady_clock::now();
-  const radar::RadarDriveResult r = radar::runMulranRadarSlam(mulran, slam_params, options);
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  for (const std::string& s : r.skipped)
-    std::fprintf(stderr, "offline_radar_slam: skipped: %s\n", s.c_str());
-  if (!r.ok) {
-    std::fprintf(stderr, "offline_radar_slam: %s\n", r.error.c_str());
-    return 1;
-  }
-  std::error_code ec;
-  std::filesystem::create_directories(output, ec);
-  std::string error;
-  const std::string out = output + "/";
-  if (!writeTumTrajectory(out + "odometry_tum.txt", r.odometry, &error) ||
-      !writeTumTrajectory(out + "trajectory_tum.txt", r.trajectory, &error) ||
-      (!r.ground_truth.empty() &&
-       !writeTumTrajectory(out + "ground_truth_tum.txt", r.ground_truth, &error))) {
-    std::fprintf(stderr, "offline_radar_slam: %s\n", error.c_str());
-    return 1;
-  }
+/// The run's report (timing.json): timing per stage, loops, navigation and, with ground truth,
+/// the accuracy; loop_errors gets each loop's error against the truth.
+nlohmann::json radarReport(const radar::RadarDriveResult& r,
+                           const radar::RadarSlamParams& slam_params, const std::string& mulran,
+                           double wall_s, std::vector<std::pair<double, double>>* loop_errors_out) {
+  const radar::RadarOdometryParams& params = slam_params.odometry;
   const double ms_scan =
       r.ms_read + r.ms_features + r.ms_matching + r.ms_motion + r.ms_registration;
   nlohmann::json j;
@@ -245,30 +153,112 @@ int main(int argc, char** argv) {
                      {"imu_out_of_order", ns.imu_out_of_order},
                      {"imu_edges", ns.imu_edges},
                      {"imu_missing", ns.imu_missing}};
-  std::vector<std::pair<double, double>> loop_errors;  // per loop, when there is ground truth
   if (!r.ground_truth.empty()) {
-    j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0, &loop_errors);
+    j["loops"]["against_ground_truth"] = loopErrors(r, 1.0, 2.0, loop_errors_out);
     j["accuracy"] = accuracyOf(r.odometry, r.ground_truth);
     j["accuracy_slam"] = accuracyOf(r.trajectory, r.ground_truth);
   }
-  writeFileAtomically(out + "timing.json", j.dump(2) + "\n", nullptr);
-  writeFileAtomically(out + "loops.csv", loopsCsv(r.loops, loop_errors), nullptr);
-  if (json) {
-    std::printf("%s\n", j.dump(2).c_str());
-  } else {
-    std::printf("offline_radar_slam: %d sweeps (%zu skipped, %d RANSAC failures) over %.1f s\n",
-                r.scans, r.skipped.size(), r.failed, r.span_s);
-    std::printf(
-        "time per sweep: read %.1f ms, features %.1f ms, matching %.1f ms, motion %.1f ms,"
-        " registration %.1f ms, total %.1f ms = %.2fx real time at 4 Hz\n",
-        r.ms_read, r.ms_features, r.ms_matching, r.ms_motion, r.ms_registration, ms_scan,
-        ms_scan > 0 ? 250.0 / ms_scan : 0.0);
-    std::printf("loops: %s\n", j["loops"].dump().c_str());
-    std::printf("navigation: %s\n", j["navigation"].dump().c_str());
-    if (j.contains("accuracy")) {
-      std::printf("odometry: %s\n", j["accuracy"].dump().c_str());
-      std::printf("with loops: %s\n", j["accuracy_slam"].dump().c_str());
+  return j;
+}
+
+/// The report as text.
+void printReport(const radar::RadarDriveResult& r, const nlohmann::json& j) {
+  const double ms_scan = j["timing_ms_per_scan"]["total"].get<double>();
+  std::printf("offline_radar_slam: %d sweeps (%zu skipped, %d RANSAC failures) over %.1f s\n",
+              r.scans, r.skipped.size(), r.failed, r.span_s);
+  std::printf(
+      "time per sweep: read %.1f ms, features %.1f ms, matching %.1f ms, motion %.1f ms,"
+      " registration %.1f ms, total %.1f ms = %.2fx real time at 4 Hz\n",
+      r.ms_read, r.ms_features, r.ms_matching, r.ms_motion, r.ms_registration, ms_scan,
+      ms_scan > 0 ? 250.0 / ms_scan : 0.0);
+  std::printf("loops: %s\n", j["loops"].dump().c_str());
+  std::printf("navigation: %s\n", j["navigation"].dump().c_str());
+  if (j.contains("accuracy")) {
+    std::printf("odometry: %s\n", j["accuracy"].dump().c_str());
+    std::printf("with loops: %s\n", j["accuracy_slam"].dump().c_str());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string mulran, output, config;
+  bool json = false;
+  radar::RadarSlamParams slam_params;
+  radar::RadarOdometryParams& params = slam_params.odometry;
+  radar::RadarDriveOptions options;
+  std::string detector, beta;
+  bool no_mc = false, no_doppler = false, no_registration = false, no_loops = false;
+  bool no_gnss = false, no_imu = false;
+  tools::CommandLine cli(
+      "offline_radar_slam",
+      "Radar odometry (RadART-SLAM front-end), loops and GNSS/IMU over a MulRan-layout drive, "
+      "written as offline_slam writes its runs (see doc/radar.md).");
+  cli.option("--mulran", "DIR", "the MulRan sequence folder", &mulran)
+      .required()
+      .option("--output", "DIR",
+              "where odometry_tum.txt, trajectory_tum.txt, ground_truth_tum.txt, loops.csv and "
+              "timing.json go",
+              &output)
+      .required()
+      .option("--config", "radar.yaml", "radar parameters", &config)
+      .flag("--json", "print the report as JSON", &json)
+      .option("--max-scans", "N", "read at most N sweeps (0: all)", &options.max_scans)
+      .option("--detector", "kstrongest|cfar", "the feature detector", &detector)
+      .option("--beta", "S", "the Doppler beta", &beta)
+      .flag("--no-motion-compensation", "no motion compensation", &no_mc)
+      .flag("--no-doppler", "no Doppler correction", &no_doppler)
+      .flag("--no-registration", "no sweep registration", &no_registration)
+      .flag("--no-loops", "no loop closures", &no_loops)
+      .flag("--no-gnss", "no GNSS", &no_gnss)
+      .flag("--no-imu", "no IMU", &no_imu);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (!config.empty()) {
+    const YamlParamReader yaml = YamlParamReader::fromFile(config);
+    std::string error;
+    if (!yaml.ok() || !radar::readSlamParams(yaml, slam_params, &error)) {
+      std::fprintf(stderr, "offline_radar_slam: %s\n",
+                   yaml.ok() ? error.c_str() : yaml.error().c_str());
+      return 2;
     }
   }
+  if (!detector.empty()) params.features.detector = detector;
+  if (!beta.empty()) params.motion.doppler_beta = std::atof(beta.c_str());
+  if (no_mc) params.motion.motion_compensation = false;
+  if (no_doppler) params.motion.doppler_correction = false;
+  if (no_registration) params.registration.enabled = false;
+  if (no_loops) slam_params.loop.enabled = false;
+  if (no_gnss) slam_params.nav.gnss_enabled = false;
+  if (no_imu) slam_params.nav.imu_enabled = false;
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const radar::RadarDriveResult r = radar::runMulranRadarSlam(mulran, slam_params, options);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (const std::string& s : r.skipped)
+    std::fprintf(stderr, "offline_radar_slam: skipped: %s\n", s.c_str());
+  if (!r.ok) {
+    std::fprintf(stderr, "offline_radar_slam: %s\n", r.error.c_str());
+    return 1;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(output, ec);
+  std::string error;
+  const std::string out = output + "/";
+  if (!writeTumTrajectory(out + "odometry_tum.txt", r.odometry, &error) ||
+      !writeTumTrajectory(out + "trajectory_tum.txt", r.trajectory, &error) ||
+      (!r.ground_truth.empty() &&
+       !writeTumTrajectory(out + "ground_truth_tum.txt", r.ground_truth, &error))) {
+    std::fprintf(stderr, "offline_radar_slam: %s\n", error.c_str());
+    return 1;
+  }
+  std::vector<std::pair<double, double>> loop_errors;  // per loop, when there is ground truth
+  const nlohmann::json j = radarReport(r, slam_params, mulran, wall_s, &loop_errors);
+  writeFileAtomically(out + "timing.json", j.dump(2) + "\n", nullptr);
+  writeFileAtomically(out + "loops.csv", loopsCsv(r.loops, loop_errors), nullptr);
+  if (json)
+    std::printf("%s\n", j.dump(2).c_str());
+  else
+    printReport(r, j);
   return 0;
 }

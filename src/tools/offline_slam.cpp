@@ -1,19 +1,10 @@
 // offline_slam: the SLAM pipeline on a KITTI raw drive folder or a bag (as kitti2bag writes it),
 // without a ROS master, as fast as the CPU allows. Writes what save_map writes, the
 // odometry-only keyframe trajectory, the ground truth of the keyframes (KITTI raw's GPS/INS, the
-// simulator's true poses; the bag's ground_truth topic), a timing report and the map package
-// for offline_localization (OUT/map_package, doc/localization.md).
+// simulator's true poses; the bag's ground_truth topic), a timing report, the map package
+// for offline_localization (OUT/map_package, doc/localization.md) and, with a prior, the prior
+// buildings it used (buildings_prior.geojson). The options: offline_slam --help.
 //
-//   offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag
-//                 | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])
-//                   [--rate HZ] [--calib FILE]) --output DIR
-//                [--osm FILE.osm|.pbf | --overpass URL] [--no-osm] [--no-loops]
-//                [--config OVERRIDES.yaml (default config/kitti.yaml; simulated drives: sim.yaml)]
-//                [--max-scans N] [--json]
-//                [--initial-heading imu|global_matching] [--no-imu] [--dump DIR]
-//                [--dump-without-clouds]
-//                [--cloud-topic velodyne_points] [--gps-topic gps/fix] [--imu-topic imu/data]
-//                [--ground-truth-topic ground_truth] [--base-frame base_link]
 // The first GPS fix is the map origin; the first IMU orientation (OXTS record) the initial
 // heading, and the IMU's roll/pitch at each keyframe an attitude prior (unless --no-imu).
 // --scans: a folder of KITTI .bin scans with one georeference for the first scan (a drive
@@ -37,6 +28,7 @@
 
 #include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/drive_io/drive_source.h"
+#include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/loop_closure_file.h"
@@ -47,26 +39,53 @@
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/slam_pipeline.h"
+#include "support/command_line.h"
+#include "support/drive_options.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::addDriveSourceOptions;
+using osm_graph_slam::tools::CommandLine;
 namespace fs = std::filesystem;
 
 namespace {
 
-int usage(const std::string& why) {
-  std::cerr
-      << "offline_slam: " << why << "\n"
-      << "usage: offline_slam (--kitti-raw DRIVE_DIR [--calib-dir DIR] | --bag FILE.bag\n"
-         "       | --scans DIR (--origin-oxts FILE | --origin LAT,LON,ALT[,YAW_DEG])\n"
-         "         [--rate HZ] [--calib FILE])\n"
-         "       --output DIR [--osm FILE | --overpass URL] [--config OVERRIDES.yaml]\n"
-         "       [--no-osm] [--no-loops] [--max-scans N]\n"
-         "       [--initial-heading imu|global_matching] [--no-imu] [--dump DIR] [--json]\n"
-         "       [--dump-without-clouds]   (the dump without keyframes/*.pcd: replay_backend\n"
-         "                                  does not read them)\n"
-         "       [--cloud-topic T] [--gps-topic T] [--imu-topic T]\n"
-         "       [--ground-truth-topic T] [--base-frame F]   (bag topics and frame)\n";
-  return 2;
+/// What the command line switches off or asks for; the drive and the other values stay text
+/// (CommandLine::values()), as openDriveSource() reads them.
+struct Switches {
+  bool json = false, use_osm = true, use_loops = true, use_imu = true, dump_clouds = true;
+  size_t max_scans = std::numeric_limits<size_t>::max();
+};
+
+void declareOptions(CommandLine& cli, Switches& sw) {
+  addDriveSourceOptions(cli);
+  cli.option("--output", "DIR", "where the map, trajectories and reports are written")
+      .required()
+      .option("--osm", "FILE", "the OSM prior (.osm or .pbf)")
+      .option("--overpass", "URL", "an Overpass endpoint to ask for the prior instead of --osm")
+      .option("--config", "OVERRIDES.yaml",
+              "parameter overrides (config/sim.yaml for simulated drives)")
+      .defaultText("config/kitti.yaml")
+      .flag("--no-osm", "no OSM prior: odometry, loops, GNSS and IMU only", &sw.use_osm, false)
+      .flag("--no-loops", "no loop closures", &sw.use_loops, false)
+      .flag("--no-imu", "no IMU attitude priors and no IMU orientation for the tracker",
+            &sw.use_imu, false)
+      .option("--max-scans", "N", "read at most N scans", &sw.max_scans)
+      .defaultText("all")
+      .option("--initial-heading", "imu|global_matching",
+              "the first keyframe's heading: the first IMU orientation, or global matching "
+              "against the prior with unbounded rotation")
+      .defaultText("imu")
+      .option("--dump", "DIR", "also dump the graph for replay_backend")
+      .flag("--dump-without-clouds",
+            "the dump without keyframes/*.pcd (replay_backend does not read them)", &sw.dump_clouds,
+            false)
+      .flag("--json", "print the timing report as JSON", &sw.json)
+      .note(
+          "Exactly one of --kitti-raw, --bag and --scans names the drive; --osm or --overpass "
+          "is required unless --no-osm. The first GPS fix is the map origin; the first IMU "
+          "orientation the initial heading. Writes what save_map writes plus "
+          "buildings_prior.geojson (the OSM prior used), the odometry-only trajectory, the "
+          "ground truth of the keyframes and of every scan, loops.txt and timing.json/.txt.");
 }
 
 std::string argOr(const std::map<std::string, std::string>& args, const std::string& key,
@@ -88,33 +107,74 @@ std::vector<StampedLoopClosure> stampedLoops(const GraphBackend& backend) {
   return out;
 }
 
+/// The prior buildings the back-end used, in the format of buildings_corrected.geojson, so that
+/// a plot of the output folder shows both (scripts/plot_map_overlay.py).
+void writePriorBuildings(const GraphBackend& backend, const std::string& out) {
+  std::vector<Building> priors;
+  for (const auto& b : backend.buildings()) priors.push_back(b.prior);
+  std::string error;
+  if (!writeBuildingsGeoJson(out + "/buildings_prior.geojson", priors, &error))
+    std::cerr << "offline_slam: buildings_prior.geojson: " << error << "\n";
+}
+
+/// What offline_slam writes next to save_map's files: the ground truth, loops, the odometry-only
+/// trajectory, the timing report and (with a prior) the prior buildings.
+void writeRunFiles(const SlamPipeline& pipeline, const std::string& out,
+                   const std::map<double, Eigen::Isometry3d>& truth_by_stamp) {
+  Trajectory truth, truth_all_scans;
+  for (const auto& sp : pipeline.backend().trajectory()) {
+    auto it = truth_by_stamp.find(sp.stamp);
+    if (it != truth_by_stamp.end()) truth.push_back({sp.stamp, it->second});
+  }
+  for (const auto& [stamp, pose] : truth_by_stamp) truth_all_scans.push_back({stamp, pose});
+  writeTumTrajectory(out + "/ground_truth_tum.txt", truth);
+  // The truth of every scan read: evaluate_slam's coverage sees a drive the keyframes stop short
+  // of.
+  writeTumTrajectory(out + "/ground_truth_scans_tum.txt", truth_all_scans);
+  writeLoopClosures(out + "/loops.txt", stampedLoops(pipeline.backend()));
+  writeTumTrajectory(out + "/odometry_tum.txt", pipeline.backend().odomTrajectory());
+  writeFileAtomically(out + "/timing.json", pipeline.timingJson() + "\n");
+  writeFileAtomically(out + "/timing.txt", pipeline.timingTable());
+
+  if (pipeline.backend().params().use_osm) writePriorBuildings(pipeline.backend(), out);
+}
+
+void warnIfTrackLost(const TrackingStats& tracking) {
+  if (tracking.lost_events > 0)
+    std::cerr << "offline_slam: WARNING: the track was lost " << tracking.lost_events
+              << " time(s): " << tracking.scans_while_lost << " of " << tracking.scans
+              << " scans came while no keyframe was made (longest "
+              << tracking.longest_no_keyframe_s << " s); see timing.txt\n";
+}
+
+/// A simulated drive run with the real-data overrides is worth a note: simulate_urban writes
+/// sim_info.json two levels above the drive folder.
+void noteSimulatedDrive(const std::map<std::string, std::string>& args) {
+  if (!args.count("kitti-raw") || args.count("config")) return;
+  std::filesystem::path drive_dir = std::filesystem::absolute(args.at("kitti-raw"));
+  if (drive_dir.filename().empty()) drive_dir = drive_dir.parent_path();  // "DRIVE/"
+  if (std::filesystem::exists(drive_dir.parent_path().parent_path() / "sim_info.json"))
+    std::cerr << "offline_slam: note: " << drive_dir.string()
+              << " was written by simulate_urban, whose prior misplaces every building on its "
+                 "own; its overrides are --config config/sim.yaml (using config/kitti.yaml)\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
-  std::map<std::string, std::string> args;
-  bool json = false, use_osm = true, use_loops = true, use_imu = true, dump_clouds = true;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--json") {
-      json = true;
-    } else if (a == "--no-osm") {
-      use_osm = false;
-    } else if (a == "--no-loops") {
-      use_loops = false;
-    } else if (a == "--no-imu") {
-      use_imu = false;
-    } else if (a == "--dump-without-clouds") {
-      dump_clouds = false;
-    } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
-      args[a.substr(2)] = argv[++i];
-    } else {
-      return usage("unexpected argument '" + a + "'");
-    }
-  }
+  Switches sw;
+  CommandLine cli("offline_slam",
+                  "The SLAM pipeline on a KITTI raw drive folder, a bag or a folder of scans, "
+                  "without a ROS master, as fast as the CPU allows.");
+  declareOptions(cli, sw);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  std::map<std::string, std::string> args = cli.values();
+  const auto usage = [&cli](const std::string& why) { return cli.fail(why); };
+  const bool json = sw.json, use_osm = sw.use_osm, use_loops = sw.use_loops;
+  const bool use_imu = sw.use_imu, dump_clouds = sw.dump_clouds;
   if (args.count("kitti-raw") + args.count("bag") + args.count("scans") != 1)
     return usage("exactly one of --kitti-raw, --bag and --scans is required");
-  if (!args.count("output")) return usage("--output is required");
   if (args.count("osm") && args.count("overpass"))
     return usage("--osm and --overpass exclude each other");
 
@@ -130,16 +190,7 @@ int main(int argc, char** argv) {
   params.use_loops = params.use_loops && use_loops;
   params.backend.use_osm = params.backend.use_osm && use_osm;
 
-  if (args.count("kitti-raw")) {
-    // simulate_urban writes sim_info.json two levels above the drive folder.
-    std::filesystem::path drive_dir = std::filesystem::absolute(args["kitti-raw"]);
-    if (drive_dir.filename().empty()) drive_dir = drive_dir.parent_path();  // "DRIVE/"
-    if (!args.count("config") &&
-        std::filesystem::exists(drive_dir.parent_path().parent_path() / "sim_info.json"))
-      std::cerr << "offline_slam: note: " << drive_dir.string()
-                << " was written by simulate_urban, whose prior misplaces every building on its "
-                   "own; its overrides are --config config/sim.yaml (using config/kitti.yaml)\n";
-  }
+  noteSimulatedDrive(args);
   const std::unique_ptr<DriveSource> drive =
       openDriveSource(args, "offline_slam", &error, params.backend.inputs);
   if (!drive) {
@@ -165,8 +216,10 @@ int main(int argc, char** argv) {
       return usage("--osm FILE or --overpass URL is required unless --no-osm");
     }
   }
-  // The initial heading from the first IMU orientation (the thesis' initial_orient), unless
-  // global matching with unbounded rotation is asked for.
+  // The drive's own start heading (its first OXTS record, the bag's IMU at its first cloud, a
+  // scan folder's georeference; the thesis' initial_orient) is the known heading that
+  // KeyframeAiding gives the first keyframe; --initial-heading global_matching leaves it unknown
+  // and the first global matching with unbounded rotation decides it.
   const std::string heading = argOr(args, "initial-heading", "imu");
   if (heading == "imu") {
     if (!drive->initial_yaw) {
@@ -182,8 +235,7 @@ int main(int argc, char** argv) {
   SlamPipeline pipeline(params, source);
   pipeline.setOrigin(drive->lat, drive->lon, drive->alt);
 
-  size_t n = drive->size();
-  if (args.count("max-scans")) n = std::min<size_t>(n, std::stoul(args["max-scans"]));
+  const size_t n = std::min(drive->size(), sw.max_scans);
   std::map<double, Eigen::Isometry3d> truth_by_stamp;
   DriveScan scan;
   // The prefilter runs on the reading thread, so that it overlaps the tracking of the scans
@@ -228,27 +280,8 @@ int main(int argc, char** argv) {
     const MapExportResult dumped = dumpGraph(pipeline.backend(), args["dump"], dump_clouds);
     if (!dumped.success) std::cerr << "offline_slam: dump failed: " << dumped.message << "\n";
   }
-  Trajectory truth, truth_all_scans;
-  for (const auto& sp : pipeline.backend().trajectory()) {
-    auto it = truth_by_stamp.find(sp.stamp);
-    if (it != truth_by_stamp.end()) truth.push_back({sp.stamp, it->second});
-  }
-  for (const auto& [stamp, pose] : truth_by_stamp) truth_all_scans.push_back({stamp, pose});
-  writeTumTrajectory(out + "/ground_truth_tum.txt", truth);
-  // The truth of every scan read: evaluate_slam's coverage sees a drive the keyframes stop short
-  // of.
-  writeTumTrajectory(out + "/ground_truth_scans_tum.txt", truth_all_scans);
-  writeLoopClosures(out + "/loops.txt", stampedLoops(pipeline.backend()));
-  writeTumTrajectory(out + "/odometry_tum.txt", pipeline.backend().odomTrajectory());
-  writeFileAtomically(out + "/timing.json", pipeline.timingJson() + "\n");
-  writeFileAtomically(out + "/timing.txt", pipeline.timingTable());
-
-  const TrackingStats tracking = pipeline.timings().tracking;
-  if (tracking.lost_events > 0)
-    std::cerr << "offline_slam: WARNING: the track was lost " << tracking.lost_events
-              << " time(s): " << tracking.scans_while_lost << " of " << tracking.scans
-              << " scans came while no keyframe was made (longest "
-              << tracking.longest_no_keyframe_s << " s); see timing.txt\n";
+  writeRunFiles(pipeline, out, truth_by_stamp);
+  warnIfTrackLost(pipeline.timings().tracking);
   if (json) {
     std::cout << pipeline.timingJson() << "\n";
   } else {

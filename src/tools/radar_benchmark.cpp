@@ -7,6 +7,7 @@
 
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/eval/radar_evaluation.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
 
@@ -14,34 +15,24 @@ int main(int argc, char** argv) {
   std::string dir = "../shared/data/oxford_radar", config, gt;
   radar::RadarOdometryParams params;
   std::string detector, beta, mc;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "radar_benchmark: %s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--oxford")
-      dir = next();
-    else if (a == "--ground-truth")
-      gt = next();
-    else if (a == "--config")
-      config = next();
-    else if (a == "--detector")
-      detector = next();
-    else if (a == "--beta")
-      beta = next();
-    else if (a == "--motion-compensation")
-      mc = next();
-    else {
-      std::fprintf(stderr,
-                   "usage: radar_benchmark [--oxford DIR] [--ground-truth CSV] [--config YAML]\n"
-                   "       [--detector kstrongest|cfar] [--beta S] [--motion-compensation 0|1]\n");
-      return 2;
-    }
-  }
+  tools::CommandLine cli("radar_benchmark",
+                         "Radar odometry on real Oxford Radar RobotCar scans against the "
+                         "dataset's radar-odometry ground truth, pair by pair, with the time per "
+                         "stage. Options override config/radar.yaml (see doc/radar.md).");
+  cli.option("--oxford", "DIR", "the Oxford radar scans", &dir)
+      .option("--ground-truth", "CSV", "the radar odometry ground truth", &gt)
+      .defaultText("DIR/radar_odometry.csv")
+      .option("--config", "YAML", "radar parameters", &config)
+      .option("--detector", "kstrongest|cfar", "the feature detector", &detector)
+      .option("--beta", "S", "the Doppler beta (0: no Doppler correction)",
+              [&beta](const std::string& v) {
+                double b = 0.0;
+                if (!tools::parseDouble(v, &b)) return "'" + v + "' is not a number";
+                beta = v;
+                return std::string();
+              })
+      .option("--motion-compensation", "0|1", "motion compensation off or on", &mc);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   if (!config.empty()) {
     const YamlParamReader yaml = YamlParamReader::fromFile(config);
     std::string error;

@@ -1,8 +1,6 @@
 // Re-runs the graph back-end on a dump_graph directory (offline_slam --dump, or the nodelet's
-// dump_graph service) with other parameters, without the front-end:
-//   replay_backend --dump DIR --output DIR [--config OVERRIDES.yaml (default config/kitti.yaml)]
-//                  [--set key=value ...] [--no-osm]
-// Writes trajectory_tum.txt, trajectory_kitti.txt, buildings_corrected.geojson and
+// dump_graph service) with other parameters, without the front-end (the options: replay_backend
+// --help). Writes trajectory_tum.txt, trajectory_kitti.txt, buildings_corrected.geojson and
 // odometry_tum.txt, and prints what the last update did.
 #include <chrono>
 #include <filesystem>
@@ -24,20 +22,12 @@
 #include "osm_graph_slam/slam/graph_dump.h"
 #include "osm_graph_slam/slam/params_io.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
 
 namespace {
-
-int usage(const std::string& why) {
-  std::cerr << "replay_backend: " << why << "\n"
-            << "usage: replay_backend --dump DIR --output DIR [--config OVERRIDES.yaml]\n"
-               "       [--set key=value]... [--no-osm] [--edges FILE]\n"
-               "  --set overrides one graph_backend parameter (as in config/graph_backend.yaml,\n"
-               "  nested keys with '/': line_matcher/max_translation=2.0)\n"
-               "  --edges writes every robot<->building edge left in the graph (for analysis)\n";
-  return 2;
-}
 
 /// --set key=value pairs as a ParamReader over the back-end's parameters.
 class OverrideReader : public ParamReader {
@@ -105,25 +95,34 @@ class OverrideReader : public ParamReader {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::map<std::string, std::string> args, sets;
+  std::map<std::string, std::string> sets;
   bool use_osm = true;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--no-osm") {
-      use_osm = false;
-    } else if (a == "--set" && i + 1 < argc) {
-      const std::string kv = argv[++i];
-      const auto eq = kv.find('=');
-      if (eq == std::string::npos) return usage("--set expects key=value, got '" + kv + "'");
-      sets[kv.substr(0, eq)] = kv.substr(eq + 1);
-    } else if (a.rfind("--", 0) == 0 && i + 1 < argc) {
-      args[a.substr(2)] = argv[++i];
-    } else {
-      return usage("unexpected argument '" + a + "'");
-    }
-  }
-  if (!args.count("dump") || !args.count("output"))
-    return usage("--dump and --output are required");
+  CommandLine cli("replay_backend",
+                  "Re-runs the graph back-end on a dump_graph directory (offline_slam --dump, or "
+                  "the nodelet's dump_graph service) with other parameters, without the "
+                  "front-end.");
+  cli.option("--dump", "DIR", "the dump to replay")
+      .required()
+      .option("--output", "DIR",
+              "where trajectory_tum.txt, trajectory_kitti.txt, odometry_tum.txt and "
+              "buildings_corrected.geojson go")
+      .required()
+      .option("--config", "OVERRIDES.yaml", "parameter overrides")
+      .defaultText("config/kitti.yaml")
+      .option("--set", "key=value",
+              "override one graph_backend parameter (as in config/graph_backend.yaml, nested "
+              "keys with '/': line_matcher/max_translation=2.0); repeatable",
+              [&sets](const std::string& kv) {
+                const auto eq = kv.find('=');
+                if (eq == std::string::npos) return "expects key=value, got '" + kv + "'";
+                sets[kv.substr(0, eq)] = kv.substr(eq + 1);
+                return std::string();
+              })
+      .flag("--no-osm", "replay without the OSM prior", &use_osm, false)
+      .option("--edges", "FILE",
+              "write every robot<->building edge left in the graph (for analysis)");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  std::map<std::string, std::string> args = cli.values();
 
   SlamPipelineParams params;
   std::string error;
@@ -137,11 +136,11 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!overrides.badValues().empty())
-    return usage("--set " + overrides.badValues().front() +
-                 ": not a value of that parameter's type");
+    return cli.fail("--set " + overrides.badValues().front() +
+                    ": not a value of that parameter's type");
   // A misspelt --set would otherwise replay the defaults under the wrong name.
   if (const auto unused = overrides.unusedKeys(); !unused.empty())
-    return usage("--set " + unused.front() + ": no such graph_backend parameter");
+    return cli.fail("--set " + unused.front() + ": no such graph_backend parameter");
   params.backend.use_osm = params.backend.use_osm && use_osm;
   GraphDump dump;
   if (!readGraphDump(args["dump"], dump, &error)) {

@@ -1,12 +1,13 @@
 // sim_benchmark: speed of the urban simulator's stages, and the grid ray caster against testing
 // every wall and primitive (the reference, measured in the same run).
-//   sim_benchmark [--scans N] [--json]
+//   (the options: sim_benchmark --help)
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
 
 #include "osm_graph_slam/sim/simulator.h"
+#include "support/command_line.h"
 
 using namespace osm_graph_slam::sim;
 
@@ -19,17 +20,12 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 int main(int argc, char** argv) {
   int scans = 20;
   bool json = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--scans" && i + 1 < argc)
-      scans = std::atoi(argv[++i]);
-    else if (a == "--json")
-      json = true;
-    else {
-      std::fprintf(stderr, "usage: sim_benchmark [--scans N] [--json]\n");
-      return 2;
-    }
-  }
+  osm_graph_slam::tools::CommandLine cli(
+      "sim_benchmark",
+      "Speed of the urban simulator's stages, and the grid ray caster against testing every wall "
+      "and primitive (the reference, measured in the same run).");
+  cli.option("--scans", "N", "scans to simulate", &scans).flag("--json", "print JSON", &json);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   auto t0 = std::chrono::steady_clock::now();
   UrbanSimulator sim;
   std::string error;

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "osm_graph_slam/io/building_geojson.h"
@@ -172,9 +173,10 @@ TEST_F(OfflineSlamBag, BagAndKittiRawGiveTheSameTrajectory) {
   ASSERT_EQ(run(offlineSlam("--bag '" + D->bag.string() + "'", bag_out), &log), 0) << log;
   std::cout << log;
 
-  for (const char* f : {"map.pcd", "buildings_corrected.geojson", "buildings_corrected.osm",
-                        "trajectory_kitti.txt", "trajectory_tum.txt", "graph.g2o",
-                        "odometry_tum.txt", "ground_truth_tum.txt", "timing.txt", "timing.json"})
+  for (const char* f :
+       {"map.pcd", "buildings_corrected.geojson", "buildings_corrected.osm",
+        "buildings_prior.geojson", "trajectory_kitti.txt", "trajectory_tum.txt", "graph.g2o",
+        "odometry_tum.txt", "ground_truth_tum.txt", "timing.txt", "timing.json"})
     EXPECT_TRUE(fs::exists(bag_out / f)) << f;
 
   for (const char* f : {"trajectory_tum.txt", "odometry_tum.txt", "ground_truth_tum.txt"}) {
@@ -205,6 +207,19 @@ TEST_F(OfflineSlamBag, BagAndKittiRawGiveTheSameTrajectory) {
   ASSERT_TRUE(a.ok && b.ok) << a.error << b.error;
   EXPECT_EQ(a.buildings.size(), b.buildings.size());
   EXPECT_GE(a.buildings.size(), 3u) << "no building reached the back-end";
+  // The prior the back-end used, in the same format, next to the corrected outlines (what
+  // scripts/plot_map_overlay.py draws): the same buildings by id, with their outlines in lat/lon.
+  const BuildingFileResult prior =
+      readBuildingsGeoJson((kitti_out / "buildings_prior.geojson").string());
+  ASSERT_TRUE(prior.ok) << prior.error;
+  ASSERT_EQ(prior.buildings.size(), a.buildings.size());
+  std::set<int64_t> prior_ids, corrected_ids;
+  for (const Building& p : prior.buildings) {
+    prior_ids.insert(p.id);
+    EXPECT_GE(p.outline_geo.size(), 3u) << p.id;
+  }
+  for (const Building& c : a.buildings) corrected_ids.insert(c.id);
+  EXPECT_EQ(prior_ids, corrected_ids);
 }
 
 TEST_F(OfflineSlamBag, TopicNamesAreOptionsAndBadInputIsReported) {
