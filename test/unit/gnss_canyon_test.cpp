@@ -337,3 +337,56 @@ TEST(GnssCanyon, DriveWithoutAnyFixRunsAndCountsTheOutage) {
       << error;
   EXPECT_FALSE(r.hasGnssFix());
 }
+
+TEST(GnssCanyon, ConstellationDrawsEightToFourteenDriftingSlowly) {
+  for (uint64_t seed = 1; seed <= 30; ++seed) {
+    const Constellation sky = Constellation::draw(ConstellationParams(), seed);
+    ASSERT_GE(sky.size(), 8u);
+    ASSERT_LE(sky.size(), 14u);
+    for (size_t i = 0; i < sky.size(); ++i) {
+      EXPECT_GE(Constellation::elevation(sky.direction(i, 0.0)), 10.0 * kDeg - 1e-12);
+      // 0.5 deg per minute along the sky.
+      const double moved =
+          std::acos(std::clamp(sky.direction(i, 0.0).dot(sky.direction(i, 60.0)), -1.0, 1.0));
+      EXPECT_NEAR(moved, 0.5 * kDeg, 1e-9);
+      EXPECT_NEAR(sky.position(i, 0.0).norm(), ConstellationParams().distance_m, 1e-6);
+    }
+  }
+  EXPECT_NE(Constellation::draw(ConstellationParams(), 1).direction(0, 0.0),
+            Constellation::draw(ConstellationParams(), 2).direction(0, 0.0));
+}
+
+TEST(GnssCanyon, NoisyRecordsAreThoseOfBefore) {
+  // The default model's records of seed 2 as written before the canyon model existed (the
+  // binary of commit 7e9557e): adding the model must not move a byte of them.
+  SimulationParams p;
+  p.seed = 2;
+  p.clutter_enabled = false;  // planned after the route and the GNSS errors: changes neither
+  UrbanSimulator sim;
+  std::string error;
+  ASSERT_TRUE(sim.build(p, &error)) << error;
+  const std::map<size_t, std::string> before = {
+      {0,
+       "49.009312050817748 8.42154010046103 113.89230398110296 -0.022453842871515105 "
+       "0.010020120772318121 -1.5784700207653992 -7.9996005661106695 0 8.0000000000000036 "
+       "-3.5908775952719907e-16 0 -0.12220271569940122 -0.20970155122007281 9.820571880958946 "
+       "-0.12220271569940122 -0.20970155122007281 9.820571880958946 0.0021837616041364355 "
+       "-0.0028134286148424363 0.00097769864671160001 0.0021837616041364355 -0.0028134286148424363 "
+       "0.00097769864671160001 1.8027756377319946 0.02 4 8 3 3 6"},
+      {9,
+       "49.009276170956369 8.421509236642553 110.95907896643619 -0.022918736567641616 "
+       "0.010584273235900464 -1.5741420207164458 -7.9994485814008911 2.6645352591003757e-15 "
+       "8.0000000000000018 2.2941717969793274e-16 0 -0.12525665927368995 -0.30446451874389446 "
+       "9.7675854354993259 -0.12525665927368995 -0.30446451874389446 9.7675854354993259 "
+       "-0.00042582438652766501 -0.0012663555189237148 -0.0013229504835765152 "
+       "-0.00042582438652766501 -0.0012663555189237148 -0.0013229504835765152 1.8027756377319946 "
+       "0.02 4 8 3 3 6"}};
+  const fs::path path = fs::path(::testing::TempDir()) / "noisy_record.txt";
+  for (const auto& [k, line] : before) {
+    ASSERT_TRUE(writeOxtsFile(path.string(), sim.measuredOxts(k), &error)) << error;
+    std::string written = fileBytes(path);
+    while (!written.empty() && std::isspace(static_cast<unsigned char>(written.back())))
+      written.pop_back();
+    EXPECT_EQ(written, line) << "scan " << k;
+  }
+}
