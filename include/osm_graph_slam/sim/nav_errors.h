@@ -3,7 +3,9 @@
 // IMU reports instead of the true pose (white noise, a slowly varying Gauss-Markov bias and
 // outages of the fix; attitude noise, a constant heading bias per drive, gyro and accelerometer
 // noise). With rtk every error is zero and the records are the true ones (an RTK-corrected OXTS
-// RT3003 as in KITTI). See doc/simulator.md, "GNSS/INS error models".
+// RT3003 as in KITTI). The canyon model (gnss_model kCanyon, sim/gnss_canyon.h) replaces the
+// GNSS part by the fixes of a receiver among the true buildings and keeps the INS part. See
+// doc/simulator.md, "GNSS/INS error models" and "Urban-canyon GNSS model".
 #include <Eigen/Core>
 #include <cstdint>
 #include <limits>
