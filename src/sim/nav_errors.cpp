@@ -89,6 +89,32 @@ NavErrorSequence simulateNavErrors(const NavErrorParams& p, uint64_t seed, doubl
   return out;
 }
 
+bool parseGnssModel(const std::string& name, NavErrorParams& p) {
+  if (name != "noisy" && name != "rtk" && name != "canyon") return false;
+  p.rtk = name == "rtk";
+  p.gnss_model = name == "canyon" ? GnssPositionModel::kCanyon : GnssPositionModel::kNoisy;
+  return true;
+}
+
+const char* gnssModelName(const NavErrorParams& p) {
+  if (p.rtk) return "rtk";
+  return p.gnss_model == GnssPositionModel::kCanyon ? "canyon" : "noisy";
+}
+
+void applyCanyonFixes(const std::vector<CanyonEpoch>& fixes, NavErrorSequence& sequence) {
+  sequence.outages = 0;
+  for (size_t k = 0; k < sequence.epochs.size() && k < fixes.size(); ++k) {
+    NavEpochError& e = sequence.epochs[k];
+    const CanyonEpoch& fix = fixes[k];
+    e.outage = !fix.fix.valid;
+    e.gnss = e.outage ? Eigen::Vector3d::Zero() : fix.error;
+    e.gnss_bias = Eigen::Vector3d::Zero();
+    e.reported_accuracy = fix.reported_horizontal_accuracy_m / std::sqrt(2.0);
+    e.satellites_used = fix.line_of_sight + fix.reflected;
+    if (e.outage && (k == 0 || fixes[k - 1].fix.valid)) ++sequence.outages;
+  }
+}
+
 double gnssReportedAccuracy(const NavErrorParams& p) {
   return std::hypot(p.gnss_sigma, p.gnss_bias_sigma);
 }
@@ -123,8 +149,9 @@ OxtsRecord measuredOxtsRecord(const OxtsRecord& truth, const Eigen::Vector3d& fi
     r.posmode = 0;  // OXTS position mode "none"
     r.velmode = 0;
   } else {
-    r.pos_accuracy = gnssReportedAccuracy(p);
-    r.numsats = 8;
+    r.pos_accuracy =
+        std::isnan(e.reported_accuracy) ? gnssReportedAccuracy(p) : e.reported_accuracy;
+    r.numsats = e.satellites_used >= 0 ? e.satellites_used : 8;
     r.posmode = 3;  // single-point positioning, no differential corrections
     r.velmode = 3;
   }

@@ -1,5 +1,7 @@
 #include "osm_graph_slam/sim/scene.h"
 
+#include "downtown.h"
+
 #include "osm_graph_slam/common/cell_key.h"
 #include "osm_graph_slam/sim/forest_world.h"
 
@@ -321,6 +323,7 @@ Scene proceduralCity(const CityParams& params, const GroundModel& ground) {
       }
     }
   }
+  addDowntown(scene, params.downtown, params.seed, xs, ys);
   settleBuildings(scene.world);
   (void)rectangle;
   return scene;

@@ -103,6 +103,76 @@ std::string droppedScansJson(const ScanDropParams& d, const std::vector<bool>& d
   return o.str();
 }
 
+/// sim_info.json line: the procedural city's downtown district (nothing without one).
+std::string downtownJson(const Scene& scene) {
+  if (scene.downtown.isEmpty()) return "";
+  size_t towers = 0;
+  for (const auto& tags : scene.building_tags) {
+    const auto it = tags.find("sim:district");
+    towers += it != tags.end() && it->second == "downtown";
+  }
+  const Eigen::Vector2d lo = scene.downtown.min(), hi = scene.downtown.max();
+  std::ostringstream o;
+  o << "  \"downtown\": {\"bounds_enu_m\": [" << fmt("%.2f", lo.x()) << ", " << fmt("%.2f", lo.y())
+    << ", " << fmt("%.2f", hi.x()) << ", " << fmt("%.2f", hi.y()) << "], \"towers\": " << towers
+    << "},\n";
+  return o.str();
+}
+
+/// sim_info.json: the INS errors' parameters and draws (every model but rtk).
+std::string insJson(const NavErrorParams& nv, const NavErrorSequence& errors) {
+  std::ostringstream o;
+  o << ", \"imu_attitude_sigma_deg\": " << fmt("%.3f", nv.imu_attitude_sigma_deg)
+    << ", \"imu_heading_bias_deg\": " << fmt("%.3f", nv.imu_heading_bias_deg)
+    << ", \"imu_heading_sigma_deg\": " << fmt("%.3f", nv.imu_heading_sigma_deg)
+    << ", \"gyro_sigma_deg_s\": " << fmt("%.3f", nv.gyro_sigma_deg_s)
+    << ", \"gyro_bias_drawn_deg_s\": " << fmt("%.4f", errors.gyro_bias_z * 180.0 / M_PI)
+    << ", \"accel_sigma_m_s2\": " << fmt("%.3f", nv.accel_sigma)
+    << ", \"heading_bias_drawn_deg\": " << fmt("%.4f", errors.heading_bias * 180.0 / M_PI);
+  return o.str();
+}
+
+size_t numSatellites(const NavErrorParams& nv, uint64_t seed) {
+  return Constellation::draw(nv.canyon.constellation, seed).size();
+}
+
+/// The error of the first epoch with a fix (the map origin), zero if the drive has none.
+Eigen::Vector3d firstFixError(const NavErrorSequence& errors) {
+  for (const NavEpochError& e : errors.epochs)
+    if (!e.outage) return e.gnss;
+  return Eigen::Vector3d::Zero();
+}
+
+/// sim_info.json: the canyon model's parameters and the receiver's statistics over the drive.
+std::string canyonJson(const NavErrorParams& nv, const NavErrorSequence& errors,
+                       const CanyonDriveStats& c, size_t satellites) {
+  const CanyonGnssParams& p = nv.canyon;
+  const Eigen::Vector3d first = firstFixError(errors);
+  std::ostringstream o;
+  o << ", \"model\": \"canyon\", \"satellites\": " << satellites
+    << ", \"elevation_mask_deg\": " << fmt("%.1f", p.constellation.elevation_mask_deg)
+    << ", \"sky_rate_deg_per_min\": " << fmt("%.3f", p.constellation.sky_rate_deg_per_min)
+    << ", \"range_sigma_m\": " << fmt("%.3f", p.range_sigma)
+    << ", \"assumed_range_sigma_m\": " << fmt("%.3f", p.assumed_range_sigma)
+    << ", \"reflections\": " << (p.reflections ? "true" : "false")
+    << ", \"max_reflector_distance_m\": " << fmt("%.1f", p.max_reflector_distance)
+    << ", \"max_pdop\": " << fmt("%.1f", p.max_pdop) << insJson(nv, errors)
+    << ", \"first_fix_error_enu_m\": [" << fmt("%.4f", first.x()) << ", " << fmt("%.4f", first.y())
+    << ", " << fmt("%.4f", first.z()) << "], \"epochs\": " << c.epochs << ", \"fixes\": " << c.fixes
+    << ", \"gnss_error_rms_m\": " << fmt("%.4f", c.horizontal_rms_m)
+    << ", \"gnss_error_p95_m\": " << fmt("%.4f", c.horizontal_p95_m)
+    << ", \"gnss_error_max_m\": " << fmt("%.4f", c.horizontal_max_m)
+    << ", \"gnss_error_mean_m\": " << fmt("%.4f", c.horizontal_mean_m)
+    << ", \"reported_accuracy_mean_m\": " << fmt("%.4f", c.reported_horizontal_mean_m)
+    << ", \"nlos_fix_share\": " << fmt("%.4f", c.nlos_fix_share) << ", \"outages\": " << c.outages
+    << ", \"outage_s\": " << fmt("%.1f", c.outage_s)
+    << ", \"satellites_used_mean\": " << fmt("%.2f", c.mean_satellites_used)
+    << ", \"satellites_blocked_mean\": " << fmt("%.2f", c.mean_satellites_blocked)
+    << ", \"note\": \"horizontal errors over the epochs with a fix; reported_accuracy = HDOP x "
+       "assumed_range_sigma (horizontal RMS; oxts pos_accuracy holds it / sqrt 2, per axis)\"";
+  return o.str();
+}
+
 }  // namespace
 
 UrbanSimulator::UrbanSimulator() = default;
@@ -161,6 +231,10 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
     std::vector<double> path(n);
     for (size_t k = 0; k < n; ++k) path[k] = trajectory_.at(double(k) / params.lidar.rate_hz).s;
     nav_errors_ = simulateNavErrors(params.nav, params.seed, 1.0 / params.lidar.rate_hz, path);
+    canyon_fixes_.clear();
+    if (!params.nav.rtk && params.nav.gnss_model == GnssPositionModel::kCanyon &&
+        !simulateCanyonGnss(n, error))
+      return false;
   }
   if (params.clutter_enabled) {
     ClutterParams cp = params.clutter;
@@ -168,6 +242,18 @@ bool UrbanSimulator::build(const SimulationParams& params, std::string* error) {
     addClutter(scene_, cp, &trajectory_);
   }
   scene_.world.finalize();
+  return true;
+}
+
+bool UrbanSimulator::simulateCanyonGnss(size_t epochs, std::string* error) {
+  const std::string problem = CanyonGnss::worldProblem(scene_.world);
+  if (!problem.empty()) return fail(error, problem);
+  const CanyonGnss receiver(scene_.world, params_.nav.canyon, params_.seed);
+  canyon_fixes_.resize(epochs);
+  // The antenna at the OXTS point (the fix is reported for it).
+  for (size_t k = 0; k < epochs; ++k)
+    canyon_fixes_[k] = receiver.epoch(k, scanTime(k), basePose(scanTime(k)).translation());
+  applyCanyonFixes(canyon_fixes_, nav_errors_);
   return true;
 }
 
@@ -417,6 +503,11 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
     ++gnss_fixes;
   }
   stats.gnss_error_rms_m = gnss_fixes ? std::sqrt(gnss_sq / double(gnss_fixes)) : 0.0;
+  if (!canyon_fixes_.empty()) {
+    const std::vector<CanyonEpoch> driven(
+        canyon_fixes_.begin(), canyon_fixes_.begin() + std::min(n, canyon_fixes_.size()));
+    stats.canyon = summarizeCanyonDrive(driven, 1.0 / params_.lidar.rate_hz);
+  }
   stats.raycast_s = raycast_s;
   stats.generation_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
@@ -428,7 +519,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   if (params_.world_seed != 0) info << "  \"world_seed\": " << params_.world_seed << ",\n";
   info << "  \"world\": \""
        << (params_.osm_path.empty() ? std::string("procedural") : params_.osm_path) << "\",\n"
-       << "  \"enu_origin\": {\"lat\": " << fmt("%.9f", enu_->originLat())
+       << downtownJson(scene_) << "  \"enu_origin\": {\"lat\": " << fmt("%.9f", enu_->originLat())
        << ", \"lon\": " << fmt("%.9f", enu_->originLon())
        << ", \"alt\": " << fmt("%.3f", enu_->originAlt()) << "},\n"
        << "  \"sensor\": \"" << params_.lidar.name << "\",\n"
@@ -485,7 +576,9 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   info << "},\n";
   const NavErrorParams& nv = params_.nav;
   info << "  \"gnss_ins\": {\"rtk\": " << (nv.rtk ? "true" : "false");
-  if (!nv.rtk) {
+  if (!nv.rtk && nv.gnss_model == GnssPositionModel::kCanyon) {
+    info << canyonJson(nv, nav_errors_, stats.canyon, numSatellites(nv, params_.seed));
+  } else if (!nv.rtk) {
     const Eigen::Vector3d first =
         nav_errors_.epochs.empty() ? Eigen::Vector3d::Zero() : nav_errors_.epochs.front().gnss;
     info << ", \"gnss_sigma_m\": " << fmt("%.3f", nv.gnss_sigma)
@@ -497,15 +590,8 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
          << ", \"gnss_outage_duration_s\": " << fmt("%.1f", nv.gnss_outage_duration_s)
          << ", \"gnss_outage_min_start_s\": " << fmt("%.1f", nv.gnss_outage_min_start_s)
          << ", \"pos_accuracy_m\": " << fmt("%.3f", gnssReportedAccuracy(nv))
-         << ", \"imu_attitude_sigma_deg\": " << fmt("%.3f", nv.imu_attitude_sigma_deg)
-         << ", \"imu_heading_bias_deg\": " << fmt("%.3f", nv.imu_heading_bias_deg)
-         << ", \"imu_heading_sigma_deg\": " << fmt("%.3f", nv.imu_heading_sigma_deg)
-         << ", \"gyro_sigma_deg_s\": " << fmt("%.3f", nv.gyro_sigma_deg_s)
-         << ", \"gyro_bias_drawn_deg_s\": " << fmt("%.4f", nav_errors_.gyro_bias_z * 180.0 / M_PI)
-         << ", \"accel_sigma_m_s2\": " << fmt("%.3f", nv.accel_sigma)
-         << ", \"heading_bias_drawn_deg\": " << fmt("%.4f", nav_errors_.heading_bias * 180.0 / M_PI)
-         << ", \"first_fix_error_enu_m\": [" << fmt("%.4f", first.x()) << ", "
-         << fmt("%.4f", first.y()) << ", " << fmt("%.4f", first.z())
+         << insJson(nv, nav_errors_) << ", \"first_fix_error_enu_m\": [" << fmt("%.4f", first.x())
+         << ", " << fmt("%.4f", first.y()) << ", " << fmt("%.4f", first.z())
          << "], \"gnss_error_rms_m\": " << fmt("%.4f", stats.gnss_error_rms_m)
          << ", \"gnss_error_max_m\": " << fmt("%.4f", stats.gnss_error_max_m)
          << ", \"outages\": " << stats.gnss_outages

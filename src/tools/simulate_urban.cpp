@@ -153,7 +153,18 @@ void declareSensorErrorOptions(tools::CommandLine& cli, Options& o) {
         l.beam_range_offset_sigma = 0.02;
       });
   NavErrorParams& n = o.p.nav;
-  cli.flag("--rtk", "GNSS/INS: exact (RTK, as KITTI's OXTS), no errors at all", &n.rtk)
+  cli.option("--gnss-model", "noisy|rtk|canyon",
+             "GNSS fixes: noisy (the errors below), rtk (exact, as KITTI's OXTS) or canyon (from "
+             "the satellites the buildings let through, with NLOS reflections)",
+             [&n](const std::string& v) {
+               return parseGnssModel(v, n) ? std::string() : "expects noisy, rtk or canyon";
+             })
+      .defaultText("noisy")
+      .flag("--rtk", "= --gnss-model rtk: exact GNSS/INS, no errors at all", &n.rtk)
+      .flag("--downtown",
+            "procedural city: a downtown of 20-80 m towers on narrow streets in its central "
+            "blocks (other buildings unchanged)",
+            &o.p.city.downtown.enabled)
       .option("--gnss-sigma", "M", "GNSS white noise per horizontal axis", &n.gnss_sigma)
       .option("--gnss-sigma-vertical", "M", "GNSS white noise, vertical", &n.gnss_sigma_vertical)
       .option("--gnss-bias-sigma", "M", "GNSS first-order Gauss-Markov bias per axis",
@@ -265,6 +276,14 @@ int writeLidarDrive(UrbanSimulator& sim, const SimulationParams& p, const std::s
       stats.prior_phantom, p.nav.rtk ? "rtk" : "consumer-grade", stats.gnss_error_rms_m,
       stats.gnss_error_max_m, stats.gnss_outages, stats.gnss_outage_s, stats.generation_s,
       stats.raycast_s, stats.scans_per_s);
+  if (!p.nav.rtk && p.nav.gnss_model == GnssPositionModel::kCanyon) {
+    const CanyonDriveStats& c = stats.canyon;
+    std::printf(
+        "gnss_canyon: horizontal error rms %.2f m p95 %.2f m max %.2f m, nlos fixes %.1f %%, "
+        "outage %.1f s, reported accuracy mean %.2f m vs true error mean %.2f m\n",
+        c.horizontal_rms_m, c.horizontal_p95_m, c.horizontal_max_m, 100.0 * c.nlos_fix_share,
+        c.outage_s, c.reported_horizontal_mean_m, c.horizontal_mean_m);
+  }
   return 0;
 }
 

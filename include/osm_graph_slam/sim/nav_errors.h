@@ -3,12 +3,17 @@
 // IMU reports instead of the true pose (white noise, a slowly varying Gauss-Markov bias and
 // outages of the fix; attitude noise, a constant heading bias per drive, gyro and accelerometer
 // noise). With rtk every error is zero and the records are the true ones (an RTK-corrected OXTS
-// RT3003 as in KITTI). See doc/simulator.md, "GNSS/INS error models".
+// RT3003 as in KITTI). The canyon model (gnss_model kCanyon, sim/gnss_canyon.h) replaces the
+// GNSS part by the fixes of a receiver among the true buildings and keeps the INS part. See
+// doc/simulator.md, "GNSS/INS error models" and "Urban-canyon GNSS model".
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
+#include <string>
 #include <vector>
 
 #include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/sim/gnss_canyon.h"
 
 namespace osm_graph_slam {
 class EnuConverter;
@@ -16,9 +21,17 @@ class EnuConverter;
 
 namespace osm_graph_slam::sim {
 
+/// Where the GNSS fixes come from when not rtk (simulate_urban --gnss-model).
+enum class GnssPositionModel : uint8_t {
+  kNoisy,   ///< white noise + Gauss-Markov bias + Poisson outages, whatever the city
+  kCanyon,  ///< from the satellites the true buildings let through (sim/gnss_canyon.h)
+};
+
 /// One place of defaults: consumer-grade GNSS + MEMS IMU (the simulate_urban default).
 struct NavErrorParams {
   bool rtk = false;  ///< exact GNSS/INS (RTK, KITTI-like): every field below is ignored
+  GnssPositionModel gnss_model = GnssPositionModel::kNoisy;
+  CanyonGnssParams canyon;  ///< with gnss_model kCanyon (the gnss_* fields are then unused)
 
   double gnss_sigma = 1.5;                ///< white noise per horizontal axis [m]
   double gnss_sigma_vertical = 2.5;       ///< white noise, up [m]
@@ -49,6 +62,10 @@ struct NavEpochError {
   double roll = 0.0, pitch = 0.0, yaw = 0.0;            ///< attitude errors [rad]; yaw incl. bias
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();       ///< body rate noise [rad/s]
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();      ///< body acceleration noise [m/s^2]
+  /// The canyon model's own report with its fix (pos_accuracy [m], satellites used); NaN and
+  /// -1 in the noisy model, whose report is the same every epoch (gnssReportedAccuracy).
+  double reported_accuracy = std::numeric_limits<double>::quiet_NaN();
+  int satellites_used = -1;
 };
 
 struct NavErrorSequence {
@@ -64,6 +81,16 @@ struct NavErrorSequence {
 /// draws as they were. With rtk every error is zero.
 NavErrorSequence simulateNavErrors(const NavErrorParams& params, uint64_t seed, double dt,
                                    const std::vector<double>& path_length);
+
+/// Sets rtk / gnss_model from "noisy", "rtk" or "canyon"; false for another name.
+bool parseGnssModel(const std::string& name, NavErrorParams& params);
+/// "rtk", "noisy" or "canyon".
+const char* gnssModelName(const NavErrorParams& params);
+
+/// The canyon receiver's fixes as the GNSS part of the sequence (the INS part stays): error =
+/// fix - truth, outage where there is no fix, pos_accuracy per axis = the reported horizontal
+/// accuracy / sqrt(2) (kitti2bag's covariance is per axis), satellites used.
+void applyCanyonFixes(const std::vector<CanyonEpoch>& fixes, NavErrorSequence& sequence);
 
 /// pos_accuracy of a record with a fix: the horizontal sigma per axis of white noise and bias
 /// together (kitti2bag turns it into the NavSatFix covariance).

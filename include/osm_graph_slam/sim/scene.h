@@ -2,6 +2,7 @@
 // Building the simulated world: from an OSM extract (buildings extruded, roads = highway ways) or
 // a procedural city from a seed; then clutter along the roads (trees, parked cars, fences and low
 // walls, poles, moving objects) kept clear of buildings, roads and the planned route.
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -27,6 +28,19 @@ struct Scene {
       other_roads;  ///< non-drivable highway ways (footways, ...), kept for prior.osm
   std::vector<int64_t> other_road_ids;
   std::vector<std::string> other_road_types;
+  /// The procedural city's downtown district (empty box: none).
+  Eigen::AlignedBox2d downtown;
+};
+
+/// A downtown district (issue 52: urban canyons for the GNSS model): the city's central blocks,
+/// each split into four by narrow streets and built up with towers. Off by default.
+struct DowntownParams {
+  bool enabled = false;
+  int blocks_x = 3, blocks_y = 2;  ///< central blocks of the grid it replaces
+  double setback = 6.0;            ///< street centre line to facade [m]: 12 m between facades
+  double min_height = 20.0, max_height = 80.0;  ///< towers [m]
+  double lot_min = 12.0, lot_max = 25.0;        ///< tower frontage along the street [m]
+  double gap_probability = 0.3;                 ///< a passage (1-3 m) between two towers
 };
 
 struct CityParams {
@@ -41,6 +55,9 @@ struct CityParams {
   /// forest_density sparse|intermediate|dense, or "park".
   std::string world = "city";
   std::string forest_density = "intermediate";
+  /// Added after the city is drawn, from a random stream of its own: the buildings outside the
+  /// district are those of the city without it (same seed), byte for byte.
+  DowntownParams downtown;
 };
 
 struct ClutterParams {

@@ -79,6 +79,7 @@ struct SimulationStats {
   double gnss_error_rms_m = 0, gnss_error_max_m = 0;
   int gnss_outages = 0;
   double gnss_outage_s = 0;
+  CanyonDriveStats canyon;  ///< with the canyon GNSS model: the receiver over the scans' epochs
   std::string drive_dir;
 };
 
@@ -111,6 +112,8 @@ class UrbanSimulator {
   OxtsRecord measuredOxts(size_t k) const;
   /// The GNSS/INS errors of every scan of the route (all zero with nav.rtk).
   const NavErrorSequence& navErrors() const { return nav_errors_; }
+  /// The canyon receiver's output at every scan of the route (empty unless that model is used).
+  const std::vector<CanyonEpoch>& canyonFixes() const { return canyon_fixes_; }
 
   SimulatedScan simulate(size_t k) const;
 
@@ -126,8 +129,12 @@ class UrbanSimulator {
   Trajectory trajectory_;
   std::unique_ptr<EnuConverter> enu_;
   NavErrorSequence nav_errors_;
+  std::vector<CanyonEpoch> canyon_fixes_;
   Eigen::Isometry3d T_velo_imu_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_imu_velo_ = Eigen::Isometry3d::Identity();
+
+  /// The canyon receiver at every epoch of the route, its fixes put into nav_errors_.
+  bool simulateCanyonGnss(size_t epochs, std::string* error);
 };
 
 }  // namespace osm_graph_slam::sim
