@@ -231,7 +231,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             msg->header.stamp.toSec(), msg->latitude, msg->longitude);
   }
 
-  bool gnssPriors() const { return backend_->params().gnss_prior_std > 0.0; }
+  bool gnssPriors() const { return backend_->params().gnss.gnss_prior_std > 0.0; }
 
   void onSegments(const LineSegmentArrayConstPtr& msg) {
     std::vector<LineSegment2> segments;
