@@ -71,7 +71,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     aiding_ = std::make_unique<KeyframeAiding>(
         params.inputs,
         params.initial_yaw_known ? std::optional<double>(params.initial_yaw) : std::nullopt,
-        /*heading_from_imu=*/true, /*keep_fixes=*/params.gnss_prior_std > 0.0);
+        /*heading_from_imu=*/true, /*keep_fixes=*/params.gnss.gnss_prior_std > 0.0);
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
 

@@ -9,15 +9,15 @@
 
 namespace osm_graph_slam {
 
-void BackendState::observed(BuildingState& b, const GraphBackendParams& p) {
-  if (b.observations++ == 0 && b.vertex_id >= 0 && p.mode != OsmMode::kPrior)
+void BackendState::observed(BuildingState& b, OsmMode mode) {
+  if (b.observations++ == 0 && b.vertex_id >= 0 && mode != OsmMode::kPrior)
     graph.setFixed(b.vertex_id, false);
 }
 
-int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) {
+int BackendState::buildingVertex(BuildingState& b, OsmMode mode, const OsmPriorParams& p) {
   if (b.vertex_id >= 0) return b.vertex_id;
   b.vertex_id = next_building_vertex++;
-  const bool fixed = p.mode == OsmMode::kPrior || heldAtPrior(b, p);
+  const bool fixed = mode == OsmMode::kPrior || heldAtPrior(b, p);
   graph.addVertexSE2(b.vertex_id, b.pose, fixed);
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   const double std_xy = mapWeighting(p).building_std_xy;
@@ -30,12 +30,12 @@ int BackendState::buildingVertex(BuildingState& b, const GraphBackendParams& p) 
   return b.vertex_id;
 }
 
-Pose2 BackendState::predictedPose(const BuildingState& b, const GraphBackendParams& p) const {
+Pose2 BackendState::predictedPose(const BuildingState& b, const OsmPriorParams& p) const {
   if (datumStdXy(p) <= 0.0) return b.prior.reference_pose;
   return graph.vertexSE2(GraphBackend::kOsmDatumVertex).value_or(Pose2()) * b.prior.reference_pose;
 }
 
-int BackendState::datumVertex(const GraphBackendParams& p) {
+int BackendState::datumVertex(const OsmPriorParams& p) {
   const int id = GraphBackend::kOsmDatumVertex;
   if (graph.hasVertex(id)) return id;
   graph.addVertexSE2(id, Pose2());
@@ -50,7 +50,7 @@ int BackendState::datumVertex(const GraphBackendParams& p) {
   return id;
 }
 
-BackendState::MapWeighting BackendState::mapWeighting(const GraphBackendParams& p) const {
+BackendState::MapWeighting BackendState::mapWeighting(const OsmPriorParams& p) const {
   if (gnssAnchored())
     return {p.building_prior_std_xy, p.osm_datum_std_xy, p.osm_datum_kernel,
             p.osm_datum_reassociate_distance};
@@ -58,21 +58,21 @@ BackendState::MapWeighting BackendState::mapWeighting(const GraphBackendParams& 
           p.osm_datum_kernel_without_gnss, p.osm_datum_reassociate_distance_without_gnss};
 }
 
-int BackendState::gnssBiasWindow(double stamp, const GraphBackendParams& p) const {
+int BackendState::gnssBiasWindow(double stamp, const GnssParams& p) const {
   const double windows = gnss_bias_start && std::isfinite(stamp)
                              ? (stamp - *gnss_bias_start) / std::max(p.gnss_bias_window, 1e-3)
                              : 0.0;
   return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
 }
 
-int BackendState::odometryScaleWindow(double accum_distance, const GraphBackendParams& p) const {
+int BackendState::odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p) const {
   // A non-finite path length (a corrupt message) counts as the first window.
   const double windows =
       std::isfinite(accum_distance) ? accum_distance / p.odometry_scale_window : 0.0;
   return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
 }
 
-int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p, double scale) {
+int BackendState::gnssBiasVertex(double stamp, const GnssParams& p, double scale) {
   if (!gnss_bias_start) gnss_bias_start = stamp;
   const int k = gnssBiasWindow(stamp, p);
   const auto found = gnss_bias_vertices.find(k);
@@ -113,7 +113,7 @@ int BackendState::gnssBiasVertex(double stamp, const GraphBackendParams& p, doub
   return id;
 }
 
-int BackendState::odometryScaleVertex(double accum_distance, const GraphBackendParams& p) {
+int BackendState::odometryScaleVertex(double accum_distance, const OdometryEdgeParams& p) {
   const int k = odometryScaleWindow(accum_distance, p);
   const auto found = scale_vertices.find(k);
   if (found != scale_vertices.end()) return found->second;
@@ -153,7 +153,8 @@ std::vector<int> BackendState::fixRobots() {
 }
 
 std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
-                                                 const GraphBackendParams& p) {
+                                                 const OdometryEdgeParams& odometry,
+                                                 const GnssParams& gnss) {
   std::vector<int> fixed_now;
   auto hold = [&](int vid) {
     if (graph.isFixed(vid)) return;
@@ -170,9 +171,9 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
       if (window < first_free) hold(vid);
   };
   if (const auto first = keyframes.lower_bound(window_start); first != keyframes.end()) {
-    if (p.odometry_scale_window > 0.0)
-      holdBefore(scale_vertices, odometryScaleWindow(first->second.accum_distance, p));
-    holdBefore(gnss_bias_vertices, gnssBiasWindow(first->second.stamp, p));
+    if (odometry.odometry_scale_window > 0.0)
+      holdBefore(scale_vertices, odometryScaleWindow(first->second.accum_distance, odometry));
+    holdBefore(gnss_bias_vertices, gnssBiasWindow(first->second.stamp, gnss));
   }
   std::set<int64_t> seen_from_window;
   for (const auto& e : building_edges)
@@ -182,7 +183,7 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
   return fixed_now;
 }
 
-void BackendState::release(const std::vector<int>& held, const GraphBackendParams& p) {
+void BackendState::release(const std::vector<int>& held, const OsmPriorParams& p) {
   std::set<int> stay;
   for (const auto& [bid, b] : buildings)
     if (b.vertex_id >= 0 && heldAtPrior(b, p)) stay.insert(b.vertex_id);
@@ -195,7 +196,7 @@ void BackendState::readRobotPoses() {
     if (auto pose = graph.vertexSE3(static_cast<int>(id))) kf.map_pose = *pose;
 }
 
-void BackendState::readBuildingPoses(const GraphBackendParams& p) {
+void BackendState::readBuildingPoses(const OsmPriorParams& p) {
   for (auto& [bid, b] : buildings) {
     if (auto pose = graph.vertexSE2(b.vertex_id))
       b.pose = *pose;

@@ -57,9 +57,9 @@ struct BackendState {
   size_t gnss_priors = 0;               ///< GNSS prior edges added
   /// GNSS priors hold the trajectory (at least two fixes; one origin anchors no better than the
   /// soft anchor): building and datum priors created from then on take their tighter deviations
-  /// (GraphBackendParams::building_prior_std_xy vs ..._without_gnss).
+  /// (OsmPriorParams::building_prior_std_xy vs ..._without_gnss).
   bool gnssAnchored() const { return gnss_priors >= 2; }
-  /// The map's weighting for gnssAnchored() or not (GraphBackendParams: the map's deviations,
+  /// The map's weighting for gnssAnchored() or not (OsmPriorParams: the map's deviations,
   /// datum kernel and re-association distance, each with a ..._without_gnss twin).
   struct MapWeighting {
     double building_std_xy;
@@ -67,7 +67,7 @@ struct BackendState {
     std::string datum_kernel;
     double datum_reassociate_distance;
   };
-  MapWeighting mapWeighting(const GraphBackendParams& p) const;
+  MapWeighting mapWeighting(const OsmPriorParams& p) const;
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
   std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
   std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex
@@ -91,30 +91,30 @@ struct BackendState {
   std::optional<UnplacedPass> unplaced;
 
   /// An unobserved building stays at its prior (unobserved_buildings_fixed).
-  static bool heldAtPrior(const BuildingState& b, const GraphBackendParams& p) {
+  static bool heldAtPrior(const BuildingState& b, const OsmPriorParams& p) {
     return p.unobserved_buildings_fixed && b.observations == 0;
   }
   /// One more robot<->building edge on b: an observed building is free to move.
-  void observed(BuildingState& b, const GraphBackendParams& p);
+  void observed(BuildingState& b, OsmMode mode);
   /// b's vertex, created with its prior (relative to the OSM datum) on first use.
-  int buildingVertex(BuildingState& b, const GraphBackendParams& p);
+  int buildingVertex(BuildingState& b, OsmMode mode, const OsmPriorParams& p);
   /// Where a building is expected before anything observed it: its prior moved by the datum.
-  Pose2 predictedPose(const BuildingState& b, const GraphBackendParams& p) const;
+  Pose2 predictedPose(const BuildingState& b, const OsmPriorParams& p) const;
   /// Index of the GNSS bias window holding stamp (0 before the first fix or for a bad stamp).
-  int gnssBiasWindow(double stamp, const GraphBackendParams& p) const;
+  int gnssBiasWindow(double stamp, const GnssParams& p) const;
   /// Index of the odometry scale's path window holding accum_distance (0 for a bad length).
-  int odometryScaleWindow(double accum_distance, const GraphBackendParams& p) const;
+  int odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p) const;
   /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
   /// with deviation gnss_bias_std x scale (the first fix of the window decides the scale) and tied
   /// to the previous window's by the Gauss-Markov process of the bias over its deviation.
-  int gnssBiasVertex(double stamp, const GraphBackendParams& p, double scale = 1.0);
+  int gnssBiasVertex(double stamp, const GnssParams& p, double scale = 1.0);
   /// The odometry scale vertex of the path window holding accum_distance (created on first use:
   /// a prior around 1 for the first window, a random walk from the previous one otherwise).
-  int odometryScaleVertex(double accum_distance, const GraphBackendParams& p);
+  int odometryScaleVertex(double accum_distance, const OdometryEdgeParams& p);
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
-  int datumVertex(const GraphBackendParams& p);
+  int datumVertex(const OsmPriorParams& p);
   /// The datum's deviation for this run (with or without GNSS priors); <= 0: no datum.
-  double datumStdXy(const GraphBackendParams& p) const { return mapWeighting(p).datum_std_xy; }
+  double datumStdXy(const OsmPriorParams& p) const { return mapWeighting(p).datum_std_xy; }
   /// Whether an answered OSM query covers the position.
   bool covered(const Eigen::Vector2d& position) const;
 
@@ -123,12 +123,13 @@ struct BackendState {
   /// Fixes the keyframes before window_start, the odometry scales and GNSS biases of windows
   /// (of path, of time) that end before it, and the buildings no keyframe from window_start on
   /// observes; returns the vertices it fixed (to free again after the update).
-  std::vector<int> holdOutsideWindow(uint64_t window_start, const GraphBackendParams& p);
+  std::vector<int> holdOutsideWindow(uint64_t window_start, const OdometryEdgeParams& odometry,
+                                     const GnssParams& gnss);
   /// Frees the vertices holdOutsideWindow() fixed, except buildings that must stay at their
   /// prior (the gate may have removed their last observation meanwhile).
-  void release(const std::vector<int>& held, const GraphBackendParams& p);
+  void release(const std::vector<int>& held, const OsmPriorParams& p);
   void readRobotPoses();
-  void readBuildingPoses(const GraphBackendParams& p);
+  void readBuildingPoses(const OsmPriorParams& p);
   /// Rotates every keyframe by dyaw about the first one (fixed where GNSS put it).
   void rotateTrajectory(double dyaw);
 };

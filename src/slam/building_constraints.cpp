@@ -39,7 +39,7 @@ size_t BuildingConstraints::gateBuildingEdges(BackendState& s, BackendUpdateRepo
     }
     s.graph.removeEdge(e.edge_id);
     if (b->second.observations > 0) --b->second.observations;
-    if (BackendState::heldAtPrior(b->second, params_) && b->second.vertex_id >= 0) {
+    if (BackendState::heldAtPrior(b->second, prior_) && b->second.vertex_id >= 0) {
       // Nothing observes it any more: back to its prior, held there.
       b->second.pose = b->second.prior.reference_pose;
       s.graph.setVertexSE2(b->second.vertex_id, b->second.pose);
@@ -78,14 +78,14 @@ void BuildingConstraints::addSharedWallEdges(BackendState& s, BackendUpdateRepor
       BuildingState& a = s.buildings.at(key.first);
       BuildingState& b = s.buildings.at(key.second);
       if (a.vertex_id < 0 && b.vertex_id < 0) continue;
-      if (params_.unobserved_buildings_fixed && (a.observations == 0 || b.observations == 0))
+      if (prior_.unobserved_buildings_fixed && (a.observations == 0 || b.observations == 0))
         continue;  // tied once both are observed
       const BuildingContact& c = wall.contact;
       const Pose2& pa = a.prior.reference_pose;
       const Pose2& pb = b.prior.reference_pose;
       const Eigen::Vector2d normal = pb.rotation().transpose() * c.b_normal;
       const double offset = normal.dot(pb.inverse().transform(c.b_point));
-      const int va = s.buildingVertex(a, params_), vb = s.buildingVertex(b, params_);
+      const int va = s.buildingVertex(a, mode_, prior_), vb = s.buildingVertex(b, mode_, prior_);
       for (const auto& end : c.a_ends)
         s.graph.addEdgeSE2PointOnLine(va, vb, pa.inverse().transform(end), normal, offset, info,
                                       options);
@@ -110,12 +110,12 @@ bool BuildingConstraints::addSeparationEdge(BackendState& s, BuildingState* a, B
   const Pose2 target = withClearance(sep.transform, a->pose, params_.overlap_clearance);
   const Pose2 z = target.inverse() * b->pose;  // relPose of Alg. 3.2, line 10
   const Eigen::Matrix3d info = Eigen::Matrix3d::Identity() * params_.overlap_information;
-  const int edge = s.graph.addEdgeSE2(s.buildingVertex(*a, params_), s.buildingVertex(*b, params_),
-                                      z, info, EdgeOptions{2, {}});
+  const int edge =
+      s.graph.addEdgeSE2(s.buildingVertex(*a, mode_, prior_), s.buildingVertex(*b, mode_, prior_),
+                         z, info, EdgeOptions{2, {}});
   if (edge >= 0) overlap_edges_.push_back(edge);
   // Two buildings nobody saw whose priors overlap: the prior itself is wrong, one must move.
-  if (b->observations == 0 && params_.mode != OsmMode::kPrior)
-    s.graph.setFixed(a->vertex_id, false);
+  if (b->observations == 0 && mode_ != OsmMode::kPrior) s.graph.setFixed(a->vertex_id, false);
   return edge >= 0;
 }
 
@@ -138,7 +138,7 @@ void BuildingConstraints::resolveOverlaps(BackendState& s, BackendUpdateReport& 
     report.overlap_iterations = static_cast<size_t>(iter + 1);
     report.overlap_edges += added;
     if (added == 0) break;
-    report.overlap = s.graph.optimize(2, params_.optimizer);
+    report.overlap = s.graph.optimize(2, optimizer_);
     outlines.clear();
     for (BuildingState* b : order) {
       if (auto pose = s.graph.vertexSE2(b->vertex_id)) b->pose = *pose;

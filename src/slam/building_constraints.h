@@ -14,8 +14,11 @@ namespace osm_graph_slam {
 
 class BuildingConstraints {
  public:
-  explicit BuildingConstraints(const GraphBackendParams& params)
-      : params_(params), matcher_(params.matcher) {}
+  /// optimizer: every optimisation of the overlap resolution.
+  BuildingConstraints(OsmMode mode, const BuildingConstraintParams& params,
+                      const OsmPriorParams& prior, const LineMatcherParams& matcher,
+                      const OptimizerOptions& optimizer)
+      : mode_(mode), params_(params), prior_(prior), optimizer_(optimizer), matcher_(matcher) {}
 
   /// Removes robot<->building edges whose χ² against the building as its other observations
   /// place it (after phase 2) exceeds building_edge_gate_chi2. Returns how many.
@@ -50,7 +53,10 @@ class BuildingConstraints {
   std::optional<Eigen::Vector2d> clearingTranslation(size_t mover,
                                                      const std::vector<Building>& outlines) const;
 
-  const GraphBackendParams& params_;
+  const OsmMode mode_;
+  const BuildingConstraintParams& params_;
+  const OsmPriorParams& prior_;
+  const OptimizerOptions& optimizer_;
   LineMatcher matcher_;
   std::map<std::pair<int64_t, int64_t>, SharedWall> shared_walls_;
   size_t shared_walls_searched_ = 0;  ///< number of buildings at the last search

@@ -71,7 +71,7 @@ namespace {
 // Edges between held vertices (a window's old part, fixed robots in phase 2) cannot change: left
 // out, an update costs what its free part costs; the solution is the same.
 GraphBackendParams withConstantEdgesSkipped(GraphBackendParams p) {
-  p.optimizer.skip_constant_edges = true;
+  p.schedule.optimizer.skip_constant_edges = true;
   return p;
 }
 }  // namespace
@@ -81,8 +81,12 @@ GraphBackend::GraphBackend(const GraphBackendParams& params, std::shared_ptr<con
       logger_(logger ? std::move(logger) : std::make_shared<Logger>()),
       pending_(std::make_unique<BackendQueues>()),
       state_(std::make_unique<BackendState>()),
-      osm_(std::make_unique<OsmAssociation>(params_, *logger_)),
-      constraints_(std::make_unique<BuildingConstraints>(params_)) {
+      osm_(std::make_unique<OsmAssociation>(params_.mode, params_.association, params_.osm_prior,
+                                            params_.matcher, params_.schedule.joint_optimization,
+                                            params_.odometry.odometry_attitude_std, *logger_)),
+      constraints_(std::make_unique<BuildingConstraints>(params_.mode, params_.buildings,
+                                                         params_.osm_prior, params_.matcher,
+                                                         params_.schedule.optimizer)) {
   state_->heading_initialized = params_.initial_yaw_known;
   if (params_.initial_yaw_known) state_->initial_yaw = params_.initial_yaw;
 }
@@ -185,9 +189,9 @@ void GraphBackend::reportOdometryScale() {
                   "the odometry's scale is estimated at %.4f over %.0f-%.0f m of path: the "
                   "scan matching is %.1f %% %s than the map and loops say (a LiDAR range or "
                   "vertical-angle calibration error?); logged once",
-                  scale, window * params_.odometry_scale_window,
-                  (window + 1) * params_.odometry_scale_window, std::abs(scale - 1.0) * 100.0,
-                  scale > 1.0 ? "shorter" : "longer");
+                  scale, window * params_.odometry.odometry_scale_window,
+                  (window + 1) * params_.odometry.odometry_scale_window,
+                  std::abs(scale - 1.0) * 100.0, scale > 1.0 ? "shorter" : "longer");
     logger_->warnOnce("odometry scale", text);
     return;
   }
@@ -310,16 +314,16 @@ void GraphBackend::anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& k
   // Known from the parameters or from setInitialHeading() (the nodelet: the IMU's heading).
   s.heading_known_at_start = s.initial_yaw.has_value();
   const bool gnss_held = gnssPriors() && in.gnss_position.has_value();
-  const bool soft_anchor =
-      s.heading_known_at_start && params_.anchor_std_xy > 0.0 && params_.anchor_std_yaw > 0.0;
+  const bool soft_anchor = s.heading_known_at_start && params_.gnss.anchor_std_xy > 0.0 &&
+                           params_.gnss.anchor_std_yaw > 0.0;
   s.graph.addVertexSE3(vid, kf.map_pose, !gnss_held && !soft_anchor);
   if (!gnss_held && !soft_anchor) return;
   // Held where GNSS cannot say: height, attitude; x and y by the fixes (GNSS priors) or by the
   // anchor's deviation, the heading by the INS's.
   const double anchor_std =
-      in.gnss_std && *in.gnss_std > 0.0 ? *in.gnss_std : params_.anchor_std_xy;
+      in.gnss_std && *in.gnss_std > 0.0 ? *in.gnss_std : params_.gnss.anchor_std_xy;
   const double xy_info = gnss_held ? 1e-6 : 1.0 / std::pow(anchor_std, 2);
-  const double yaw_std = gnss_held ? params_.gnss_first_yaw_std : params_.anchor_std_yaw;
+  const double yaw_std = gnss_held ? params_.gnss.gnss_first_yaw_std : params_.gnss.anchor_std_yaw;
   Matrix6d info = Matrix6d::Zero();
   // The height is the first fix's altitude (the origin) unless the fixes' altitude is evidence.
   const double z_info = gnss_held && gnssAltitude() ? 1e-6 : 1.0 / (0.05 * 0.05);
@@ -354,14 +358,14 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   const KeyframeState& prev = s.keyframes.rbegin()->second;
   const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
   // A re-anchored step is a guess, not a measurement of the odometry's scale.
-  const int scale = params_.odometry_scale_window > 0.0 && !in.reanchored
-                        ? s.odometryScaleVertex(in.accum_distance, params_)
+  const int scale = params_.odometry.odometry_scale_window > 0.0 && !in.reanchored
+                        ? s.odometryScaleVertex(in.accum_distance, params_.odometry)
                         : -1;
   Eigen::Isometry3d scaled_delta = delta;
   if (scale >= 0) scaled_delta.translation() *= s.graph.vertexScale(scale).value_or(1.0);
   kf.map_pose = prev.map_pose * scaled_delta;
   s.graph.addVertexSE3(vid, kf.map_pose);
-  Matrix6d info = odometryEdgeInformation(in, delta, params_.odometry);
+  Matrix6d info = odometryEdgeInformation(in, delta, params_.odometry.information);
   const bool jumped_back = in.stamp < prev.stamp;
   if (jumped_back)  // kept: the ids order the keyframes, the stamps may loop
     logger_->warn("keyframe " + std::to_string(in.id) + " is stamped " +
@@ -371,8 +375,8 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
                   ", the map so far is kept");
   if (in.reanchored) {
     info.setZero();
-    info.diagonal().head<3>().setConstant(1.0 / std::pow(params_.reanchor_std_xyz, 2));
-    info.diagonal().tail<3>().setConstant(1.0 / std::pow(params_.reanchor_std_rot, 2));
+    info.diagonal().head<3>().setConstant(1.0 / std::pow(params_.odometry.reanchor_std_xyz, 2));
+    info.diagonal().tail<3>().setConstant(1.0 / std::pow(params_.odometry.reanchor_std_rot, 2));
     if (!jumped_back)
       logger_->info("keyframe " + std::to_string(in.id) +
                     " was re-anchored after a lost track: weak odometry edge");
@@ -386,8 +390,8 @@ void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
   std::vector<int> edges{add(info, 0)};
   // Levels >= 1 (the joint phase) see the odometry joint_odometry_weight times stiffer: the
   // buildings then correct the drift smoothly instead of kinking single keyframes.
-  if (params_.joint_odometry_weight > 1.0)
-    edges.push_back(add((params_.joint_odometry_weight - 1.0) * info, 1));
+  if (params_.schedule.joint_odometry_weight > 1.0)
+    edges.push_back(add((params_.schedule.joint_odometry_weight - 1.0) * info, 1));
   if (jumped_back && in.reanchored) s.unplaced = BackendState::UnplacedPass{in.id, edges};
 }
 
@@ -426,13 +430,13 @@ void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf)
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
   if (gnssPriors() && in.gnss_position) addGnssPrior(in);
-  if (params_.ins_heading_std > 0.0 && in.ins_yaw) addInsHeadingChange(in);
+  if (params_.gnss.ins_heading_std > 0.0 && in.ins_yaw) addInsHeadingChange(in);
   if (in.gravity_roll_pitch) {
     kf.has_attitude = true;
     s.graph.addPriorSE3(
         vid,
         attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(), in.gravity_roll_pitch->y()),
-        attitudeInformation(params_.imu_attitude_std), EdgeOptions{0, {}});
+        attitudeInformation(params_.odometry.imu_attitude_std), EdgeOptions{0, {}});
   }
 }
 
@@ -445,12 +449,12 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
   const double scale = gnssAccuracyScale(in);
   ++s.gnss_priors;  // from the second on the map's priors tighten (BackendState::gnssAnchored)
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();  // no altitude: z uninformed
-  info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss_prior_std * scale, 2);
-  if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss_altitude_std * scale, 2);
-  const EdgeOptions options{0, RobustKernel::huber(params_.gnss_prior_kernel_width)};
-  if (params_.gnss_bias_std > 0.0)
-    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_, scale), fix, info,
-                                         options);
+  info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss.gnss_prior_std * scale, 2);
+  if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss.gnss_altitude_std * scale, 2);
+  const EdgeOptions options{0, RobustKernel::huber(params_.gnss.gnss_prior_kernel_width)};
+  if (params_.gnss.gnss_bias_std > 0.0)
+    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_.gnss, scale), fix,
+                                         info, options);
   else if (altitude)
     s.graph.addPriorSE3XYZ(vid, fix, info, options);
   else
@@ -460,11 +464,11 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
 double GraphBackend::gnssAccuracyScale(const KeyframeInput& in) const {
   // A receiver reports its whole error (white noise and bias together, as NavSatFix covariance
   // or OXTS pos_accuracy): an RTK fix then outweighs the map, a single-point one does not.
-  const double modelled = std::hypot(params_.gnss_prior_std, params_.gnss_bias_std);
-  if (!params_.gnss_reported_accuracy || !in.gnss_std || !(*in.gnss_std > 0.0) ||
+  const double modelled = std::hypot(params_.gnss.gnss_prior_std, params_.gnss.gnss_bias_std);
+  if (!params_.gnss.gnss_reported_accuracy || !in.gnss_std || !(*in.gnss_std > 0.0) ||
       !std::isfinite(*in.gnss_std) || !(modelled > 0.0))
     return 1.0;
-  return std::max(*in.gnss_std, params_.gnss_min_reported_std) / modelled;
+  return std::max(*in.gnss_std, params_.gnss.gnss_min_reported_std) / modelled;
 }
 
 void GraphBackend::addInsHeadingChange(const KeyframeInput& in) {
@@ -472,19 +476,19 @@ void GraphBackend::addInsHeadingChange(const KeyframeInput& in) {
   // heading drift; its constant bias (and its yaw frame's offset from the map's) cancels, so the
   // absolute heading stays with the anchor and the map instead of being held at the INS's bias.
   BackendState& s = *state_;
-  const auto back = s.ins_headings.upper_bound(in.accum_distance - params_.ins_heading_span);
+  const auto back = s.ins_headings.upper_bound(in.accum_distance - params_.gnss.ins_heading_span);
   if (back != s.ins_headings.begin()) {
     const auto& [from_id, from_yaw] = std::prev(back)->second;
-    const double info = 1.0 / (2.0 * params_.ins_heading_std * params_.ins_heading_std);
+    const double info = 1.0 / (2.0 * params_.gnss.ins_heading_std * params_.gnss.ins_heading_std);
     s.graph.addEdgeSE3YawDifference(
         static_cast<int>(from_id), static_cast<int>(in.id), wrapAngle(*in.ins_yaw - from_yaw), info,
-        EdgeOptions{0, RobustKernel::huber(params_.ins_heading_kernel_width)});
+        EdgeOptions{0, RobustKernel::huber(params_.gnss.ins_heading_kernel_width)});
   }
   s.ins_headings[in.accum_distance] = {in.id, *in.ins_yaw};
 }
 
 bool GraphBackend::gnssAltitude() const {
-  return gnssPriors() && params_.gnss_altitude_std > 0.0;
+  return gnssPriors() && params_.gnss.gnss_altitude_std > 0.0;
 }
 
 void GraphBackend::dropOrphanSegments() {
@@ -533,9 +537,10 @@ void GraphBackend::flushLoops(BackendUpdateReport& report) {
       continue;
     }
     placeAfterRestart(loop);
-    s.graph.addEdgeSE3(static_cast<int>(loop.to_id), static_cast<int>(loop.from_id),
-                       loop.relative_pose, loop.information,
-                       EdgeOptions{0, kernelNamed(params_.loop_kernel, params_.loop_kernel_width)});
+    s.graph.addEdgeSE3(
+        static_cast<int>(loop.to_id), static_cast<int>(loop.from_id), loop.relative_pose,
+        loop.information,
+        EdgeOptions{0, kernelNamed(params_.loops.loop_kernel, params_.loops.loop_kernel_width)});
     s.loops.push_back(loop);
     ++report.loops_added;
     s.dirty = true;
@@ -559,7 +564,7 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
       if (b.outline_enu.size() < 3 || s.buildings.count(b.id)) continue;
       BuildingState state;
       state.prior = b;
-      state.pose = s.predictedPose(state, params_);
+      state.pose = s.predictedPose(state, params_.osm_prior);
       state.local_outline = transformPolygon(b.outline_enu, b.reference_pose.inverse());
       s.buildings.emplace(state.prior.id, std::move(state));
       ++report.buildings_added;
@@ -570,7 +575,7 @@ void GraphBackend::flushBuildings(BackendUpdateReport& report) {
 bool GraphBackend::gnssPriors() const {
   // With the heading still unknown at the first keyframe it must stay fixed: global matching
   // rotates the trajectory about it.
-  return params_.gnss_prior_std > 0.0 && state_->heading_known_at_start;
+  return params_.gnss.gnss_prior_std > 0.0 && state_->heading_known_at_start;
 }
 
 void GraphBackend::flushFloors(BackendUpdateReport& report) {
@@ -602,11 +607,11 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   const std::optional<uint64_t> prev_id = s.last_floor_keyframe;
   if (prev_id && *prev_id >= kf.id) return;  // out of order: keep the newer chain
   s.last_floor_keyframe = kf.id;
-  if (!params_.floor_edges || !prev_id) return;
+  if (!params_.floor.floor_edges || !prev_id) return;
   const KeyframeState& prev = s.keyframes.at(*prev_id);
   // Far apart along the path, or stamped before the previous one (the time jumped back: a looped
   // bag starts elsewhere): not the same stretch of ground.
-  if (kf.accum_distance - prev.accum_distance > params_.floor_max_link_distance ||
+  if (kf.accum_distance - prev.accum_distance > params_.floor.floor_max_link_distance ||
       kf.stamp < prev.stamp) {
     ++report.floor_gaps;
     return;
@@ -616,7 +621,7 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   const Eigen::Vector3d n_this = kf.map_pose.linear() * kf.floor->head<3>();
   const double bend =
       std::acos(std::clamp(n_prev.normalized().dot(n_this.normalized()), -1.0, 1.0));
-  if (bend > params_.floor_slope_change_deg * M_PI / 180.0) {
+  if (bend > params_.floor.floor_slope_change_deg * M_PI / 180.0) {
     ++report.floor_slope_changes;
     logger_->info("keyframe " + std::to_string(kf.id) + ": the floor bends by " +
                   std::to_string(bend * 180.0 / M_PI) + " deg (a change of slope): not tied to " +
@@ -625,15 +630,15 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   }
   // Both floors are measured: the difference carries twice the variance of one.
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
-  info(0, 0) = info(1, 1) = 0.5 / std::pow(params_.floor_normal_std, 2);
+  info(0, 0) = info(1, 1) = 0.5 / std::pow(params_.floor.floor_normal_std, 2);
   // With gravity from the IMU on both, the floor only says the height: a floor fit tilts with
   // the road's camber and curvature, gravity does not (sim: tilt error 0.038 -> 0.056 deg).
-  if (prev.gravity_roll_pitch && kf.gravity_roll_pitch && !params_.floor_attitude_with_imu)
+  if (prev.gravity_roll_pitch && kf.gravity_roll_pitch && !params_.floor.floor_attitude_with_imu)
     info(0, 0) = info(1, 1) = 1e-9;
-  info(2, 2) = 0.5 / std::pow(params_.floor_distance_std, 2);
+  info(2, 2) = 0.5 / std::pow(params_.floor.floor_distance_std, 2);
   if (s.graph.addEdgeSE3PlanePair(
           static_cast<int>(prev.id), static_cast<int>(kf.id), *prev.floor, *kf.floor, info,
-          EdgeOptions{0, RobustKernel::huber(params_.floor_kernel_width)}) < 0) {
+          EdgeOptions{0, RobustKernel::huber(params_.floor.floor_kernel_width)}) < 0) {
     logger_->warnOnce("floor_edge", "floor edge rejected: " + s.graph.lastError());
     return;
   }
@@ -644,10 +649,10 @@ void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
 
 std::optional<uint64_t> GraphBackend::windowStart() const {
   const auto& keyframes = state_->keyframes;
-  if (params_.optimization_window <= 0 ||
-      keyframes.size() <= static_cast<size_t>(params_.optimization_window))
+  if (params_.schedule.optimization_window <= 0 ||
+      keyframes.size() <= static_cast<size_t>(params_.schedule.optimization_window))
     return std::nullopt;
-  return std::prev(keyframes.end(), params_.optimization_window)->first;
+  return std::prev(keyframes.end(), params_.schedule.optimization_window)->first;
 }
 
 bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
@@ -655,7 +660,8 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
   bool disagrees = false;
   for (size_t i = s.loops_checked_by_window; i < s.loops.size(); ++i) {
     const LoopClosureInput& loop = s.loops[i];
-    if (std::min(loop.from_id, loop.to_id) >= window_start || params_.window_loop_chi2 <= 0.0)
+    if (std::min(loop.from_id, loop.to_id) >= window_start ||
+        params_.schedule.window_loop_chi2 <= 0.0)
       continue;
     // The loop edge's error (as the SE3 edge measures it) at the windowed solution.
     const Eigen::Isometry3d estimate =
@@ -665,7 +671,7 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
     if (q.w() < 0.0) q.coeffs() *= -1.0;
     Vector6d e;
     e << diff.translation(), q.vec();
-    disagrees |= e.dot(loop.information * e) > params_.window_loop_chi2;
+    disagrees |= e.dot(loop.information * e) > params_.schedule.window_loop_chi2;
   }
   s.loops_checked_by_window = s.loops.size();
   return disagrees;
@@ -674,10 +680,11 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
 void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
                                   bool phase1) {
   BackendState& s = *state_;
-  const OptimizerOptions& options = params_.optimizer;
+  const OptimizerOptions& options = params_.schedule.optimizer;
   report.window_start = window_start;
   const std::vector<int> held =
-      window_start ? s.holdOutsideWindow(*window_start, params_) : std::vector<int>{};
+      window_start ? s.holdOutsideWindow(*window_start, params_.odometry, params_.gnss)
+                   : std::vector<int>{};
   // One optimisation at `level` into `result`, its time added to the update's stage.
   auto solve = [&](int level, OptimizationResult& result, double& stage_ms) {
     result = s.graph.optimize(level, options);
@@ -694,36 +701,37 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uin
   bool have_buildings = false;
   for (const auto& [bid, b] : s.buildings) have_buildings |= b.vertex_id >= 0;
   if (!have_buildings || params_.mode == OsmMode::kPrior) {
-    s.release(held, params_);
+    s.release(held, params_.osm_prior);
     updateMapToOdom();
     return;
   }
   // Phase 2 (level 1): robot vertices fixed, buildings move to satisfy their constraints.
   constraints_->removeOverlapEdges(s);  // re-derived below
-  if (params_.use_shared_walls && params_.mode == OsmMode::kNonRigid)
+  if (params_.buildings.use_shared_walls && params_.mode == OsmMode::kNonRigid)
     constraints_->addSharedWallEdges(s, report);
   const std::vector<int> unfix = s.fixRobots();
   solve(1, report.phase2, report.stage_ms.phase2);
-  s.readBuildingPoses(params_);
-  if (params_.building_edge_gate_chi2 > 0.0 && constraints_->gateBuildingEdges(s, report) > 0) {
+  s.readBuildingPoses(params_.osm_prior);
+  if (params_.buildings.building_edge_gate_chi2 > 0.0 &&
+      constraints_->gateBuildingEdges(s, report) > 0) {
     solve(1, report.phase2, report.stage_ms.phase2);
-    s.readBuildingPoses(params_);
+    s.readBuildingPoses(params_.osm_prior);
   }
-  if (params_.joint_optimization) {
+  if (params_.schedule.joint_optimization) {
     // Phase 3 (level 1): everything together, from phase 2's buildings.
     for (int vid : unfix) s.graph.setFixed(vid, false);
     solve(1, report.joint, report.stage_ms.joint);
     s.readRobotPoses();
-    s.readBuildingPoses(params_);
+    s.readBuildingPoses(params_.osm_prior);
     s.fixRobots();
   }
-  if (params_.resolve_overlaps) {
+  if (params_.buildings.resolve_overlaps) {
     const auto t0 = Clock::now();
     constraints_->resolveOverlaps(s, report);
     report.stage_ms.overlaps += msSince(t0);
   }
   for (int vid : unfix) s.graph.setFixed(vid, false);
-  s.release(held, params_);
+  s.release(held, params_.osm_prior);
   updateMapToOdom();
 }
 

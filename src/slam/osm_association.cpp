@@ -22,7 +22,7 @@ void OsmAssociation::process(BackendState& s, BackendUpdateReport& report) const
     // initial heading, for robot priors (prior and rigid modes, or use_global_priors) and for
     // rigid mode's single transform.
     const bool unbounded = !s.heading_initialized;
-    const bool robot_priors = params_.mode != OsmMode::kNonRigid || params_.use_global_priors;
+    const bool robot_priors = mode_ != OsmMode::kNonRigid || params_.use_global_priors;
     LineMatchResult global;
     bool accepted = false;
     if (unbounded || robot_priors) {
@@ -43,9 +43,9 @@ void OsmAssociation::process(BackendState& s, BackendUpdateReport& report) const
     } else if (robot_priors) {
       ++report.global_rejected;
     }
-    if (params_.mode == OsmMode::kRigid && accepted)
+    if (mode_ == OsmMode::kRigid && accepted)
       addRigidEdges(s, id, near, global, report);
-    else if (params_.mode == OsmMode::kNonRigid)
+    else if (mode_ == OsmMode::kNonRigid)
       addNonRigidEdges(s, id, kf, near, observed_from, report);
   }
 }
@@ -102,9 +102,9 @@ void OsmAssociation::addRigidEdges(BackendState& s, uint64_t id, const Neighbour
     const Pose2 z = global.transform.inverse() * b->prior.reference_pose;
     const Eigen::Matrix3d info =
         rotateInformation(localInformation(global), b->prior.reference_pose.theta);
-    s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, params_), z, info,
+    s.graph.addEdgeSE3SE2(static_cast<int>(id), s.buildingVertex(*b, mode_, prior_), z, info,
                           EdgeOptions{1, {}});
-    s.observed(*b, params_);
+    s.observed(*b, mode_);
     ++report.building_edges;
   }
 }
@@ -169,14 +169,14 @@ void OsmAssociation::addLocalEdge(BackendState& s, uint64_t id, KeyframeState& k
     info = leverInformation(info, local.matched_centre - local.transform.translation());
   info = rotateInformation(info, local.transform.theta);
   // Joint optimisation moves this robot through planar edges: keep its roll and pitch.
-  if (params_.joint_optimization && !kf.has_attitude) addOdometryAttitudePrior(s, kf, 1);
+  if (joint_optimization_ && !kf.has_attitude) addOdometryAttitudePrior(s, kf, 1);
   const int edge = s.graph.addEdgeSE3SE2(
-      static_cast<int>(id), s.buildingVertex(b, params_), z, info,
+      static_cast<int>(id), s.buildingVertex(b, mode_, prior_), z, info,
       EdgeOptions{1,
                   kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
   s.building_edges.push_back({edge, id, b.prior.id, z, info});
   b.last_edge_distance = kf.accum_distance;
-  s.observed(b, params_);
+  s.observed(b, mode_);
   ++report.building_edges;
   s.dirty = true;
 }
@@ -185,7 +185,7 @@ void OsmAssociation::addGlobalPrior(BackendState& s, KeyframeState& kf,
                                     const LineMatchResult& global) const {
   const int vid = static_cast<int>(kf.id);
   const Eigen::Matrix3d info = scaledInformation(global.information, params_.global_prior_std_xy,
-                                                 params_.global_prior_std_yaw, params_.matcher);
+                                                 params_.global_prior_std_yaw, matcher_.params());
   s.graph.addPriorSE3XY(vid, global.transform.translation(), info.topLeftCorner<2, 2>(),
                         EdgeOptions{0, {}});
   s.graph.addPriorSE3Yaw(vid, global.transform.theta, info(2, 2), EdgeOptions{0, {}});
@@ -203,19 +203,19 @@ void OsmAssociation::addOdometryAttitudePrior(BackendState& s, KeyframeState& kf
   }
   const Eigen::Vector2d rp = rollPitchOf(Eigen::Matrix3d(kf.map_pose.rotation()));
   s.graph.addPriorSE3(static_cast<int>(kf.id), attitudeMeasurement(kf.map_pose, rp.x(), rp.y()),
-                      attitudeInformation(params_.odometry_attitude_std), EdgeOptions{level, {}});
+                      attitudeInformation(odometry_attitude_std_), EdgeOptions{level, {}});
   kf.has_attitude = true;
 }
 
 Eigen::Matrix3d OsmAssociation::localInformation(const LineMatchResult& match) const {
   return scaledInformation(match.information, params_.local_edge_std_xy,
-                           params_.local_edge_std_theta, params_.matcher);
+                           params_.local_edge_std_theta, matcher_.params());
 }
 
 size_t OsmAssociation::reassociateAfterDatumMoved(BackendState& s,
                                                   BackendUpdateReport& report) const {
   const std::optional<Pose2> datum = s.graph.vertexSE2(GraphBackend::kOsmDatumVertex);
-  const double distance = s.mapWeighting(params_).datum_reassociate_distance;
+  const double distance = s.mapWeighting(prior_).datum_reassociate_distance;
   if (!datum || distance <= 0.0) return 0;
   std::set<uint64_t> stale;
   for (auto& [id, kf] : s.keyframes) {
@@ -242,7 +242,7 @@ size_t OsmAssociation::reassociateAfterDatumMoved(BackendState& s,
   for (int64_t id : touched) {
     BuildingState& b = s.buildings.at(id);
     if (b.observations > 0 || b.vertex_id < 0) continue;
-    b.pose = s.predictedPose(b, params_);
+    b.pose = s.predictedPose(b, prior_);
     s.graph.setVertexSE2(b.vertex_id, b.pose);
   }
   for (uint64_t id : stale) {

@@ -11,8 +11,18 @@ namespace osm_graph_slam {
 
 class OsmAssociation {
  public:
-  OsmAssociation(const GraphBackendParams& params, const Logger& logger)
-      : params_(params), logger_(logger), matcher_(params.matcher) {}
+  /// joint_optimization and odometry_attitude_std: without an IMU, a keyframe with a building
+  /// edge gets an attitude prior for the joint phase (OdometryEdgeParams).
+  OsmAssociation(OsmMode mode, const OsmAssociationParams& params, const OsmPriorParams& prior,
+                 const LineMatcherParams& matcher, bool joint_optimization,
+                 double odometry_attitude_std, const Logger& logger)
+      : mode_(mode),
+        params_(params),
+        prior_(prior),
+        joint_optimization_(joint_optimization),
+        odometry_attitude_std_(odometry_attitude_std),
+        logger_(logger),
+        matcher_(matcher) {}
 
   /// Associates every keyframe that is ready and not yet processed.
   void process(BackendState& s, BackendUpdateReport& report) const;
@@ -48,7 +58,11 @@ class OsmAssociation {
   void addOdometryAttitudePrior(BackendState& s, KeyframeState& kf, int level) const;
   Eigen::Matrix3d localInformation(const LineMatchResult& match) const;
 
-  const GraphBackendParams& params_;
+  const OsmMode mode_;
+  const OsmAssociationParams& params_;
+  const OsmPriorParams& prior_;
+  const bool joint_optimization_;
+  const double odometry_attitude_std_;
   const Logger& logger_;
   LineMatcher matcher_;
 };

@@ -1,5 +1,7 @@
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 
+#include <utility>
+
 #include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/lines/params_io.h"
@@ -23,10 +25,15 @@ bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string
 
 bool loadPipelineParams(const std::string& config_dir, const std::string& override_file,
                         SlamPipelineParams& params, std::string* error) {
-  // Each config/<nodelet>.yaml holds that nodelet's keys at its top level.
-  for (const char* nodelet : {"prefiltering", "scan_matching", "floor_detection", "line_extraction",
-                              "loop_detection", "osm_buffer", "graph_backend"}) {
-    const std::string path = config_dir + "/" + nodelet + ".yaml";
+  // Each config/<file>.yaml holds its nodelet's keys at its top level; graph_backend's are split
+  // into the keys a user tunes and the advanced ones (disjoint).
+  const std::pair<const char*, const char*> files[] = {
+      {"prefiltering", "prefiltering"},       {"scan_matching", "scan_matching"},
+      {"floor_detection", "floor_detection"}, {"line_extraction", "line_extraction"},
+      {"loop_detection", "loop_detection"},   {"osm_buffer", "osm_buffer"},
+      {"graph_backend", "graph_backend"},     {"graph_backend_advanced", "graph_backend"}};
+  for (const auto& [name, nodelet] : files) {
+    const std::string path = config_dir + "/" + name + ".yaml";
     const YamlParamReader file = YamlParamReader::fromFile(path);
     if (!file.ok()) {
       if (error) *error = file.error();

@@ -123,9 +123,9 @@ int main(int argc, char** argv) {
   GraphBackendParams params;
   params.use_osm = false;
   params.initial_yaw_known = true;
-  params.optimization_window = a.window;
+  params.schedule.optimization_window = a.window;
   GraphBackend windowed(params);
-  params.optimization_window = 0;
+  params.schedule.optimization_window = 0;
   GraphBackend reference(params);  // full batches only, at the checkpoints: the result to match
   Odometry odom_w(a.lap), odom_r(a.lap);
 

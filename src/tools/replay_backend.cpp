@@ -167,7 +167,8 @@ int main(int argc, char** argv) {
             writeKittiPoses(out + "/trajectory_kitti.txt", backend.trajectory(), false) &&
             writeTumTrajectory(out + "/odometry_tum.txt", backend.odomTrajectory());
   const auto buildings = backend.correctedBuildings();
-  for (const auto& [i, j] : findOverlappingBuildings(buildings, params.backend.overlap_min_area))
+  for (const auto& [i, j] :
+       findOverlappingBuildings(buildings, params.backend.buildings.overlap_min_area))
     std::cout << "overlap: buildings " << buildings[i].id << " and " << buildings[j].id << ", "
               << polygonOverlapArea(buildings[i].outline_enu, buildings[j].outline_enu) << " m^2\n";
   if (!buildings.empty())

@@ -8,7 +8,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <set>
@@ -89,11 +92,16 @@ class AuditingReader : public ParamReader {
   mutable std::map<std::string, Read> reads_;
 };
 
-/// One nodelet's config file: how its stage reads it and which keys only the nodelet reads.
+/// One nodelet's config files: how its stage reads them and which keys only the nodelet reads.
 struct StageConfig {
   std::string nodelet;
   std::function<void(const ParamReader&)> read;  ///< into default-constructed structs
   std::set<std::string> nodelet_only;            ///< lists, which only the nodelet reads
+  /// The files of its keys (disjoint); empty: config/<nodelet>.yaml.
+  std::vector<std::string> files = {};
+  std::vector<std::string> fileNames() const {
+    return files.empty() ? std::vector<std::string>{nodelet} : files;
+  }
 };
 
 std::vector<StageConfig> stages() {
@@ -156,7 +164,8 @@ std::vector<StageConfig> stages() {
          GraphBackendNodeletParams n;
          readParams(r, n);
        },
-       {}},
+       {},
+       {"graph_backend", "graph_backend_advanced"}},
       {"localization",
        [](const ParamReader& r) {
          LocalizationParams p;
@@ -224,57 +233,66 @@ std::map<std::string, std::string> disagreements(const AuditingReader& audit) {
 
 TEST(ConfigConsistency, EveryKeyOfEveryConfigFileIsRead) {
   for (const StageConfig& stage : stages()) {
-    SCOPED_TRACE(configPath(stage.nodelet));
-    const YamlParamReader yaml = loadConfig(stage.nodelet);
-    ASSERT_TRUE(yaml.ok());
-    const AuditingReader audit(yaml);
-    stage.read(audit);
-    EXPECT_GT(audit.reads().size(), 0u) << "nothing of " << stage.nodelet << ".yaml was read";
-    for (const std::string& key : unreadKeys(yaml, audit, stage.nodelet_only))
-      ADD_FAILURE() << "config/" << stage.nodelet << ".yaml: key '" << key
-                    << "' is read by no readParams() and is not a listed nodelet-only key "
-                       "(a typo, a removed parameter, or a wrong type in the file)";
-    const std::vector<std::string> file_keys = yaml.keys();
-    for (const std::string& key : stage.nodelet_only) {
-      EXPECT_TRUE(std::count(file_keys.begin(), file_keys.end(), key))
-          << "config/" << stage.nodelet << ".yaml lacks the nodelet-only key '" << key << "'";
-      EXPECT_FALSE(audit.reads().count(key))
-          << "'" << key << "' is read by readParams(): remove it from the nodelet-only list";
+    std::set<std::string> file_keys;
+    for (const std::string& name : stage.fileNames()) {
+      SCOPED_TRACE(configPath(name));
+      const YamlParamReader yaml = loadConfig(name);
+      ASSERT_TRUE(yaml.ok());
+      const AuditingReader audit(yaml);
+      stage.read(audit);
+      EXPECT_GT(audit.reads().size(), 0u) << "nothing of " << name << ".yaml was read";
+      for (const std::string& key : unreadKeys(yaml, audit, stage.nodelet_only))
+        ADD_FAILURE() << "config/" << name << ".yaml: key '" << key
+                      << "' is read by no readParams() and is not a listed nodelet-only key "
+                         "(a typo, a removed parameter, or a wrong type in the file)";
+      for (const std::string& key : yaml.keys()) {
+        EXPECT_TRUE(file_keys.insert(key).second)
+            << "config/" << name << ".yaml: '" << key << "' is in another file of " << stage.nodelet
+            << " too (one place per key)";
+      }
+      for (const std::string& key : stage.nodelet_only)
+        EXPECT_FALSE(audit.reads().count(key))
+            << "'" << key << "' is read by readParams(): remove it from the nodelet-only list";
     }
+    for (const std::string& key : stage.nodelet_only)
+      EXPECT_TRUE(file_keys.count(key))
+          << "config/" << stage.nodelet << ".yaml lacks the nodelet-only key '" << key << "'";
   }
 }
 
 TEST(ConfigConsistency, EveryFileValueEqualsTheCodeDefault) {
   for (const StageConfig& stage : stages()) {
-    const YamlParamReader yaml = loadConfig(stage.nodelet);
-    ASSERT_TRUE(yaml.ok());
-    const AuditingReader audit(yaml);
-    stage.read(audit);
-    const auto known = kKnownDisagreements.count(stage.nodelet)
-                           ? kKnownDisagreements.at(stage.nodelet)
-                           : std::set<std::string>{};
-    for (const auto& [key, what] : disagreements(audit)) {
-      if (known.count(key)) {
-        std::cout << "[ KNOWN    ] config/" << stage.nodelet << ".yaml: '" << key << "': " << what
-                  << "\n";
-        continue;
+    for (const std::string& name : stage.fileNames()) {
+      const YamlParamReader yaml = loadConfig(name);
+      ASSERT_TRUE(yaml.ok());
+      const AuditingReader audit(yaml);
+      stage.read(audit);
+      const auto known =
+          kKnownDisagreements.count(name) ? kKnownDisagreements.at(name) : std::set<std::string>{};
+      for (const auto& [key, what] : disagreements(audit)) {
+        if (known.count(key)) {
+          std::cout << "[ KNOWN    ] config/" << name << ".yaml: '" << key << "': " << what << "\n";
+          continue;
+        }
+        ADD_FAILURE() << "config/" << name << ".yaml: '" << key << "': " << what
+                      << " (the file and the params struct must agree)";
       }
-      ADD_FAILURE() << "config/" << stage.nodelet << ".yaml: '" << key << "': " << what
-                    << " (the file and the params struct must agree)";
     }
   }
 }
 
 TEST(ConfigConsistency, KnownDisagreementsStillDisagree) {
-  for (const auto& [nodelet, keys] : kKnownDisagreements) {
-    const YamlParamReader yaml = loadConfig(nodelet);
+  for (const auto& [name, keys] : kKnownDisagreements) {
+    const YamlParamReader yaml = loadConfig(name);
     ASSERT_TRUE(yaml.ok());
     const AuditingReader audit(yaml);
-    for (const StageConfig& stage : stages())
-      if (stage.nodelet == nodelet) stage.read(audit);
+    for (const StageConfig& stage : stages()) {
+      const auto names = stage.fileNames();
+      if (std::count(names.begin(), names.end(), name)) stage.read(audit);
+    }
     const auto found = disagreements(audit);
     for (const std::string& key : keys)
-      EXPECT_TRUE(found.count(key)) << "config/" << nodelet << ".yaml: '" << key
+      EXPECT_TRUE(found.count(key)) << "config/" << name << ".yaml: '" << key
                                     << "' now agrees with the code: drop it from "
                                        "kKnownDisagreements";
   }
@@ -360,8 +378,10 @@ osm_buffer:
 TEST(ConfigConsistency, OverrideFilesOnlySetKnownKeys) {
   std::map<std::string, std::set<std::string>> known;
   for (const StageConfig& stage : stages()) {
-    const YamlParamReader yaml = loadConfig(stage.nodelet);
-    for (const std::string& key : yaml.keys()) known[stage.nodelet].insert(key);
+    for (const std::string& name : stage.fileNames()) {
+      const YamlParamReader yaml = loadConfig(name);
+      for (const std::string& key : yaml.keys()) known[stage.nodelet].insert(key);
+    }
   }
   int checked = 0;
   for (const std::string name : {"kitti", "mulran", "sim"}) {
@@ -395,13 +415,135 @@ TEST(ConfigConsistency, MisspeltValuesAreErrorsNotSilentDefaults) {
     EXPECT_FALSE(readParams(YamlParamReader::fromString(c.yaml), p, &error)) << c.yaml;
     EXPECT_NE(error.find(c.expected), std::string::npos) << error;
     const GraphBackendParams defaults;
-    EXPECT_EQ(p.loop_kernel, defaults.loop_kernel) << "a bad value keeps the default";
-    EXPECT_EQ(p.building_edge_kernel, defaults.building_edge_kernel);
+    EXPECT_EQ(p.loops.loop_kernel, defaults.loops.loop_kernel) << "a bad value keeps the default";
+    EXPECT_EQ(p.association.building_edge_kernel, defaults.association.building_edge_kernel);
     EXPECT_EQ(p.mode, defaults.mode);
-    EXPECT_EQ(p.odometry.lateral_std_ratio, defaults.odometry.lateral_std_ratio);
+    EXPECT_EQ(p.odometry.information.lateral_std_ratio,
+              defaults.odometry.information.lateral_std_ratio);
   }
   GraphBackendParams p;
   std::string error;
   EXPECT_TRUE(readParams(YamlParamReader::fromString("loop_kernel: huber\n"), p, &error)) << error;
-  EXPECT_EQ(p.loop_kernel, "huber");
+  EXPECT_EQ(p.loops.loop_kernel, "huber");
+}
+
+namespace {
+
+/// Remembers every key a reader asks for (and finds none).
+class RecordingReader : public ParamReader {
+ public:
+  bool getDouble(const std::string& k, double*) const override { return note(k); }
+  bool getInt(const std::string& k, int*) const override { return note(k); }
+  bool getBool(const std::string& k, bool*) const override { return note(k); }
+  bool getString(const std::string& k, std::string*) const override { return note(k); }
+  const std::set<std::string>& keys() const { return keys_; }
+
+ private:
+  bool note(const std::string& k) const {
+    keys_.insert(k);
+    return false;
+  }
+  mutable std::set<std::string> keys_;
+};
+
+/// A YAML value as the config files write it (a double always with a '.', which rosparam's YAML
+/// 1.1 reader needs to read it as a float).
+std::string yamlValue(double v) {
+  std::ostringstream ss;
+  ss.precision(15);
+  ss << v;
+  std::string s = ss.str();
+  const size_t e = s.find('e');
+  if (s.find('.') == std::string::npos) s.insert(e == std::string::npos ? s.size() : e, ".0");
+  return s;
+}
+std::string yamlValue(int v) {
+  return std::to_string(v);
+}
+std::string yamlValue(bool v) {
+  return v ? "true" : "false";
+}
+std::string yamlValue(const std::string& v) {
+  return v;
+}
+
+/// "key: default  # doc" of every key a params struct declares.
+struct DeclaredLines {
+  std::vector<std::string> keys;
+  std::map<std::string, std::string> value, doc;
+  template <class T>
+  void operator()(const char* key, T& field, const char* text, const char* choices = nullptr) {
+    keys.push_back(key);
+    value[key] = yamlValue(field);
+    doc[key] = choices ? std::string(choices) + ": " + text : std::string(text);
+  }
+  std::string line(const std::string& key) const {
+    std::string head = key + ": " + value.at(key);
+    head.resize(std::max<size_t>(head.size() + 1, 34), ' ');
+    return head + "# " + doc.at(key);
+  }
+};
+
+/// key -> comment of every top-level "key: value  # comment" line of a config file.
+std::map<std::string, std::string> topLevelComments(const std::string& path) {
+  std::map<std::string, std::string> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || !std::isalpha(static_cast<unsigned char>(line[0]))) continue;
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    const size_t hash = line.find(" #", colon);
+    std::string comment;
+    if (hash != std::string::npos) {
+      comment = line.substr(line.find_first_not_of(" #", hash));
+      comment.erase(comment.find_last_not_of(' ') + 1);
+    }
+    out[line.substr(0, colon)] = comment;
+  }
+  return out;
+}
+
+}  // namespace
+
+// graph_backend.yaml holds the keys a user tunes between vehicles and cities, with a comment
+// each; graph_backend_advanced.yaml every other key. Together they list every key the back-end
+// and its nodelet read.
+TEST(ConfigConsistency, GraphBackendKeysAreSplitIntoBasicAndAdvanced) {
+  const YamlParamReader basic = loadConfig("graph_backend");
+  const YamlParamReader advanced = loadConfig("graph_backend_advanced");
+  ASSERT_TRUE(basic.ok() && advanced.ok());
+  const std::vector<std::string> basic_keys = basic.keys(), advanced_keys = advanced.keys();
+  EXPECT_LE(basic_keys.size(), 25u) << "config/graph_backend.yaml is for the keys a user tunes";
+  for (const auto& [key, comment] : topLevelComments(configPath("graph_backend")))
+    EXPECT_FALSE(comment.empty()) << "config/graph_backend.yaml: '" << key << "' lacks a comment";
+  const RecordingReader asked;
+  for (const StageConfig& stage : stages())
+    if (stage.nodelet == "graph_backend") stage.read(asked);
+  EXPECT_GT(asked.keys().size(), 100u);
+  for (const std::string& key : asked.keys())
+    EXPECT_TRUE(std::count(basic_keys.begin(), basic_keys.end(), key) +
+                    std::count(advanced_keys.begin(), advanced_keys.end(), key) ==
+                1)
+        << "'" << key << "' is read by the back-end but in neither config/graph_backend.yaml "
+        << "nor config/graph_backend_advanced.yaml";
+}
+
+// The comment of a declared key in the config files is its declaration's one-line doc (the
+// declaration is the one place of keys, defaults and docs; EveryFileValueEqualsTheCodeDefault
+// checks the values). OGS_PRINT_DECLARED_YAML=1 prints every declared line to copy from.
+TEST(ConfigConsistency, DeclaredBackendKeysCarryTheirDocInTheFiles) {
+  DeclaredLines declared;
+  GraphBackendParams params;
+  params.visitAll(declared);
+  if (std::getenv("OGS_PRINT_DECLARED_YAML"))
+    for (const std::string& key : declared.keys) std::cout << declared.line(key) << "\n";
+  std::map<std::string, std::string> comments = topLevelComments(configPath("graph_backend"));
+  for (const auto& kv : topLevelComments(configPath("graph_backend_advanced"))) comments.insert(kv);
+  for (const std::string& key : declared.keys) {
+    ASSERT_TRUE(comments.count(key)) << "'" << key << "' is in neither graph_backend yaml file";
+    EXPECT_EQ(comments[key], declared.doc.at(key))
+        << "the comment of '" << key << "' differs from its declaration's doc; the line is\n"
+        << declared.line(key);
+  }
 }

@@ -158,8 +158,8 @@ double finalHeightError(bool floors, bool floor_edges = true, double floor_dista
   GraphBackendParams params;
   params.use_osm = false;
   params.initial_yaw_known = true;
-  params.floor_edges = floor_edges;
-  if (floor_distance_std > 0.0) params.floor_distance_std = floor_distance_std;
+  params.floor.floor_edges = floor_edges;
+  if (floor_distance_std > 0.0) params.floor.floor_distance_std = floor_distance_std;
   GraphBackend backend(params);
   Eigen::Isometry3d odom = truePose(0, slope);
   for (int i = 0; i < 40; ++i) {

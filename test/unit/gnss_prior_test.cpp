@@ -20,7 +20,7 @@ namespace {
 /// exact, one of them an outlier 30 m off. Returns the trajectory's mean |y| error.
 double meanLateralError(double gnss_prior_std) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = gnss_prior_std;
+  params.gnss.gnss_prior_std = gnss_prior_std;
   GraphBackend backend(params);
   for (uint64_t i = 0; i < 20; ++i) {
     KeyframeInput kf = straightKeyframe(i);
@@ -51,9 +51,9 @@ namespace {
 /// the trajectory's lateral error after its mean is removed: how much the shape follows the bias.
 double lateralShapeError(double gnss_bias_std) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.gnss_bias_std = gnss_bias_std;
-  params.gnss_bias_tau = 60.0;
+  params.gnss.gnss_prior_std = 1.5;
+  params.gnss.gnss_bias_std = gnss_bias_std;
+  params.gnss.gnss_bias_tau = 60.0;
   GraphBackend backend(params);
   std::mt19937 rng(7);
   std::normal_distribution<double> white(0.0, 1.5);
@@ -88,9 +88,9 @@ namespace {
 /// trajectory's mean lateral offset.
 double meanOffsetAfterRtkIsLost(bool reported_accuracy) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.gnss_bias_std = 1.0;
-  params.gnss_reported_accuracy = reported_accuracy;
+  params.gnss.gnss_prior_std = 1.5;
+  params.gnss.gnss_bias_std = 1.0;
+  params.gnss.gnss_reported_accuracy = reported_accuracy;
   GraphBackend backend(params);
   for (uint64_t i = 0; i < 40; ++i) {
     KeyframeInput kf = straightKeyframe(i);
@@ -123,11 +123,11 @@ TEST(GnssPrior, EachFixWeighsItsReportedAccuracy) {
 // would keep every old fix in the problem.
 TEST(GnssPrior, AWindowedUpdateHoldsTheBiasesOfOldTimeWindows) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.gnss_bias_std = 1.0;
-  params.gnss_bias_window = 10.0;
-  params.odometry_scale_window = 0.0;
-  params.optimization_window = 10;
+  params.gnss.gnss_prior_std = 1.5;
+  params.gnss.gnss_bias_std = 1.0;
+  params.gnss.gnss_bias_window = 10.0;
+  params.odometry.odometry_scale_window = 0.0;
+  params.schedule.optimization_window = 10;
   GraphBackend backend(params);
   BackendUpdateReport r;
   for (uint64_t i = 0; i < 60; ++i) {
@@ -153,9 +153,9 @@ namespace {
 /// 2.5 m about it. Returns the trajectory's mean |z| error.
 double meanHeightError(double gnss_altitude_std, double gnss_bias_std) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.gnss_altitude_std = gnss_altitude_std;
-  params.gnss_bias_std = gnss_bias_std;
+  params.gnss.gnss_prior_std = 1.5;
+  params.gnss.gnss_altitude_std = gnss_altitude_std;
+  params.gnss.gnss_bias_std = gnss_bias_std;
   GraphBackend backend(params);
   std::mt19937 rng(11);
   std::normal_distribution<double> white(0.0, 2.5);
@@ -198,8 +198,8 @@ struct ScaleRun {
 /// track (σ 2.3 cm per step), so without a scale the trajectory follows the odometry's length.
 ScaleRun scaledOdometryRun(double odometry_scale_window) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.odometry_scale_window = odometry_scale_window;
+  params.gnss.gnss_prior_std = 1.5;
+  params.odometry.odometry_scale_window = odometry_scale_window;
   GraphBackend backend(params);
   std::mt19937 rng(5);
   std::normal_distribution<double> white(0.0, 1.5);
@@ -237,8 +237,8 @@ TEST(GnssPrior, AnEstimatedOdometryScaleRemovesALengthBias) {
 
 TEST(GnssPrior, AnOdometryScaleFarFromOneIsLoggedOnce) {
   GraphBackendParams params = noOsmKnownHeading();
-  params.gnss_prior_std = 1.5;
-  params.odometry_scale_window = 100.0;
+  params.gnss.gnss_prior_std = 1.5;
+  params.odometry.odometry_scale_window = 100.0;
   std::vector<std::string> warnings;
   auto logger = std::make_shared<Logger>([&](LogLevel level, const std::string& msg) {
     if (level == LogLevel::kWarn) warnings.push_back(msg);

@@ -34,14 +34,15 @@ GraphBackendParams baseParams(OsmMode mode) {
   p.initial_yaw = drive().true_poses[0].theta;
   // The drives below drift by up to 4 mrad of yaw and 1 % of length per keyframe, ten times worse
   // than scan matching on the simulated KITTI drives: the odometry edges say so.
-  p.odometry.max_std_rot = 0.02;  // and pitch up to 5 mrad per keyframe (ImuAttitude... below)
-  p.odometry.min_std_yaw = 0.001;
-  p.odometry.max_std_yaw = 0.02;
-  p.odometry.max_std_xyz = 0.25;
+  p.odometry.information.max_std_rot =
+      0.02;  // and pitch up to 5 mrad per keyframe (ImuAttitude... below)
+  p.odometry.information.min_std_yaw = 0.001;
+  p.odometry.information.max_std_yaw = 0.02;
+  p.odometry.information.max_std_xyz = 0.25;
   // The test street's buildings stand 2-6 m apart, never touching: with priors misplaced by
   // 0.8 m, shared-wall detection would tie neighbours that are not (corner error 0.05 -> 0.32 m
   // in NonRigidModeCorrectsEachBuilding). Shared walls are measured on the Karlsruhe drives.
-  p.use_shared_walls = false;
+  p.buildings.use_shared_walls = false;
   return p;
 }
 
@@ -205,8 +206,8 @@ TEST(GraphBackend, SimulatedKeyframesHaveWallSegments) {
 TEST(GraphBackend, PriorModeCorrectsDriftingOdometryWithAnExactMap) {
   const auto odom = drive().odometry(0.004, 1.01);
   GraphBackendParams params = baseParams(OsmMode::kPrior);
-  params.global_prior_std_xy = 0.05;  // the map is exact here: trust it
-  params.global_prior_std_yaw = 0.005;
+  params.association.global_prior_std_xy = 0.05;  // the map is exact here: trust it
+  params.association.global_prior_std_yaw = 0.005;
   GraphBackend backend(params);
   drive().feed(backend, odom, drive().truth);
   const BackendUpdateReport r = backend.update();
@@ -242,8 +243,8 @@ TEST(GraphBackend, NonRigidModeCorrectsEachBuilding) {
   const auto odom = drive().odometry(0.0005, 1.001);
   const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 5);
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  params.global_prior_std_xy = 2.0;  // a noisy map: its global priors weigh little here
-  params.global_prior_std_yaw = 0.05;
+  params.association.global_prior_std_xy = 2.0;  // a noisy map: its global priors weigh little here
+  params.association.global_prior_std_yaw = 0.05;
   GraphBackend backend(params);
   drive().feed(backend, odom, prior);
   const BackendUpdateReport r = backend.update();
@@ -283,7 +284,7 @@ TEST(GraphBackend, JointOptimizationCorrectsDriftAndBuildings) {
 
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   GraphBackendParams two_phase = params;
-  two_phase.joint_optimization = false;
+  two_phase.schedule.joint_optimization = false;
   GraphBackend joint(params), phases(two_phase);
   drive().feed(joint, odom, prior);
   drive().feed(phases, odom, prior);
@@ -310,9 +311,9 @@ TEST(GraphBackend, RigidModeRecoversACommonMapShift) {
   const Pose2 shift(0.9, -0.6, 0.01);
   const auto prior = drive().perturbedPrior(0.0, 0.0, shift, 5);
   GraphBackendParams params = baseParams(OsmMode::kRigid);
-  params.global_prior_std_xy = 20.0;  // trust the (exact) odometry, move the map
-  params.global_prior_std_yaw = 1.0;
-  params.anchor_std_xy = 0.0;  // ... and the first keyframe's (exact) fix
+  params.association.global_prior_std_xy = 20.0;  // trust the (exact) odometry, move the map
+  params.association.global_prior_std_yaw = 1.0;
+  params.gnss.anchor_std_xy = 0.0;  // ... and the first keyframe's (exact) fix
   GraphBackend backend(params);
   drive().feed(backend, odom, prior);
   const BackendUpdateReport r = backend.update();
@@ -330,9 +331,9 @@ TEST(GraphBackend, PhaseTwoMovesOnlyBuildings) {
   const auto odom = drive().odometry(0.002, 1.005);
   const auto prior = drive().perturbedPrior(0.8, 0.03, Pose2(), 9);
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  params.resolve_overlaps = false;
-  params.joint_optimization = false;  // the thesis' two phases
-  params.use_global_priors = true;
+  params.buildings.resolve_overlaps = false;
+  params.schedule.joint_optimization = false;  // the thesis' two phases
+  params.association.use_global_priors = true;
   // Reference: the same graph optimised at level 0 only (no building may influence robots).
   GraphBackendParams level0 = params;
   level0.mode = OsmMode::kPrior;  // same global priors, no building edges
@@ -356,10 +357,11 @@ TEST(GraphBackend, OverlapResolutionSeparatesOnlyTheBuildingsInvolved) {
   ASSERT_EQ(findOverlappingBuildings(prior).size(), 1u);
 
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  params.local_edge_std_xy = 100.0;  // isolate the overlap step: the scans barely move buildings
-  params.local_edge_std_theta = 10.0;
+  params.association.local_edge_std_xy =
+      100.0;  // isolate the overlap step: the scans barely move buildings
+  params.association.local_edge_std_theta = 10.0;
   GraphBackend resolved(params);
-  params.resolve_overlaps = false;
+  params.buildings.resolve_overlaps = false;
   GraphBackend unresolved(params);
   drive().feed(resolved, odom, prior);
   drive().feed(unresolved, odom, prior);
@@ -387,11 +389,11 @@ TEST(GraphBackend, AnOverlapTheEdgesLeaveIsClearedByTheShortestTranslationOfOneB
   const double push = outlineMinX(prior[4]) - outlineMaxX(prior[3]) + 2.0;
   prior[3] = toBuilding(prior[3].id, transformPolygon(prior[3].outline_enu, Pose2(push, 0, 0)));
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  params.local_edge_std_xy = 100.0;  // the scans barely move buildings
-  params.local_edge_std_theta = 10.0;
-  params.overlap_max_iterations = 0;
+  params.association.local_edge_std_xy = 100.0;  // the scans barely move buildings
+  params.association.local_edge_std_theta = 10.0;
+  params.buildings.overlap_max_iterations = 0;
   auto run = [&](double reach) {
-    params.overlap_projection_max_translation = reach;
+    params.buildings.overlap_projection_max_translation = reach;
     GraphBackend backend(params);
     drive().feed(backend, odom, prior);
     const BackendUpdateReport r = backend.update();
@@ -436,7 +438,7 @@ TEST(GraphBackend, OverlapResolutionSeparatesABuildingSqueezedFromBothSides) {
   const std::vector<Building> prior = squeezedPrior();
   ASSERT_EQ(findOverlappingBuildings(prior).size(), 2u);
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  ASSERT_GT(params.overlap_clearance, 0.0);
+  ASSERT_GT(params.buildings.overlap_clearance, 0.0);
   GraphBackend backend(params);
   drive().feed(backend, drive().odometry(0.0, 1.0), prior);
   const BackendUpdateReport r = backend.update();
@@ -468,9 +470,9 @@ TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWithOnlyWhen
 
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
   params.initial_yaw = row.true_poses[0].theta;
-  params.shared_walls.max_distance = 2.5;  // config/sim.yaml: priors misplaced one by one
+  params.buildings.shared_walls.max_distance = 2.5;  // config/sim.yaml: priors misplaced one by one
   // By default a building nobody saw follows its neighbour; held at its prior: checked at the end.
-  params.unobserved_buildings_fixed = false;
+  params.osm_prior.unobserved_buildings_fixed = false;
   auto error = [&](const GraphBackend& backend, size_t i) {
     for (const auto& b : backend.correctedBuildings())
       if (b.id == row.truth[i].id)
@@ -478,9 +480,9 @@ TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWithOnlyWhen
                                row.truth[i].reference_pose.translation());
     return Eigen::Vector2d(HUGE_VAL, HUGE_VAL);
   };
-  params.use_shared_walls = true;
+  params.buildings.use_shared_walls = true;
   GraphBackend shared(params);
-  params.use_shared_walls = false;
+  params.buildings.use_shared_walls = false;
   GraphBackend without(params);
   row.feed(shared, row.odometry(0.0, 1.0), prior);
   row.feed(without, row.odometry(0.0, 1.0), prior);
@@ -500,8 +502,8 @@ TEST(GraphBackend, ABuildingNobodySawFollowsTheRowHouseItSharesAWallWithOnlyWhen
 
   // unobserved_buildings_fixed: the backyard building stays exactly at its prior, the row is
   // corrected alike.
-  params.use_shared_walls = true;
-  params.unobserved_buildings_fixed = true;
+  params.buildings.use_shared_walls = true;
+  params.osm_prior.unobserved_buildings_fixed = true;
   GraphBackend held(params);
   row.feed(held, row.odometry(0.0, 1.0), prior);
   const BackendUpdateReport h = held.update();
@@ -818,8 +820,8 @@ struct ShiftedMapRun {
 /// Exact odometry, honest deviations, the first keyframe fixed at its exact fix.
 GraphBackendParams shiftedMapParams() {
   GraphBackendParams params = baseParams(OsmMode::kNonRigid);
-  params.anchor_std_xy = 0.0;
-  params.odometry.max_std_xyz = 0.05;  // exact odometry, honest deviations
+  params.gnss.anchor_std_xy = 0.0;
+  params.odometry.information.max_std_xyz = 0.05;  // exact odometry, honest deviations
   return params;
 }
 
@@ -845,9 +847,10 @@ ShiftedMapRun shiftedMapRun(const GraphBackendParams& params, bool gnss) {
 ShiftedMapRun shiftedMapRun(double datum_std, const std::string& datum_kernel = "none",
                             double building_prior_std = 0.0) {
   GraphBackendParams params = shiftedMapParams();
-  params.osm_datum_std_xy_without_gnss = datum_std;
-  params.osm_datum_kernel_without_gnss = datum_kernel;
-  if (building_prior_std > 0.0) params.building_prior_std_xy_without_gnss = building_prior_std;
+  params.osm_prior.osm_datum_std_xy_without_gnss = datum_std;
+  params.osm_prior.osm_datum_kernel_without_gnss = datum_kernel;
+  if (building_prior_std > 0.0)
+    params.osm_prior.building_prior_std_xy_without_gnss = building_prior_std;
   return shiftedMapRun(params, false);
 }
 
@@ -884,8 +887,8 @@ TEST(GraphBackend, TheDatumsReassociationDistanceFollowsWhetherFixesHoldTheRun) 
   // with the first fix only ..._without_gnss (the datum travels metres there).
   auto reassociated = [](bool gnss, double distance, double distance_without_gnss) {
     GraphBackendParams params = shiftedMapParams();
-    params.osm_datum_reassociate_distance = distance;
-    params.osm_datum_reassociate_distance_without_gnss = distance_without_gnss;
+    params.osm_prior.osm_datum_reassociate_distance = distance;
+    params.osm_prior.osm_datum_reassociate_distance_without_gnss = distance_without_gnss;
     return shiftedMapRun(params, gnss).reassociated;
   };
   const size_t with_fixes = reassociated(true, 0.3, 0.0);
@@ -934,9 +937,10 @@ TEST(GraphBackend, AWindowedUpdateHoldsTheOldKeyframesAndADisagreeingLoopCallsAF
   constexpr int kN = 40, kWindow = 10;
   GraphBackendParams params = noOsmKnownHeading();
   params.initial_yaw = M_PI / 2.0;
-  params.loop_kernel = "none";  // the loop below is right; Cauchy would doubt a 7 m correction
-  GraphBackend full(params);    // the reference: a full batch every update
-  params.optimization_window = kWindow;
+  params.loops.loop_kernel =
+      "none";                 // the loop below is right; Cauchy would doubt a 7 m correction
+  GraphBackend full(params);  // the reference: a full batch every update
+  params.schedule.optimization_window = kWindow;
   GraphBackend windowed(params);
   std::vector<Eigen::Isometry3d> truth(kN);
   for (int i = 0; i < kN; ++i) {
@@ -1003,8 +1007,8 @@ TEST(GraphBackend, AWindowedUpdateHoldsTheScalesOfOldPathWindows) {
   constexpr int kN = 40, kWindow = 10;
   GraphBackendParams params = noOsmKnownHeading();
   params.initial_yaw = M_PI / 2.0;
-  params.odometry_scale_window = 20.0;  // 3.14 m steps: one scale per 6-7 keyframes
-  params.optimization_window = kWindow;
+  params.odometry.odometry_scale_window = 20.0;  // 3.14 m steps: one scale per 6-7 keyframes
+  params.schedule.optimization_window = kWindow;
   GraphBackend windowed(params);
   BackendUpdateReport r;
   for (int i = 0; i < kN; ++i) {

@@ -28,7 +28,7 @@ struct HeadingErrors {
 HeadingErrors drive(double ins_heading_std, bool heading_known) {
   GraphBackendParams params = noOsmKnownHeading();
   params.initial_yaw_known = heading_known;
-  params.ins_heading_std = ins_heading_std;
+  params.gnss.ins_heading_std = ins_heading_std;
   GraphBackend backend(params);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.1);

@@ -28,7 +28,7 @@ struct Drive {
   bool reanchored = false;
   double hessian_weight = 0.0;
   double loop_information = 100.0;  // 10 cm, 0.1 rad
-  std::string loop_kernel = GraphBackendParams().loop_kernel;
+  std::string loop_kernel = GraphBackendParams().loops.loop_kernel;
   double prediction_error = 0.0005;  // [m] ahead, of keyframe 2's match (the one with a Hessian)
   double prediction_error_scale = 1.0;
 };
@@ -38,11 +38,11 @@ std::vector<double> optimisedX(const Drive& drive, std::string* dump_dir = nullp
   const bool reanchored = drive.reanchored;
   GraphBackendParams params;
   params.use_osm = false;
-  params.odometry.hessian_weight = drive.hessian_weight;
-  params.odometry.prediction_error_scale = drive.prediction_error_scale;
+  params.odometry.information.hessian_weight = drive.hessian_weight;
+  params.odometry.information.prediction_error_scale = drive.prediction_error_scale;
   // The steps' own information alone: an estimated scale would shorten every step for the loop.
-  params.odometry_scale_window = 0.0;
-  params.loop_kernel = drive.loop_kernel;
+  params.odometry.odometry_scale_window = 0.0;
+  params.loops.loop_kernel = drive.loop_kernel;
   GraphBackend backend(params);
   const double xs[] = {0.0, 2.0, 4.0, 7.5};
   for (uint64_t i = 0; i < 4; ++i) {

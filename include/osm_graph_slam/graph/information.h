@@ -26,15 +26,15 @@ struct InformationParams {
   /// scene constrains well (along a square's walls) is held where the fitness model, which only
   /// knows streets, assumes it weak. The Hessian counts neighbouring points as independent, so
   /// the weight is far below 1 (doc/backend.md). 0 = off; keyframes without a Hessian (PCL
-  /// registration, old dumps) get the fitness model alone. 0.0025 by default since session 28,
-  /// with the odometry scale and prediction_error_scale 1 (see odometry_scale_window).
+  /// registration, old dumps) get the fitness model alone. 0.0025 together with the odometry
+  /// scale and prediction_error_scale 1 (see odometry_scale_window).
   double hessian_weight = 0.0025;
   /// A keyframe whose match lay an offset e from the motion model's prediction (TrackResult::
   /// prediction_error: the scan was deskewed by a motion that did not happen) gets
   /// (scale * e)(scale * e)^T added to its translation covariance: along e the step is
   /// uncertain by about that much, whatever fitness and Hessian say. 0 = off (alone: neutral
-  /// on the quick matrix, 0.4-1.1 % more ATE on the manoeuvre drives; doc/backend.md). 1 by
-  /// default since session 28, with the Hessian and the odometry scale.
+  /// on the quick matrix, 0.4-1.1 % more ATE on the manoeuvre drives; doc/backend.md). 1 together
+  /// with the Hessian and the odometry scale.
   double prediction_error_scale = 1.0;
 };
 

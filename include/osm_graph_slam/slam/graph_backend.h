@@ -56,7 +56,7 @@ struct KeyframeInput {
   /// known: evidence with gnss_altitude_std > 0.
   std::optional<double> gnss_altitude;
   /// [rad] base_link's yaw from an INS at this keyframe's stamp, if known: its changes between
-  /// keyframes are evidence with GraphBackendParams::ins_heading_std > 0.
+  /// keyframes are evidence with GnssParams::ins_heading_std > 0.
   std::optional<double> ins_yaw;
   /// The floor plane (a, b, c, d) under base_link, if the floor detector found one (it may also
   /// come later through addFloor()).

@@ -17,6 +17,23 @@ struct SensorInputsParams {
   double gnss_max_time_difference = 0.05;  ///< [s] ... else the nearest fix this close
   /// Samples kept per sensor (the oldest go first); 0 keeps all (offline: the whole drive).
   size_t max_samples = 2000;
+
+  /// The keys of config/graph_backend*.yaml (common/param_declaration.h); max_samples is set by
+  /// the code that owns the buffers.
+  template <class V>
+  void visit(V& v) {
+    v("use_imu", use_imu,
+      "imu/data (REP-145, orientation in ENU): initial heading + roll/pitch priors");
+    v("imu_max_time_difference", imu_max_time_difference,
+      "[s] IMU sample used for a keyframe at most this far from its stamp");
+    v("initial_heading_max_age", initial_heading_max_age,
+      "[s] first keyframe without an IMU sample that close: the newest one up to this old gives "
+      "the heading");
+    v("gnss_max_gap", gnss_max_gap,
+      "[s] the first keyframe is fixed at gps/fix interpolated between fixes this close,");
+    v("gnss_max_time_difference", gnss_max_time_difference,
+      "[s] ... else at the nearest fix this close (else at the map origin, the first fix)");
+  }
 };
 
 }  // namespace osm_graph_slam
