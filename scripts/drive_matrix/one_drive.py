@@ -36,7 +36,8 @@ def world_problem(drive):
 
 
 def rejected_flags_hint(drive, log_path):
-    """simulate_urban prints its usage (status 2) for an option it does not know."""
+    """simulate_urban prints its usage (status 2) for an option it does not know: today naming it
+    ("unknown option '--x'"), older builds listing the options they know."""
     try:
         with open(log_path, errors="replace") as f:
             text = "".join(line for line in f if not line.startswith("$ "))  # not our command line
@@ -44,7 +45,11 @@ def rejected_flags_hint(drive, log_path):
         return None
     if "usage:" not in text:
         return None
-    unknown = [f for f in drive.new_flags() if f.startswith("--") and f not in text]
+    named = re.findall(r"unknown option '(--[\w-]+)'", text)
+    if named:
+        unknown = [f for f in drive.new_flags() if f in named]
+    else:
+        unknown = [f for f in drive.new_flags() if f.startswith("--") and f not in text]
     if unknown:
         return ("simulate: simulate_urban does not know %s (printed its usage; not built yet?)"
                 % " ".join(unknown))

@@ -44,7 +44,8 @@ from drive_matrix.tools import TOOLS, Context  # noqa: E402
 
 # One program for the three tools, dispatching on its name. FAKE_CALLS: a file each call is
 # appended to. Behaviour by environment: FAKE_OLD_SIM (simulate_urban prints its usage for the new
-# flags), FAKE_NEW_EVAL (evaluate_slam knows --run-report/--loops and writes coverage/loops keys);
+# flags; "names_it": names the first, as the tools do today), FAKE_NEW_EVAL (evaluate_slam knows
+# --run-report/--loops and writes coverage/loops keys);
 # by seed: 13 -> simulate_urban fails, 66 -> offline_slam --no-osm crashes.
 FAKE_TOOL = r'''#!/usr/bin/python3
 import json, os, signal, sys
@@ -57,7 +58,12 @@ def opt(key, default=None):
 NEW = ("--prior-model", "--rtk", "--manoeuvres", "--drop-scans", "--dropout-burst")
 if name == "simulate_urban":
     if os.environ.get("FAKE_OLD_SIM") and any(a in NEW for a in args):
-        sys.stderr.write("usage: simulate_urban --out DIR [options]\n  --osm FILE\n  --sensor hdl64e|os1_64\n")
+        if os.environ["FAKE_OLD_SIM"] == "names_it":  # the tools' CommandLine message
+            sys.stderr.write("simulate_urban: unknown option '%s'\nusage: simulate_urban --out DIR "
+                             "[options]\nRun 'simulate_urban --help' for the options.\n"
+                             % [a for a in args if a in NEW][0])
+        else:
+            sys.stderr.write("usage: simulate_urban --out DIR [options]\n  --osm FILE\n  --sensor hdl64e|os1_64\n")
         sys.exit(2)
     seed = int(opt("--seed", "1"))
     if seed == 13:
@@ -661,6 +667,15 @@ class RunTest(unittest.TestCase):
         self.assertEqual(status, 0, text)
         by = {r["prior_model"]: r["status"] for r in json.load(open(os.path.join(self.out, "matrix.json")))["drives"]}
         self.assertEqual(by["independent"], "ok")
+        self.assertEqual(by["global"], "error: simulate: simulate_urban does not know --prior-model "
+                                       "(printed its usage; not built yet?)")
+
+    def test_simulator_naming_the_flag_it_does_not_know(self):
+        os.environ["FAKE_OLD_SIM"] = "names_it"
+        status, text = self.matrix("--world", "city", "--length", "100", "--prior-model", "independent,global",
+                                   "--gnss", "rtk")
+        self.assertEqual(status, 0, text)
+        by = {r["prior_model"]: r["status"] for r in json.load(open(os.path.join(self.out, "matrix.json")))["drives"]}
         self.assertEqual(by["global"], "error: simulate: simulate_urban does not know --prior-model "
                                        "(printed its usage; not built yet?)")
 
