@@ -25,13 +25,18 @@ bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string
 
 bool loadPipelineParams(const std::string& config_dir, const std::string& override_file,
                         SlamPipelineParams& params, std::string* error) {
-  // Each config/<file>.yaml holds its nodelet's keys at its top level; graph_backend's are split
-  // into the keys a user tunes and the advanced ones (disjoint).
+  // Each config/<file>.yaml holds its nodelet's keys at its top level; graph_backend's and
+  // loop_detection's are split into the keys a user tunes and the advanced ones (disjoint).
   const std::pair<const char*, const char*> files[] = {
-      {"prefiltering", "prefiltering"},       {"scan_matching", "scan_matching"},
-      {"floor_detection", "floor_detection"}, {"line_extraction", "line_extraction"},
-      {"loop_detection", "loop_detection"},   {"osm_buffer", "osm_buffer"},
-      {"graph_backend", "graph_backend"},     {"graph_backend_advanced", "graph_backend"}};
+      {"prefiltering", "prefiltering"},
+      {"scan_matching", "scan_matching"},
+      {"floor_detection", "floor_detection"},
+      {"line_extraction", "line_extraction"},
+      {"loop_detection", "loop_detection"},
+      {"loop_detection_advanced", "loop_detection"},
+      {"osm_buffer", "osm_buffer"},
+      {"graph_backend", "graph_backend"},
+      {"graph_backend_advanced", "graph_backend"}};
   for (const auto& [name, nodelet] : files) {
     const std::string path = config_dir + "/" + name + ".yaml";
     const YamlParamReader file = YamlParamReader::fromFile(path);

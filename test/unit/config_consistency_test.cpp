@@ -145,7 +145,8 @@ std::vector<StageConfig> stages() {
          LoopDetectionNodeletParams n;
          readParams(r, n);
        },
-       {}},
+       {},
+       {"loop_detection", "loop_detection_advanced"}},
       {"osm_buffer",
        [](const ParamReader& r) {
          OsmBufferParams buffer;
