@@ -126,7 +126,7 @@ void declareOptions(CommandLine& cli, Options& o) {
              &o.initial_pose)
       .flag("--global", "start by global localisation", &o.global)
       .option("--config", "OVERRIDES.yaml",
-              "pipeline overrides and a \"localization\" block over config/localization.yaml",
+              "pipeline overrides and a \"localization\" block over config/localization*.yaml",
               &o.config)
       .option("--max-scans", "N", "localise at most N scans after --start-scan", &o.max_scans)
       .defaultText("all")
@@ -150,16 +150,19 @@ void declareOptions(CommandLine& cli, Options& o) {
 }
 
 /// Pipeline parameters (the prefilter as the SLAM pipeline has it) and the localiser's
-/// (config/localization.yaml, then the override file's "localization" block).
+/// (config/localization.yaml and localization_advanced.yaml, then the override file's
+/// "localization" block).
 bool loadParams(const std::string& config_dir, const std::string& overrides_file,
                 SlamPipelineParams& pipeline, LocalizationParams& params, std::string* error) {
   if (!loadPipelineParams(config_dir, overrides_file, pipeline, error)) return false;
-  const YamlParamReader defaults = YamlParamReader::fromFile(config_dir + "/localization.yaml");
-  if (!defaults.ok()) {
-    *error = defaults.error();
-    return false;
+  for (const char* name : {"/localization.yaml", "/localization_advanced.yaml"}) {
+    const YamlParamReader file = YamlParamReader::fromFile(config_dir + name);
+    if (!file.ok()) {
+      *error = file.error();
+      return false;
+    }
+    readParams(file, params);
   }
-  readParams(defaults, params);
   if (!overrides_file.empty()) {
     const YamlParamReader overrides = YamlParamReader::fromFile(overrides_file);
     readParams(PrefixedParamReader(overrides, "localization"), params);

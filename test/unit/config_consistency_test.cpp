@@ -174,7 +174,8 @@ std::vector<StageConfig> stages() {
          LocalizationNodeletParams n;
          readParams(r, n);
        },
-       {}},
+       {},
+       {"localization", "localization_advanced"}},
       {"osm_localization",
        [](const ParamReader& r) {
          OsmLocalizerParams p;

@@ -370,10 +370,11 @@ bool rightAnswer(const GlobalLocalizationResult& g, const Eigen::Vector3d& p, do
 
 LocalizationParams defaultParams() {
   LocalizationParams params;
-  const YamlParamReader yaml =
-      YamlParamReader::fromFile(std::string(OGS_SOURCE_DIR) + "/config/localization.yaml");
-  EXPECT_TRUE(yaml.ok()) << yaml.error();
-  readParams(yaml, params);
+  for (const char* name : {"/config/localization.yaml", "/config/localization_advanced.yaml"}) {
+    const YamlParamReader yaml = YamlParamReader::fromFile(std::string(OGS_SOURCE_DIR) + name);
+    EXPECT_TRUE(yaml.ok()) << yaml.error();
+    readParams(yaml, params);
+  }
   params.registration.num_threads = 2;
   params.deskew = false;  // the synthetic scans here are instantaneous: no sweep to undo
   return params;
