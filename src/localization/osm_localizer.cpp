@@ -6,8 +6,8 @@
 
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
-#include "osm_graph_slam/localization/osm_wall_matcher.h"
 #include "osm_graph_slam/graph/information.h"
+#include "osm_graph_slam/localization/osm_wall_matcher.h"
 
 namespace osm_graph_slam {
 

@@ -10,9 +10,9 @@
 #include "building_constraints.h"
 #include "osm_association.h"
 #include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/graph/information.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/osm/building_set.h"
-#include "osm_graph_slam/graph/information.h"
 
 namespace osm_graph_slam {
 namespace {

@@ -5,8 +5,8 @@
 
 #include "osm_graph_slam/common/attitude.h"
 #include "osm_graph_slam/common/planar_pose.h"
-#include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/graph/information.h"
+#include "osm_graph_slam/lines/line_geometry.h"
 
 namespace osm_graph_slam {
 

@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/eval/reference_formulation.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/graph/pose_graph.h"
-#include "osm_graph_slam/eval/reference_formulation.h"
 #include "support/command_line.h"
 
 namespace {

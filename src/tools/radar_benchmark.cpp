@@ -5,8 +5,8 @@
 #include <cstring>
 #include <string>
 
-#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/eval/radar_evaluation.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "support/command_line.h"
 
 using namespace osm_graph_slam;

@@ -27,9 +27,9 @@
 #include <mutex>
 
 #include "osm_graph_slam/LocalizationReport.h"
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
-#include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/ros/conversions.h"
 #include "slam_regression_common.h"
 

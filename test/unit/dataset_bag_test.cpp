@@ -17,9 +17,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "bag_test_utils.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
-#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "test_data.h"
 
 namespace fs = std::filesystem;

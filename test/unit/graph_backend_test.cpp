@@ -9,9 +9,9 @@
 #include "osm_graph_slam/common/sequence_gaps.h"
 #include "osm_graph_slam/eval/building_metrics.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
+#include "osm_graph_slam/graph/information.h"
 #include "osm_graph_slam/lines/line_geometry.h"
 #include "osm_graph_slam/slam/graph_backend.h"
-#include "osm_graph_slam/graph/information.h"
 #include "osm_graph_slam/slam/optimization_schedule.h"
 #include "street_drive.h"
 

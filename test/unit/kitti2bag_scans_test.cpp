@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "bag_test_utils.h"
-#include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/drive_io/dataset_bag.h"
+#include "osm_graph_slam/io/kitti_raw.h"
 #include "test_data.h"
 
 namespace fs = std::filesystem;

@@ -11,11 +11,11 @@
 #include <set>
 #include <sstream>
 
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/trajectory_io.h"
-#include "osm_graph_slam/drive_io/bag_drive_reader.h"
-#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "osm_graph_slam/slam/sensor_inputs.h"
 #include "test_data.h"

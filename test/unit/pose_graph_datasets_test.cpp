@@ -2,9 +2,9 @@
 // same χ² as the reference formulation of the Ceres documentation examples (same objective).
 #include <gtest/gtest.h>
 
+#include "osm_graph_slam/eval/reference_formulation.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/graph/pose_graph.h"
-#include "osm_graph_slam/eval/reference_formulation.h"
 #include "test_data.h"
 
 namespace osm_graph_slam {

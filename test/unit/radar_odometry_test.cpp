@@ -9,8 +9,8 @@
 #include <iterator>
 #include <random>
 
-#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/eval/radar_evaluation.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/radar/radar_motion.h"
 #include "osm_graph_slam/radar/radar_odometry.h"
 #include "osm_graph_slam/radar/radar_scan.h"

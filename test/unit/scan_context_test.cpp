@@ -5,8 +5,8 @@
 #include <iostream>
 #include <random>
 
-#include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/common/dynamic_kd_index.h"
+#include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/sim/synthetic_world.h"
 #include "test_data.h"

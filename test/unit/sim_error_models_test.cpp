@@ -17,12 +17,12 @@
 #include <set>
 #include <sstream>
 
+#include "osm_graph_slam/drive_io/bag_drive_reader.h"
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
-#include "osm_graph_slam/drive_io/bag_drive_reader.h"
-#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/nav_errors.h"
 #include "osm_graph_slam/sim/sim_random.h"
 #include "osm_graph_slam/sim/simulator.h"

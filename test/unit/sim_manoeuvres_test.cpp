@@ -10,9 +10,9 @@
 #include <fstream>
 
 #include "osm_graph_slam/common/geometry2d.h"
-#include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "osm_graph_slam/drive_io/dataset_bag.h"
+#include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "test_data.h"
 

@@ -10,11 +10,11 @@
 #include <map>
 #include <set>
 
+#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/io/kitti_raw.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 #include "osm_graph_slam/registration/registration.h"
-#include "osm_graph_slam/drive_io/dataset_bag.h"
 #include "osm_graph_slam/sim/sim_random.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "test_data.h"

@@ -1,7 +1,7 @@
 #pragma once
-// The options that name a drive for openDriveSource() (drive_io/drive_source.h), shared by the offline
-// runners (offline_slam, offline_localization, offline_osm_localization): declared here once so
-// that their spelling and help agree. Read them back with CommandLine::values().
+// The options that name a drive for openDriveSource() (drive_io/drive_source.h), shared by the
+// offline runners (offline_slam, offline_localization, offline_osm_localization): declared here
+// once so that their spelling and help agree. Read them back with CommandLine::values().
 #include "osm_graph_slam/drive_io/bag_drive_reader.h"
 #include "support/command_line.h"
 
