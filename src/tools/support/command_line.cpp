@@ -93,31 +93,31 @@ std::vector<std::string> splitCommaList(const std::string& text) {
 CommandLine::CommandLine(std::string program, std::string summary)
     : program_(std::move(program)), summary_(std::move(summary)) {}
 
-CommandLine::Option& CommandLine::add(const std::string& name, const std::string& placeholder,
+CommandLine::Option& CommandLine::add(const std::string& name, const std::string& value_name,
                                       const std::string& description, Handler handler) {
-  options_.push_back({name, {}, placeholder, description, "", false, std::move(handler)});
+  options_.push_back({name, {}, value_name, description, "", false, std::move(handler)});
   last_is_positional_ = false;
   return options_.back();
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description) {
-  add(name, placeholder, description, [](const std::string&) { return std::string(); });
+  add(name, value_name, description, [](const std::string&) { return std::string(); });
   return *this;
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description, std::string* target) {
-  add(name, placeholder, description, [target](const std::string& v) {
+  add(name, value_name, description, [target](const std::string& v) {
     *target = v;
     return std::string();
   }).default_text = *target;
   return *this;
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description, int* target) {
-  add(name, placeholder, description, [target](const std::string& v) {
+  add(name, value_name, description, [target](const std::string& v) {
     long long n = 0;
     if (!parseInt(v, &n) || n < INT_MIN || n > INT_MAX) return "'" + v + "' is not an integer";
     *target = static_cast<int>(n);
@@ -126,18 +126,18 @@ CommandLine& CommandLine::option(const std::string& name, const std::string& pla
   return *this;
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description, double* target) {
-  add(name, placeholder, description, [target](const std::string& v) {
+  add(name, value_name, description, [target](const std::string& v) {
     if (!parseDouble(v, target)) return "'" + v + "' is not a number";
     return std::string();
   }).default_text = formatDouble(*target);
   return *this;
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description, std::size_t* target) {
-  add(name, placeholder, description, [target](const std::string& v) {
+  add(name, value_name, description, [target](const std::string& v) {
     long long n = 0;
     if (!parseInt(v, &n) || n < 0) return "'" + v + "' is not a non-negative integer";
     *target = static_cast<std::size_t>(n);
@@ -146,9 +146,9 @@ CommandLine& CommandLine::option(const std::string& name, const std::string& pla
   return *this;
 }
 
-CommandLine& CommandLine::option(const std::string& name, const std::string& placeholder,
+CommandLine& CommandLine::option(const std::string& name, const std::string& value_name,
                                  const std::string& description, Handler handler) {
-  add(name, placeholder, description, std::move(handler));
+  add(name, value_name, description, std::move(handler));
   return *this;
 }
 
@@ -226,8 +226,8 @@ std::optional<int> CommandLine::parse(int argc, char** argv) {
       const Option* o = find(arg);
       if (!o) return fail("unknown option '" + arg + "'");
       std::string value;
-      if (!o->placeholder.empty()) {
-        if (i + 1 >= argc) return fail(arg + " needs a value (" + o->placeholder + ")");
+      if (!o->value_name.empty()) {
+        if (i + 1 >= argc) return fail(arg + " needs a value (" + o->value_name + ")");
         value = argv[++i];
         values_[o->name.substr(o->name.find_first_not_of('-'))] = value;
       }
@@ -268,7 +268,7 @@ std::string CommandLine::synopsis() const {
   std::string line = "usage: " + program_;
   for (const auto& p : positionals_) line += p.required ? " " + p.name : " [" + p.name + "]";
   for (const auto& o : options_)
-    if (o.required) line += " " + o.name + " " + o.placeholder;
+    if (o.required) line += " " + o.name + " " + o.value_name;
   line += " [options]";
   return wrap(line, 0, 7 + program_.size() + 1) + "\n";
 }
@@ -292,7 +292,7 @@ std::string CommandLine::help() const {
   for (const auto& o : options_) {
     std::string left;
     for (const auto& a : o.aliases) left += a + ", ";
-    left += o.name + (o.placeholder.empty() ? "" : " " + o.placeholder);
+    left += o.name + (o.value_name.empty() ? "" : " " + o.value_name);
     std::string description = o.description;
     if (o.required) description += " (required)";
     if (!o.default_text.empty()) description += " (default: " + o.default_text + ")";

@@ -32,20 +32,20 @@ class CommandLine {
   CommandLine(std::string program, std::string summary);
 
   /// --name VALUE kept as text only: read it with has(), value() or values().
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description);
   /// --name VALUE stored in *target; --help shows the target's initial value as the default
   /// (numbers always, text when not empty; override with defaultText()).
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description, std::string* target);
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description, int* target);
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description, double* target);
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description, std::size_t* target);
   /// --name VALUE handed to `handler` (lists, choices, repeatable options).
-  CommandLine& option(const std::string& name, const std::string& placeholder,
+  CommandLine& option(const std::string& name, const std::string& value_name,
                       const std::string& description, Handler handler);
   /// --name without a value: *target = value_when_given (if target is given); has(name).
   CommandLine& flag(const std::string& name, const std::string& description, bool* target = nullptr,
@@ -92,7 +92,7 @@ class CommandLine {
   struct Option {
     std::string name;
     std::vector<std::string> aliases;
-    std::string placeholder;  ///< empty for a flag
+    std::string value_name;  ///< empty for a flag
     std::string description;
     std::string default_text;
     bool required = false;
@@ -105,7 +105,7 @@ class CommandLine {
     bool required;
   };
 
-  Option& add(const std::string& name, const std::string& placeholder,
+  Option& add(const std::string& name, const std::string& value_name,
               const std::string& description, Handler handler);
   const Option* find(const std::string& spelling) const;
 
