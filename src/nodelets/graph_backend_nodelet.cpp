@@ -1,6 +1,7 @@
 // GraphBackendNodelet: keyframes, wall segments, OSM buildings and loop closures -> GraphBackend
-// (slam/), optimised on its own thread every optimization_period; publishes the corrected pose,
-// path, buildings, markers, map cloud and TF map -> odom; services save_map and dump_graph.
+// (slam/), optimised on its own thread every optimization_period (or optimize_every_keyframes);
+// publishes the corrected pose, path, buildings, markers, map cloud and TF map -> odom; services
+// save_map and dump_graph.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Path.h>
@@ -15,7 +16,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <map>
 #include <memory>
@@ -84,11 +87,20 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
     worker_ = std::thread(&GraphBackendNodelet::optimizationLoop, this);
-    NODELET_INFO(
-        "graph back-end: OSM %s (mode %s), optimisation every %.1f s, frames %s -> %s -> %s",
-        params.use_osm ? "on" : "off", toString(params.mode), node_params_.optimization_period,
-        node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(),
-        node_params_.base_link_frame.c_str());
+    NODELET_INFO("graph back-end: OSM %s (mode %s), optimisation every %s, frames %s -> %s -> %s",
+                 params.use_osm ? "on" : "off", toString(params.mode), scheduleText().c_str(),
+                 node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(),
+                 node_params_.base_link_frame.c_str());
+  }
+
+  std::string scheduleText() const {
+    char text[96];
+    if (keyframeDriven())
+      std::snprintf(text, sizeof(text), "%d keyframes (and after %.1f s without one)",
+                    node_params_.optimize_every_keyframes, node_params_.optimization_period);
+    else
+      std::snprintf(text, sizeof(text), "%.1f s", node_params_.optimization_period);
+    return text;
   }
 
   /// Inputs and TF on a queue and thread of their own. On the manager's shared worker threads a
@@ -124,6 +136,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             static_cast<unsigned long>(msg->id), error.c_str());
     addSensorInputs(kf);
     backend_->addKeyframe(std::move(kf));
+    keyframeReceived();
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
     const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
     geometry_msgs::PoseStamped pose;
@@ -255,17 +268,45 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   }
 
   // --- optimisation thread ----------------------------------------------------------------------
+  bool keyframeDriven() const { return node_params_.optimize_every_keyframes > 0; }
+
+  /// Input thread: counts the keyframe and, on the keyframe-driven schedule, wakes the
+  /// optimisation thread once enough arrived.
+  void keyframeReceived() {
+    std::lock_guard<std::mutex> lock(wake_mutex_);
+    ++keyframes_received_;
+    last_keyframe_wall_ = std::chrono::steady_clock::now();
+    if (keyframeDriven() && keyframeUpdateDue(keyframes_received_, keyframes_at_update_,
+                                              node_params_.optimize_every_keyframes, 0.0, 1.0))
+      wake_.notify_one();
+  }
+
+  /// Whether the wake-up that just happened runs an update (wake_mutex_ held).
+  bool updateDue() const {
+    if (!keyframeDriven()) return true;
+    const double idle_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - last_keyframe_wall_)
+            .count();
+    return keyframeUpdateDue(keyframes_received_, keyframes_at_update_,
+                             node_params_.optimize_every_keyframes, idle_s,
+                             node_params_.optimization_period);
+  }
+
   void optimizationLoop() {
     std::unique_lock<std::mutex> lock(wake_mutex_);
     double wait_s = node_params_.optimization_period;
     while (!stop_) {
       wake_.wait_for(lock, std::chrono::duration<double>(wait_s));
       if (stop_) break;
+      if (!updateDue()) continue;
+      keyframes_at_update_ = keyframes_received_;
       lock.unlock();
       std::unique_lock<std::mutex> graph_lock(graph_mutex_);
       const BackendUpdateReport report = backend_->update();
-      wait_s = optimizationWait(node_params_.optimization_period, report.total_ms / 1000.0,
-                                node_params_.optimization_max_duty_cycle);
+      wait_s = keyframeDriven()
+                   ? node_params_.optimization_period
+                   : optimizationWait(node_params_.optimization_period, report.total_ms / 1000.0,
+                                      node_params_.optimization_max_duty_cycle);
       reportBacklog(report, wait_s);
       if (report.optimized) {
         {
@@ -429,9 +470,12 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::Time last_tf_stamp_;  ///< stamp of the last map -> odom broadcast
   uint64_t tf_version_ = 0;  ///< map_to_odom_version_ of that broadcast
   std::thread worker_;
-  std::mutex wake_mutex_;
+  std::mutex wake_mutex_;  ///< guards stop_ and the keyframe counts below
   std::condition_variable wake_;
   bool stop_ = false;
+  uint64_t keyframes_received_ = 0;
+  uint64_t keyframes_at_update_ = 0;  ///< keyframes_received_ when the last update started
+  std::chrono::steady_clock::time_point last_keyframe_wall_;
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;

@@ -58,6 +58,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     // The IMU's orientation (or integrated rates) for the imu guesses and the recovery; its
     // frame is taken to be base_link (kitti2bag and mulran2bag mount it there).
     imu_sub_ = nh.subscribe("imu/data", 200, &ScanMatchingNodelet::onImu, this);
+    if (node_params_.imu_wait_timeout > 0.0)
+      pending_timer_ =
+          nh.createWallTimer(ros::WallDuration(0.05), &ScanMatchingNodelet::onPendingTimer, this);
     NODELET_INFO("scan matching: %s, keyframe every %.2f m / %.3f rad / %.1f s, %s -> %s%s",
                  params.registration.method.c_str(), params.keyframe_delta_trans,
                  params.keyframe_delta_angle, params.keyframe_delta_time,
@@ -66,6 +69,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   }
 
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
+    addImuSample(msg);
+    onImuSample();
+  }
+
+  void addImuSample(const sensor_msgs::ImuConstPtr& msg) {
     const double stamp = msg->header.stamp.toSec();
     std::lock_guard<std::mutex> lock(imu_mutex_);
     const double jump = tracker_->params().restart_after_jump_back;
@@ -93,6 +101,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
   }
 
+  void onImuSample() {
+    std::lock_guard<std::mutex> lock(track_mutex_);
+    if (pending_.msg && imuReached(pending_.msg->header.stamp.toSec())) releasePending();
+  }
+
   std::optional<Eigen::Quaterniond> imuOrientationAt(double stamp) {
     std::lock_guard<std::mutex> lock(imu_mutex_);
     return imu_.orientationAt(stamp);
@@ -101,6 +114,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
     PointCloudPtr cloud = std::make_shared<PointCloud>();
     std::string error;
+    std::lock_guard<std::mutex> lock(track_mutex_);
     if (!fromPointCloud2(*msg, *cloud, &error)) {
       NODELET_WARN_THROTTLE(node_params_.warn_throttle_period, "dropping scan: %s", error.c_str());
       if (const auto event = health_->updateRejected(msg->header.stamp.toSec(), error))
@@ -113,6 +127,47 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                             "filtered_points in frame '%s', expected '%s'",
                             msg->header.frame_id.c_str(), node_params_.base_link_frame.c_str());
     }
+    releasePending();  // the next scan came first: the IMU is late or absent
+    if (node_params_.imu_wait_timeout > 0.0 && !imuReached(msg->header.stamp.toSec())) {
+      pending_ = {msg, cloud, ros::WallTime::now()};
+      return;
+    }
+    track(msg, cloud);
+  }
+
+  // --- waiting for the IMU ------------------------------------------------------------------
+  // The IMU and the scans reach the nodelet on separate queues. A scan tracked before the IMU
+  // sample after its stamp arrived got the sample before it instead of an interpolation (at
+  // KITTI's 10 Hz OXTS up to 0.1 s old: 1-2 deg in a turn), so a replay under load tracked other
+  // keyframes than on an idle machine. A scan therefore waits for that sample, for the next scan
+  // or for imu_wait_timeout, whichever comes first.
+  struct PendingScan {
+    sensor_msgs::PointCloud2ConstPtr msg;
+    PointCloudPtr cloud;
+    ros::WallTime since;
+  };
+
+  /// Whether the IMU buffer reaches `stamp` (or holds nothing: no IMU to wait for).
+  bool imuReached(double stamp) {
+    std::lock_guard<std::mutex> lock(imu_mutex_);
+    return imu_.size() == 0 || imu_.newestStamp() >= stamp;
+  }
+
+  void releasePending() {  // track_mutex_ held
+    if (!pending_.msg) return;
+    PendingScan scan = std::move(pending_);
+    pending_ = {};
+    track(scan.msg, scan.cloud);
+  }
+
+  void onPendingTimer(const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(track_mutex_);
+    if (pending_.msg &&
+        (ros::WallTime::now() - pending_.since).toSec() >= node_params_.imu_wait_timeout)
+      releasePending();
+  }
+
+  void track(const sensor_msgs::PointCloud2ConstPtr& msg, const PointCloudPtr& cloud) {
     const double stamp = msg->header.stamp.toSec();
     warnOnGap(stamp);
     if (mount_)
@@ -238,8 +293,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   std::unique_ptr<SensorMountLookup> mount_;  ///< only when deskewing
   ros::Publisher odom_pub_, keyframe_pub_, status_pub_, marker_pub_;
   ros::Subscriber sub_, imu_sub_;
-  std::mutex imu_mutex_;
+  std::mutex imu_mutex_;  ///< after track_mutex_ when both are held
   ImuOrientationBuffer imu_;
+  std::mutex track_mutex_;  ///< the tracker and pending_: scans and IMU samples call in
+  PendingScan pending_;     ///< a scan waiting for its IMU sample (msg null: none)
+  ros::WallTimer pending_timer_;
   double last_scan_stamp_ = 0.0;  ///< [s] of the last scan received (0 before any)
 };
 

@@ -16,6 +16,7 @@ void readParams(const ParamReader& r, ScanMatchingNodeletParams& p) {
   r.param("sensor_frame", p.sensor_frame);
   r.param("publish_tf", p.publish_tf);
   r.param("warn_throttle_period", p.warn_throttle_period);
+  r.param("imu_wait_timeout", p.imu_wait_timeout);
 }
 
 void readParams(const ParamReader& r, LineExtractionNodeletParams& p) {
@@ -42,6 +43,7 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("odom_frame", p.odom_frame);
   r.param("base_link_frame", p.base_link_frame);
   r.param("optimization_period", p.optimization_period);
+  r.param("optimize_every_keyframes", p.optimize_every_keyframes);
   r.param("optimization_max_duty_cycle", p.optimization_max_duty_cycle);
   r.param("tf_publish_rate", p.tf_publish_rate);
   r.param("map_cloud_resolution", p.map_cloud_resolution);

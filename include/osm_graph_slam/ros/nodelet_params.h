@@ -26,6 +26,8 @@ struct ScanMatchingNodeletParams {
   std::string sensor_frame = "velo_link";
   bool publish_tf = true;
   double warn_throttle_period = 5.0;  ///< [s]
+  /// [s] of wall time a scan waits for the IMU sample at or after its stamp (0: never waits).
+  double imu_wait_timeout = 0.3;
 };
 
 struct LineExtractionNodeletParams {
@@ -53,7 +55,10 @@ struct GraphBackendNodeletParams {
   std::string map_frame = "map";
   std::string odom_frame = "odom";
   std::string base_link_frame = "base_link";
-  double optimization_period = 3.0;          ///< [s]
+  double optimization_period = 3.0;  ///< [s]
+  /// > 0: optimise after every this many keyframes instead of every optimization_period
+  /// (optimization_schedule.h: keyframeUpdateDue); replays then give the same graph under load.
+  int optimize_every_keyframes = 0;
   double optimization_max_duty_cycle = 0.5;  ///< share of a core (optimization_schedule.h)
   double tf_publish_rate = 20.0;             ///< [Hz]
   double map_cloud_resolution = 0.5;         ///< [m]
