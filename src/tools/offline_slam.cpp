@@ -41,10 +41,13 @@
 #include "osm_graph_slam/slam/slam_pipeline.h"
 #include "support/command_line.h"
 #include "support/drive_options.h"
+#include "support/gnss_option.h"
 
 using namespace osm_graph_slam;
 using osm_graph_slam::tools::addDriveSourceOptions;
+using osm_graph_slam::tools::addGnssUseOption;
 using osm_graph_slam::tools::CommandLine;
+using osm_graph_slam::tools::GnssUse;
 namespace fs = std::filesystem;
 
 namespace {
@@ -54,6 +57,7 @@ namespace {
 struct Switches {
   bool json = false, use_osm = true, use_loops = true, use_imu = true, dump_clouds = true;
   size_t max_scans = std::numeric_limits<size_t>::max();
+  GnssUse gnss;
 };
 
 void declareOptions(CommandLine& cli, Switches& sw) {
@@ -66,9 +70,10 @@ void declareOptions(CommandLine& cli, Switches& sw) {
               "parameter overrides (config/sim.yaml for simulated drives)")
       .defaultText("config/kitti.yaml")
       .flag("--no-osm", "no OSM prior: odometry, loops, GNSS and IMU only", &sw.use_osm, false)
-      .flag("--no-loops", "no loop closures", &sw.use_loops, false)
-      .flag("--no-imu", "no IMU attitude priors and no IMU orientation for the tracker",
-            &sw.use_imu, false)
+      .flag("--no-loops", "no loop closures", &sw.use_loops, false);
+  addGnssUseOption(cli, sw.gnss);
+  cli.flag("--no-imu", "no IMU attitude priors and no IMU orientation for the tracker", &sw.use_imu,
+           false)
       .option("--max-scans", "N", "read at most N scans", &sw.max_scans)
       .defaultText("all")
       .option("--initial-heading", "imu|global_matching",
@@ -189,6 +194,7 @@ int main(int argc, char** argv) {
   }
   params.use_loops = params.use_loops && use_loops;
   params.backend.use_osm = params.backend.use_osm && use_osm;
+  sw.gnss.apply(params.backend.gnss);
 
   noteSimulatedDrive(args);
   const std::unique_ptr<DriveSource> drive =

@@ -23,9 +23,12 @@
 #include "osm_graph_slam/slam/params_io.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "support/command_line.h"
+#include "support/gnss_option.h"
 
 using namespace osm_graph_slam;
+using osm_graph_slam::tools::addGnssUseOption;
 using osm_graph_slam::tools::CommandLine;
+using osm_graph_slam::tools::GnssUse;
 
 namespace {
 
@@ -97,6 +100,7 @@ class OverrideReader : public ParamReader {
 int main(int argc, char** argv) {
   std::map<std::string, std::string> sets;
   bool use_osm = true;
+  GnssUse gnss_use;
   CommandLine cli("replay_backend",
                   "Re-runs the graph back-end on a dump_graph directory (offline_slam --dump, or "
                   "the nodelet's dump_graph service) with other parameters, without the "
@@ -121,6 +125,7 @@ int main(int argc, char** argv) {
       .flag("--no-osm", "replay without the OSM prior", &use_osm, false)
       .option("--edges", "FILE",
               "write every robot<->building edge left in the graph (for analysis)");
+  addGnssUseOption(cli, gnss_use);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   std::map<std::string, std::string> args = cli.values();
 
@@ -142,6 +147,7 @@ int main(int argc, char** argv) {
   if (const auto unused = overrides.unusedKeys(); !unused.empty())
     return cli.fail("--set " + unused.front() + ": no such graph_backend parameter");
   params.backend.use_osm = params.backend.use_osm && use_osm;
+  gnss_use.apply(params.backend.gnss);
   GraphDump dump;
   if (!readGraphDump(args["dump"], dump, &error)) {
     std::cerr << "replay_backend: " << error << "\n";
