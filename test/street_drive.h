@@ -105,17 +105,23 @@ struct StreetDrive {
             bool gnss = false) const {
     backend.addBuildings(prior, Eigen::Vector2d::Zero(), 1000.0);
     for (size_t k = first; k < odom.size(); ++k) {
-      KeyframeInput kf;
-      kf.id = k;
-      kf.stamp = 0.1 * k;
-      kf.odom_pose = odom[k];
-      kf.odom_fitness = 0.05;
-      if (k < clouds.size()) kf.cloud = clouds[k];
+      KeyframeInput kf = keyframe(k, odom);
       kf.gravity_roll_pitch = gravity;
       if (gnss) kf.gnss_position = true_poses[k].translation();
       backend.addKeyframe(kf);
       backend.addLineSegments(k, segments[k]);
     }
+  }
+
+  /// Keyframe k (its odometry pose, fitness and cloud when kept), without aiding.
+  KeyframeInput keyframe(size_t k, const std::vector<Eigen::Isometry3d>& odom) const {
+    KeyframeInput kf;
+    kf.id = k;
+    kf.stamp = 0.1 * k;
+    kf.odom_pose = odom[k];
+    kf.odom_fitness = 0.05;
+    if (k < clouds.size()) kf.cloud = clouds[k];
+    return kf;
   }
 };
 

@@ -55,6 +55,9 @@ struct BackendState {
   std::optional<double> initial_yaw;    ///< known ENU yaw of the first keyframe
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
   size_t gnss_priors = 0;               ///< GNSS prior edges added
+  size_t gnss_gated = 0;                ///< fixes the innovation gate kept out
+  /// [m] odometry path length at the last fix that passed the gate (none yet: nullopt)
+  std::optional<double> gnss_passed_at;
   /// GNSS priors hold the trajectory (at least two fixes; one origin anchors no better than the
   /// soft anchor): building and datum priors created from then on take their tighter deviations
   /// (OsmPriorParams::building_prior_std_xy vs ..._without_gnss).

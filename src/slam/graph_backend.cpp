@@ -208,6 +208,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
   attachSegments(std::move(segments));
   std::sort(incoming.begin(), incoming.end(),
             [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
+  const size_t gated_before = state_->gnss_gated;
   for (auto& in : incoming) {
     if (!acceptable(in)) continue;
     countMissing(in.id, report);
@@ -215,6 +216,7 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     ++report.keyframes_added;
     state_->dirty = true;
   }
+  report.gnss_gated += state_->gnss_gated - gated_before;
   dropOrphanSegments();
 }
 
@@ -429,7 +431,7 @@ void GraphBackend::placeAfterRestart(const LoopClosureInput& loop) {
 void GraphBackend::addKeyframePriors(const KeyframeInput& in, KeyframeState& kf) {
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
-  if (gnssPriors() && in.gnss_position) addGnssPrior(in);
+  if (gnssPriors() && in.gnss_position && gnssFixPassesGate(in, kf)) addGnssPrior(in);
   if (params_.gnss.ins_heading_std > 0.0 && in.ins_yaw) addInsHeadingChange(in);
   if (in.gravity_roll_pitch) {
     kf.has_attitude = true;
@@ -451,7 +453,8 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();  // no altitude: z uninformed
   info(0, 0) = info(1, 1) = 1.0 / std::pow(params_.gnss.gnss_prior_std * scale, 2);
   if (altitude) info(2, 2) = 1.0 / std::pow(params_.gnss.gnss_altitude_std * scale, 2);
-  const EdgeOptions options{0, RobustKernel::huber(params_.gnss.gnss_prior_kernel_width)};
+  const EdgeOptions options{
+      0, kernelNamed(params_.gnss.gnss_prior_kernel, params_.gnss.gnss_prior_kernel_width)};
   if (params_.gnss.gnss_bias_std > 0.0)
     s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_.gnss, scale), fix,
                                          info, options);
@@ -459,6 +462,30 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
     s.graph.addPriorSE3XYZ(vid, fix, info, options);
   else
     s.graph.addPriorSE3XY(vid, fix.head<2>(), info.topLeftCorner<2, 2>(), options);
+}
+
+bool GraphBackend::gnssFixPassesGate(const KeyframeInput& in, const KeyframeState& kf) {
+  BackendState& s = *state_;
+  const GnssParams& g = params_.gnss;
+  if (g.gnss_innovation_gate > 0.0 && s.gnss_passed_at) {
+    const double reported = g.gnss_prior_std * gnssAccuracyScale(in);
+    const double inherited = std::hypot(g.gnss_prior_std, g.gnss_bias_std);
+    const double drift = g.gnss_gate_drift * std::max(0.0, in.accum_distance - *s.gnss_passed_at);
+    const double deviation = std::sqrt(reported * reported + inherited * inherited + drift * drift);
+    const double innovation = (*in.gnss_position - kf.map_pose.translation().head<2>()).norm();
+    if (innovation > g.gnss_innovation_gate * deviation) {
+      ++s.gnss_gated;
+      logger_->warnOnce("gnss_gate",
+                        "a GNSS fix " + std::to_string(innovation) + " m from keyframe " +
+                            std::to_string(in.id) + "'s predicted position (gate " +
+                            std::to_string(g.gnss_innovation_gate * deviation) +
+                            " m) is not used: reflected or multipath fixes claim accuracy they "
+                            "do not have; counted in the run report, logged once");
+      return false;
+    }
+  }
+  s.gnss_passed_at = in.accum_distance;
+  return true;
 }
 
 double GraphBackend::gnssAccuracyScale(const KeyframeInput& in) const {

@@ -20,6 +20,7 @@ BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend
     total.local_rejected += r.local_rejected;
     total.global_priors += r.global_priors;
     total.global_rejected += r.global_rejected;
+    total.gnss_gated += r.gnss_gated;
     total.stage_ms += r.stage_ms;
     total.total_ms += r.total_ms;
   };
@@ -44,6 +45,7 @@ BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend
   report.local_rejected = total.local_rejected;
   report.global_priors = total.global_priors;
   report.global_rejected = total.global_rejected;
+  report.gnss_gated = total.gnss_gated;
   report.stage_ms = total.stage_ms;
   report.total_ms = total.total_ms;
   return report;

@@ -235,6 +235,7 @@ void SlamPipeline::updateBackend() {
 void SlamPipeline::account(const BackendUpdateReport& report) {
   timings_.global_priors += report.global_priors;
   timings_.global_rejected += report.global_rejected;
+  timings_.gnss_gated += report.gnss_gated;
   timings_.building_edges += report.building_edges;
   timings_.overlap_edges = report.overlap_edges;  // re-derived at every update
   timings_.shared_walls = report.shared_walls;
@@ -340,6 +341,7 @@ std::string SlamPipeline::timingJson() const {
                           {"building_edges", t.building_edges},
                           {"overlap_edges", t.overlap_edges},
                           {"shared_walls", t.shared_walls}}},
+                        {"gnss_fixes_gated", t.gnss_gated},
                         {"backend_updates",
                          {{"all", t.updates},
                           {"windowed", t.windowed_updates},

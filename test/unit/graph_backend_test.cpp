@@ -1,6 +1,9 @@
 // GraphBackend on synthetic drives with known truth: a street of buildings, a simulated LiDAR,
 // the real wall/segment extraction, drifting odometry and perturbed OSM priors.
 #include <algorithm>
+#include <cstdio>
+#include <random>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -724,6 +727,16 @@ TEST(OptimizationSchedule, ASlowUpdateStretchesTheWaitToTheDutyCycle) {
   EXPECT_DOUBLE_EQ(optimizationWait(3.0, 50.0, 0.0), 3.0);   // no limit either
 }
 
+TEST(OptimizationSchedule, KeyframeDrivenUpdatesComeEveryNKeyframesOrWhenTheyStop) {
+  EXPECT_FALSE(keyframeUpdateDue(14, 0, 15, 0.1, 3.0));  // 14 of 15, keyframes still coming
+  EXPECT_TRUE(keyframeUpdateDue(15, 0, 15, 0.1, 3.0));
+  EXPECT_TRUE(keyframeUpdateDue(32, 15, 15, 0.0, 3.0));    // a slow update: 17 waited
+  EXPECT_FALSE(keyframeUpdateDue(20, 15, 15, 2.9, 3.0));   // not idle long enough yet
+  EXPECT_TRUE(keyframeUpdateDue(20, 15, 15, 3.0, 3.0));    // the bag ended: the rest
+  EXPECT_FALSE(keyframeUpdateDue(15, 15, 15, 60.0, 3.0));  // nothing new: no update
+  EXPECT_TRUE(keyframeUpdateDue(1, 0, 0, 0.0, 3.0));       // every < 1 counts as every keyframe
+}
+
 TEST(GraphBackend, AKeyframeStampedBeforeThePreviousIsKeptAndItsFloorNotTied) {
   // A looped bag: the tracker restarted at keyframe 5, stamped back at the drive's start, on the
   // last pose and flagged re-anchored; its floor is the start's, unrelated to keyframe 4's.
@@ -1049,4 +1062,61 @@ TEST(PoseGraph, LeavingOutEdgesBetweenFixedVerticesGivesTheSameSolution) {
   for (int i = 0; i < 6; ++i)
     EXPECT_LT((all.vertexSE3(i)->translation() - skipped.vertexSE3(i)->translation()).norm(), 1e-9);
   EXPECT_NEAR(skipped.vertexSE3(5)->translation().x(), 5.2, 1e-6);
+}
+
+namespace {
+
+/// The street drive with a fix on every keyframe that reports 1.5 m; keyframes 14-25 drive
+/// between tall rows and their fixes are reflections 10 m across the street (NLOS), still
+/// reporting 1.5 m. Returns the mean error of those keyframes' positions.
+double nlosRunError(const std::string& kernel, double gate, bool use_osm) {
+  GraphBackendParams params = baseParams(OsmMode::kNonRigid);
+  params.use_osm = use_osm;
+  params.gnss.gnss_prior_std = 1.5;
+  params.gnss.gnss_prior_kernel = kernel;
+  params.gnss.gnss_innovation_gate = gate;
+  GraphBackend backend(params);
+  const auto odom = drive().odometry(0.002, 1.005);
+  backend.addBuildings(drive().perturbedPrior(0.3, 0.01, Pose2(0.0, 0.0, 0.0), 5),
+                       Eigen::Vector2d::Zero(), 1000.0);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.8);
+  for (size_t k = 0; k < odom.size(); ++k) {
+    KeyframeInput kf = drive().keyframe(k, odom);
+    const bool nlos = k >= 14 && k <= 25;
+    kf.gnss_position = drive().true_poses[k].translation() +
+                       Eigen::Vector2d(noise(rng), noise(rng) + (nlos ? 10.0 : 0.0));
+    kf.gnss_std = 1.5;
+    backend.addKeyframe(kf);
+    backend.addLineSegments(k, drive().segments[k]);
+    if (k % 6 == 5) backend.update();  // the gate predicts from the last update
+  }
+  backend.update(true);
+  const Trajectory t = backend.trajectory();
+  double sum = 0.0;
+  for (size_t k = 14; k <= 25; ++k)
+    sum += (t[k].pose.translation().head<2>() - drive().true_poses[k].translation()).norm();
+  return sum / 12.0;
+}
+
+}  // namespace
+
+// Reflected fixes claim metres of accuracy they do not have: the innovation gate keeps them out,
+// and the redescending kernel lets odometry, the good fixes and the walls hold the trajectory
+// against those that pass it.
+TEST(GnssPrior, ARunOfReflectedFixesDoesNotPullATrajectoryThatOdometryAndWallsHold) {
+  const GnssParams defaults;
+  const double huber = nlosRunError("huber", 0.0, true), cauchy = nlosRunError("cauchy", 0.0, true);
+  const double gated =
+      nlosRunError(defaults.gnss_prior_kernel, defaults.gnss_innovation_gate, true);
+  const double gated_without_walls =
+      nlosRunError(defaults.gnss_prior_kernel, defaults.gnss_innovation_gate, false);
+  std::printf(
+      "[gnss_prior] mean error under 10 m NLOS fixes: huber %.3f m, cauchy %.3f m, defaults "
+      "(cauchy + gate) %.3f m, without walls %.3f m\n",
+      huber, cauchy, gated, gated_without_walls);
+  EXPECT_GT(huber, 2.0 * cauchy);  // Huber's pull does not fall with the distance
+  EXPECT_LT(cauchy, 0.5);
+  EXPECT_LT(gated, 0.3);
+  EXPECT_LT(gated_without_walls, 0.5);
 }

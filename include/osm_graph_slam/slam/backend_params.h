@@ -97,14 +97,26 @@ struct GnssParams {
   /// prior on height, attitude and the known heading. 0 keeps the first keyframe fixed at its fix
   /// and uses no other fix. Needs a known initial heading (an IMU).
   double gnss_prior_std = 1.5;
-  double gnss_prior_kernel_width = 2.0;  ///< Huber width in deviations
+  /// The fixes' robust kernel: huber, or cauchy, whose influence falls again beyond its width,
+  /// so that a run of reflected (NLOS) fixes claiming a few metres' accuracy cannot pull a
+  /// trajectory that odometry, loops and walls hold (doc/backend.md, GNSS priors).
+  std::string gnss_prior_kernel = "cauchy";
+  double gnss_prior_kernel_width = 2.0;  ///< kernel width in deviations
   /// A fix that reports its deviation σ (NavSatFix covariance, OXTS pos_accuracy) scales
   /// gnss_prior_std and gnss_bias_std together by σ / hypot(gnss_prior_std, gnss_bias_std): a
   /// receiver reports its whole error, bias included. RTK fixes then decide the absolute position
   /// and a shifted map cannot pull it; single-point fixes (σ ≈ 1.8 m) keep the deviations above.
   bool gnss_reported_accuracy = true;
   double gnss_min_reported_std = 0.05;  ///< [m] reported deviations below this count as this
-  double gnss_first_yaw_std = 0.01;     ///< [rad] the first keyframe's heading prior (INS)
+  /// Innovation gate [deviations] (0: off): a fix farther from its keyframe's predicted position
+  /// is not added. The prediction is the last optimisation's map -> odom applied to the
+  /// keyframe's odometry; its deviation combines the fix's reported one, the GNSS error the
+  /// estimate inherits (hypot(gnss_prior_std, gnss_bias_std)) and odometry's drift
+  /// (gnss_gate_drift per metre) since the last fix that passed, so a run that lost its fixes
+  /// for long takes them again. Reflected (NLOS) fixes claim metres of accuracy and lie by tens.
+  double gnss_innovation_gate = 3.0;
+  double gnss_gate_drift = 0.02;     ///< [m/m]
+  double gnss_first_yaw_std = 0.01;  ///< [rad] the first keyframe's heading prior (INS)
   /// The fixes' slowly varying error (multipath, atmosphere, a consumer receiver's bias) as a
   /// first-order Gauss-Markov offset estimated with the trajectory: one XY bias vertex per
   /// gnss_bias_window seconds, [m] stationary deviation gnss_bias_std, correlation time
@@ -141,11 +153,20 @@ struct GnssParams {
     v("gnss_prior_std", gnss_prior_std,
       "[m] GNSS position prior on every keyframe with a fix (0: off; the first keyframe is then "
       "fixed at its fix); needs a known initial heading (IMU)");
+    v("gnss_prior_kernel", gnss_prior_kernel,
+      "robust kernel of the GNSS priors (cauchy redescends: a fix far from what odometry, loops "
+      "and walls hold loses its pull)",
+      kKernelChoices);
     v("gnss_prior_kernel_width", gnss_prior_kernel_width,
-      "Huber width of the GNSS priors [deviations]");
+      "width of the GNSS priors' kernel [deviations]");
     v("gnss_reported_accuracy", gnss_reported_accuracy,
       "a fix's reported deviation (NavSatFix covariance, OXTS pos_accuracy) scales gnss_prior_std "
       "and gnss_bias_std by it / their hypot (RTK fixes outweigh the map)");
+    v("gnss_innovation_gate", gnss_innovation_gate,
+      "[deviations] a fix farther than this from its keyframe's predicted position is not added "
+      "(0: off; reflected fixes claim metres and lie by tens)");
+    v("gnss_gate_drift", gnss_gate_drift,
+      "[m/m] the prediction's growth per metre since the last fix that passed the gate");
     v("gnss_min_reported_std", gnss_min_reported_std,
       "[m] reported deviations below this count as this");
     v("gnss_first_yaw_std", gnss_first_yaw_std,
@@ -334,9 +355,12 @@ struct OsmPriorParams {
   /// Robust kernel of the datum's prior (none | huber | cauchy): a tight deviation for maps that
   /// agree with the GNSS evidence, released for one shifted far beyond it.
   std::string osm_datum_kernel = "cauchy";
-  double osm_datum_kernel_width = 1.0;                 ///< [deviations]
-  double osm_datum_std_xy_without_gnss = 3.0;          ///< [m] only the first fix anchors the run
-  std::string osm_datum_kernel_without_gnss = "none";  ///< ... and its kernel
+  double osm_datum_kernel_width = 1.0;  ///< [deviations]
+  /// ... when only the first fix anchors the run. The datum says how far the OSM map as a whole
+  /// may be off, which does not depend on the receiver: the same 1.5 m and Cauchy as with GNSS
+  /// (3 m without a kernel left GNSS-denied runs near the first fix's error, doc/backend.md).
+  double osm_datum_std_xy_without_gnss = 1.5;            ///< [m]
+  std::string osm_datum_kernel_without_gnss = "cauchy";  ///< ... and its kernel
   /// [m] keyframes matched while the datum was this far from its current estimate are matched
   /// again (their walls were paired at the map's stale position). 0 = never. With GNSS priors
   /// the datum is learnt against the fixes and wanders by tenths of a metre: 0.5 m re-matched

@@ -76,6 +76,7 @@ struct BackendUpdateReport {
   /// Ids skipped between this update's keyframes and the previous ones: keyframes the tracker
   /// made that never arrived (an input queue overflowed); odometry bridges the gap.
   size_t keyframes_missing = 0;
+  size_t gnss_gated = 0;  ///< fixes kept out by the innovation gate
   size_t global_priors = 0, global_rejected = 0;
   size_t building_edges = 0, buildings_added = 0;
   /// Local matches tried, and rejected (no visible wall, or fitness / matched below limits).
@@ -241,6 +242,8 @@ class GraphBackend {
   static constexpr double kOdometryScaleWarning = 0.01;
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
   bool gnssPriors() const;
+  /// The innovation gate (GnssParams::gnss_innovation_gate); counts what it keeps out.
+  bool gnssFixPassesGate(const KeyframeInput& in, const KeyframeState& kf);
   /// ... with the fixes' altitude as evidence too (gnss_altitude_std > 0).
   bool gnssAltitude() const;
   /// The keyframe's GNSS prior edge (with its bias vertex when gnss_bias_std > 0).

@@ -38,6 +38,7 @@ struct PipelineTimings {
   size_t scans = 0, keyframes = 0, loops = 0;
   size_t global_priors = 0, global_rejected = 0, building_edges = 0, overlap_edges = 0;
   size_t shared_walls = 0;  ///< building pairs tied by a shared wall (latest update)
+  size_t gnss_gated = 0;    ///< fixes kept out by the innovation gate
   double input_ms = 0;      ///< reading the scans (measured by the caller: addInputTime)
   double prefilter_ms = 0, tracking_ms = 0, walls_ms = 0, segments_ms = 0, loops_ms = 0, osm_ms = 0,
          backend_ms = 0;
