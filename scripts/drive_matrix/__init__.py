@@ -8,6 +8,7 @@ depending only on those above it:
     ground_truth.py  the true pose of every scan in offline_slam's map frame
     own_metrics.py   coverage, heading, odometry tilt, absolute offset bound (the matrix's own)
     table.py         the table, median and worst rows, the worst drive, --check's limits
+    mode_summary.py  median and worst drive per GNSS mode, against the mode's baseline
     tools.py         running a tool in its own process group; evaluate_slam's known options
     steps.py         simulate_urban and the SLAM runs (or their --replay); flags a tool lacks
     one_drive.py     one drive: its steps, evaluate, result.json

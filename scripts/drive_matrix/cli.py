@@ -10,6 +10,7 @@ import time
 from .drives import GNSS_MODES, KARLSRUHE, PRIOR_MODELS, REPO, SENSORS, MatrixError
 from .files import unwritable, write_atomically
 from .grid import PRESETS, axes_from_args, build_grid
+from .mode_summary import format_mode_summary, summarize_modes
 from .one_drive import drive_row, world_problem
 from .scheduler import estimate_text, plan, print_flushed, run_matrix
 from .table import LIMITS, check_rows, format_table, is_ok, summarize, worst_drive
@@ -108,13 +109,16 @@ def _main(args, log):
                                                               len(stored), len(to_run), out))
     results = _run_drives(args, drives, to_run, out, sim_args, log) if to_run else {}
     rows = _rows_in_table_order(drives, results, stored, args.no_run)
-    summary = summarize(rows)
+    summary, by_gnss = summarize(rows), summarize_modes(rows)
     worst, why = worst_drive(rows)
     _print_table(rows, summary, worst, why, log)
+    for line in format_mode_summary(by_gnss):
+        log(line)
 
     limits = {a: getattr(args, a) for a, _, _, _ in LIMITS}
     violations = check_rows(rows, limits) if args.check else []
     doc = _matrix_document(args, sim_args, rows, summary, worst, why)
+    doc["summary_by_gnss"] = by_gnss
     if args.check:
         doc["check"] = {"limits": limits, "violations": violations}
     _write_matrix_json(out, doc, log)

@@ -1,8 +1,8 @@
 """Tests of the drive matrix's GNSS modes (noisy, rtk, canyon, origin) and its three SLAM runs
 (with OSM, the GNSS baseline without it, odometry + loops), without the real tools: the flags
 of each mode, the runs' commands (and the run an 'origin' drive leaves out), their replay, an
-older build without --gnss, the table's columns, and a stored result.json from before the
-third run.
+older build without --gnss, the table's and the per-mode summary's columns, and a stored
+result.json from before the third run.
 
     /usr/bin/python3 -m unittest discover -s test/scripts -p '*_test.py'     (from the repo root)
 """
@@ -15,6 +15,7 @@ from matrix_fakes import FakeTools, run_main
 
 from drive_matrix.drives import GNSS_MODES, Drive, World
 from drive_matrix.evaluation import odometry_metrics, parse_metrics
+from drive_matrix.mode_summary import format_mode_summary, summarize_modes
 from drive_matrix.table import format_table, summarize, worst_drive
 
 CITY = World("city")
@@ -93,6 +94,7 @@ class ThreeRunsTest(FakeTools, unittest.TestCase):
         self.assertAlmostEqual(m["ate_change_pct"], -40.0)
         self.assertAlmostEqual(m["ate_change_odom_pct"], -60.0)
         self.assertEqual((m["odom_run"], m["baseline"], m["rpe_odom"]), ("slam_odom", "gnss", 0.007))
+        self.assertIn("vs gnss median -40.0 %", text)
 
     def test_origin_drive_runs_two_both_without_gnss(self):
         status, text = self.matrix("--world", "karlsruhe", "--length", "100", "--gnss", "origin")
@@ -111,6 +113,8 @@ class ThreeRunsTest(FakeTools, unittest.TestCase):
         self.assertEqual((m["ate_odom"], m["ate_no_osm"], m["rpe_odom"]), (0.2, 0.2, 0.005))
         self.assertAlmostEqual(m["ate_change_odom_pct"], m["ate_change_pct"])
         self.assertEqual((m["odom_run"], m["baseline"]), ("slam_no_osm", "odom+loops"))
+        self.assertIn("[matrix] origin, 1 drives: ATE with OSM median 0.120 m", text)
+        self.assertIn("vs odom+loops median -40.0 %", text)
         self.assertIn("ATE change -40.0 % vs odom+loops", text)
 
     def test_replay_of_all_runs_and_of_a_matrix_dumped_before_the_third(self):
@@ -173,9 +177,29 @@ class TableAndSummaryTest(unittest.TestCase):
         self.assertIn("3.000   2.000   1.500   -25.0   -50.0", lines[1])
         self.assertIn(" canyon ", lines[1])
 
-    def test_worst_drive_names_the_rows_baseline(self):
-        rows = [row("n", "noisy", ate_osm=1.0, ate_no_osm=1.0, ate_change_pct=-5.0),
-                row("o", "origin", ate_osm=4.0, ate_no_osm=3.9, ate_change_pct=2.5, ate_change_odom_pct=2.5)]
+    def test_summary_per_mode_against_its_baseline(self):
+        rows = [row("n1", "noisy", ate_osm=1.0, ate_change_pct=-5.0, ate_change_odom_pct=-30.0, seen_shape=0.2,
+                    seen_corrected=0.8, offset_bound=0.5),
+                row("n2", "noisy", ate_osm=2.0, ate_change_pct=1.0, ate_change_odom_pct=-20.0, seen_shape=0.1,
+                    seen_corrected=0.6, offset_bound=0.5),
+                row("o1", "origin", ate_osm=3.0, ate_change_pct=-35.0, ate_change_odom_pct=-35.0),
+                row("o2", "origin", ate_osm=4.0, ate_change_pct=2.5, ate_change_odom_pct=2.5),
+                dict(row("o3", "origin", ate_osm=99.0, ate_change_odom_pct=99.0), status="error: x")]
+        s = summarize_modes(rows)
+        self.assertEqual(list(s), ["noisy", "origin"])
+        self.assertEqual((s["noisy"]["drives"], s["noisy"]["baseline"]), (2, "gnss"))
+        self.assertEqual((s["origin"]["drives"], s["origin"]["baseline"]), (2, "odom+loops"))
+        self.assertAlmostEqual(s["noisy"]["ate_change_pct"]["median"], -2.0)  # vs GNSS, not vs odometry
+        self.assertEqual((s["noisy"]["ate_change_pct"]["worst"], s["noisy"]["ate_change_pct"]["worst_drive"]), (1.0, "n2"))
+        self.assertEqual((s["origin"]["ate_osm"]["worst"], s["origin"]["ate_osm"]["worst_drive"]), (4.0, "o2"))
+        self.assertAlmostEqual(s["noisy"]["seen_shape"]["median"], 0.15)
+        self.assertAlmostEqual(s["noisy"]["corner_error_over_bound"], 0.7 / 0.5)
+        self.assertIsNone(s["origin"]["corner_error_over_bound"])
+        lines = format_mode_summary(s)
+        self.assertEqual(lines[0], "[matrix] noisy, 2 drives: ATE with OSM median 1.500 m, worst 2.000 m (n2); "
+                                   "vs gnss median -2.0 %, worst +1.0 % (n2); S_shp median 0.15 m; "
+                                   "S_corr median 0.70 m = 1.40 x B_bnd median 0.50 m")
+        self.assertIn("vs odom+loops median -16.2 %, worst +2.5 % (o2); S_shp median - m", lines[1])
         self.assertEqual(worst_drive(rows)[1][:40], "ATE change +2.5 % vs odom+loops (ATE 4.0")
 
     def test_a_result_from_before_the_third_run(self):
@@ -191,6 +215,7 @@ class TableAndSummaryTest(unittest.TestCase):
         self.assertEqual(len(cells), len(head))
         self.assertEqual([cells[head.index(h)] for h in ("ATE_odo", "ATE_gns", "ATE_osm", "chgGns%", "chgOdo%")],
                          ["-", "1.000", "0.900", "-10.0", "-"])
+        self.assertEqual(format_mode_summary(summarize_modes(rows))[0][:30], "[matrix] noisy, 2 drives: ATE ")
 
     def test_the_third_runs_numbers_and_the_fixes(self):
         m = parse_metrics({"slam": {"ate_m": {"mean": 1.0}}, "gnss": {"ate_m": {"mean": 2.0}}}, None, None,
