@@ -11,7 +11,7 @@ import os
 import unittest
 
 # matrix_fakes loads the entry point, which puts scripts/ on the module path for drive_matrix.
-from matrix_fakes import FakeTools, run_main
+from matrix_fakes import FakeTools, preset_drives, run_main
 
 from drive_matrix.drives import GNSS_MODES, Drive, World
 from drive_matrix.evaluation import odometry_metrics, parse_metrics
@@ -61,6 +61,37 @@ class ModeFlagsTest(unittest.TestCase):
         status, text = run_main(["--world", "city", "--gnss", "tunnel", "--list"])
         self.assertEqual(status, 2)
         self.assertIn("unknown GNSS mode 'tunnel'", text)
+
+
+class PresetTest(unittest.TestCase):
+    def test_default_preset_has_the_new_modes_on_both_worlds(self):
+        drives = preset_drives("default")
+        for mode in ("canyon", "origin"):
+            for world in ("karlsruhe", "city"):
+                mine = [d for d in drives if d.gnss == mode and d.world.label == world]
+                self.assertGreaterEqual(len({d.seed for d in mine}), 3, (mode, world))
+                self.assertEqual({d.length for d in mine}, {300})
+        rtk = [d for d in drives if d.gnss == "rtk"]
+        self.assertEqual(len(rtk), 4)
+        # the rtk drives have noisy twins: the same drive with the consumer-grade fixes
+        names = {d.name for d in drives}
+        self.assertTrue(all(d.name[: -len("rtk")] + "noisy" in names for d in rtk))
+        self.assertEqual(len(drives), 28 + 12 + 4)
+        # the time estimate: under 3 h by the (pessimistic) model; doc/matrix.md has the measured
+        self.assertLess(sum(d.estimated_seconds() for d in drives), 3 * 3600)
+
+    def test_gnss_preset_and_selecting_one_mode(self):
+        drives = preset_drives("gnss")
+        self.assertEqual(len(drives), 16)
+        default = set(preset_drives("default"))
+        new = [d for d in drives if d.gnss != "noisy"]
+        self.assertEqual(len(new), 12)
+        self.assertTrue(set(new) <= default)  # a default run reuses them (and vice versa)
+        self.assertEqual({d.gnss for d in drives}, {"noisy", "canyon", "origin"})
+        origin = preset_drives("gnss", ["--gnss", "origin"])
+        self.assertEqual(len(origin), 6)
+        self.assertEqual({d.gnss for d in origin}, {"origin"})
+        self.assertLess(sum(d.estimated_seconds() for d in drives), 45 * 60)
 
 
 class ThreeRunsTest(FakeTools, unittest.TestCase):
