@@ -62,7 +62,7 @@ def build_parser():
                     help="no simulation, no front-end: replay_backend on FROM/<drive>/slam_*/dump "
                          "(a matrix run with --dump) with --set, evaluated as usual (seconds per drive)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="with --replay: a graph_backend parameter for both runs (replay_backend --set)")
+                    help="with --replay: a graph_backend parameter for every run (replay_backend --set)")
     ap.add_argument("--force", action="store_true", help="run drives again even if they have a result.json")
     ap.add_argument("--retry-failed", action="store_true", help="run drives again whose stored status is not ok")
     ap.add_argument("--step-timeout", type=float, default=None, metavar="S",
