@@ -4,8 +4,8 @@
 For each drive (a world, seed, length, prior model, sensor, GNSS mode, manoeuvres and dropped
 scans) it runs
 
-    simulate_urban -> offline_slam (with the OSM prior) -> offline_slam --no-osm (odometry + loops)
-    -> evaluate_slam --json
+    simulate_urban -> offline_slam (with the OSM prior) -> offline_slam --no-osm (the GNSS
+    baseline) -> offline_slam --no-osm --gnss origin (odometry + loops) -> evaluate_slam --json
 
 in a folder of its own named by the drive's parameters, collects one row per drive, prints a
 fixed-width table with the median and worst of each column, and writes matrix.json. Finished

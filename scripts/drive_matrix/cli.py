@@ -7,10 +7,10 @@ import shlex
 import sys
 import time
 
-from .drives import KARLSRUHE, PRIOR_MODELS, REPO, SENSORS, MatrixError
-from .evaluation import BASELINE_LABEL
+from .drives import GNSS_MODES, KARLSRUHE, PRIOR_MODELS, REPO, SENSORS, MatrixError
 from .files import unwritable, write_atomically
 from .grid import PRESETS, axes_from_args, build_grid
+from .mode_summary import format_mode_summary, summarize_modes
 from .one_drive import drive_row, world_problem
 from .scheduler import estimate_text, plan, print_flushed, run_matrix
 from .table import LIMITS, check_rows, format_table, is_ok, summarize, worst_drive
@@ -23,9 +23,9 @@ AXIS_OPTIONS = ("world", "osm", "seed", "length", "prior_model", "sensor", "gnss
 
 def build_parser():
     ap = argparse.ArgumentParser(
-        description="Runs simulate_urban -> offline_slam (OSM) -> offline_slam --no-osm -> "
-                    "evaluate_slam over a matrix of drives; table, summary, matrix.json. "
-                    "See doc/matrix.md.")
+        description="Runs simulate_urban -> offline_slam (OSM) -> offline_slam --no-osm (GNSS) -> "
+                    "offline_slam --no-osm --gnss origin (odometry + loops) -> evaluate_slam over a "
+                    "matrix of drives; table, summary, matrix.json. See doc/matrix.md.")
     ap.add_argument("--preset", choices=sorted(PRESETS), help="a predefined matrix; explicit axes replace its axes")
     g = ap.add_argument_group("axes (repeatable or comma-separated; without --preset: their product)")
     g.add_argument("--world", action="append", metavar="W",
@@ -35,7 +35,10 @@ def build_parser():
     g.add_argument("--length", action="append", metavar="M", help="route length [m]")
     g.add_argument("--prior-model", action="append", metavar="P", help="|".join(PRIOR_MODELS))
     g.add_argument("--sensor", action="append", metavar="S", help="|".join(SENSORS))
-    g.add_argument("--gnss", action="append", metavar="G", help="noisy (default) | rtk (simulate_urban --rtk)")
+    g.add_argument("--gnss", action="append", metavar="G",
+                   help="|".join(GNSS_MODES) + ": noisy (default), rtk (simulate_urban --rtk), canyon "
+                        "(--gnss-model canyon), origin (noisy fixes, SLAM runs with --gnss origin); "
+                        "canyon and origin add --downtown on the procedural city")
     g.add_argument("--manoeuvres", action="append", metavar="LIST",
                    help="one simulate_urban --manoeuvres value per option (none, all, sharp_turn,stop ...)")
     g.add_argument("--drop-scans", action="append", metavar="F", help="fraction of scans dropped")
@@ -59,7 +62,7 @@ def build_parser():
                     help="no simulation, no front-end: replay_backend on FROM/<drive>/slam_*/dump "
                          "(a matrix run with --dump) with --set, evaluated as usual (seconds per drive)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="with --replay: a graph_backend parameter for both runs (replay_backend --set)")
+                    help="with --replay: a graph_backend parameter for every run (replay_backend --set)")
     ap.add_argument("--force", action="store_true", help="run drives again even if they have a result.json")
     ap.add_argument("--retry-failed", action="store_true", help="run drives again whose stored status is not ok")
     ap.add_argument("--step-timeout", type=float, default=None, metavar="S",
@@ -106,13 +109,16 @@ def _main(args, log):
                                                               len(stored), len(to_run), out))
     results = _run_drives(args, drives, to_run, out, sim_args, log) if to_run else {}
     rows = _rows_in_table_order(drives, results, stored, args.no_run)
-    summary = summarize(rows)
+    summary, by_gnss = summarize(rows), summarize_modes(rows)
     worst, why = worst_drive(rows)
     _print_table(rows, summary, worst, why, log)
+    for line in format_mode_summary(by_gnss):
+        log(line)
 
     limits = {a: getattr(args, a) for a, _, _, _ in LIMITS}
     violations = check_rows(rows, limits) if args.check else []
     doc = _matrix_document(args, sim_args, rows, summary, worst, why)
+    doc["summary_by_gnss"] = by_gnss
     if args.check:
         doc["check"] = {"limits": limits, "violations": violations}
     _write_matrix_json(out, doc, log)
@@ -188,13 +194,22 @@ def _print_table(rows, summary, worst, why, log):
         log("[matrix] not ok (status column; logs in <drive>/logs): %s" % ", ".join(r["drive"] for r in failed))
 
 
+RUNS_DOC = {
+    "slam_osm": "offline_slam --osm sim/prior.osm (on 'origin' drives with --gnss origin): everything (ATE_osm)",
+    "slam_no_osm": "offline_slam --no-osm: the GNSS baseline, evaluate_slam label 'gnss' (ATE_gns); "
+                   "on 'origin' drives with --gnss origin: odometry + loops, label 'odom+loops'",
+    "slam_odom": "offline_slam --no-osm --gnss origin: odometry + loops (ATE_odo); not run on 'origin' "
+                 "drives, whose slam_no_osm is that run (metrics odom_run)",
+}
+
+
 def _matrix_document(args, sim_args, rows, summary, worst, why):
     return {
         "generated": time.strftime("%Y-%m-%d %H:%M:%S"),
         "command": sys.argv,
         "preset": args.preset,
         "sim_args": sim_args,
-        "baseline_label": BASELINE_LABEL,
+        "runs": RUNS_DOC,
         "drives": rows,
         "summary": summary,
         "worst_drive": {"drive": worst, "why": why},

@@ -1,5 +1,6 @@
 """One drive of the matrix: its world, the simulate_urban axes, the folder name, the simulator's
 flags and the time estimate. Bad input for the whole matrix raises MatrixError."""
+import collections
 import os
 import re
 
@@ -10,7 +11,12 @@ KARLSRUHE = "../shared/data/osm/2011_09_26_drive_0005_sync.osm"  # relative to t
 # with default values runs on a simulator that does not know the flag yet.
 PRIOR_MODELS = ("independent", "blocks", "global", "mixed")
 SENSORS = ("hdl64e", "os1_64")
-GNSS_MODES = ("noisy", "rtk")
+# noisy: the simulator's consumer-grade errors; rtk: exact; canyon: fixes from the satellites the
+# buildings let through (NLOS reflections); origin: noisy fixes, but every SLAM run uses only the
+# first (GNSS-denied after the start, as a tunnel or the real drive 0005).
+GNSS_MODES = ("noisy", "rtk", "canyon", "origin")
+# offline_slam / replay_backend: the first fix is the map origin, no GNSS prior after it.
+NO_GNSS = ("--gnss", "origin")
 SIM_DEFAULTS = {
     "prior_model": "independent",
     "sensor": "hdl64e",
@@ -31,8 +37,23 @@ SCANS_PER_M_OTHER, MIN_SCANS_OTHER = 2.0, 500
 MANOEUVRES_ALL_S = 230.0  # drive time [s] manoeuvres 'all' add (city 52 -> 276 s, Karlsruhe 65 -> 286 s)
 MANOEUVRE_S = 50.0  # ... and each single manoeuvre (measured 13-85 s)
 SIM_SCANS_PER_S = 10.0
-SLAM_SCANS_PER_S = 19.0
+SLAM_SCANS_PER_S = 19.0  # each SLAM run (slam_runs(): three, two on an 'origin' drive)
 DRIVE_OVERHEAD_S = 8.0
+
+
+class SlamRun(collections.namedtuple("SlamRun", "name with_osm flags")):
+    """One offline_slam (or replay_backend) run of a drive: its folder, whether it has the OSM
+    prior (--osm PRIOR, else --no-osm) and its further flags."""
+
+    @property
+    def title(self):
+        """The step's name in a status: 'offline_slam (with OSM)', 'offline_slam --no-osm', ..."""
+        return " ".join((["(with OSM)"] if self.with_osm else ["--no-osm"]) + list(self.flags))
+
+    @property
+    def suffix(self):
+        """slam_osm -> 'osm': the run's log (offline_slam_osm.log) and step time key."""
+        return self.name[len("slam_"):]
 
 
 class MatrixError(Exception):
@@ -150,8 +171,7 @@ class Drive:
             flags += ["--prior-model", self.prior_model]
         if self.sensor != SIM_DEFAULTS["sensor"]:
             flags += ["--sensor", self.sensor]
-        if self.gnss == "rtk":
-            flags.append("--rtk")
+        flags += self.gnss_flags()
         if self.manoeuvres != SIM_DEFAULTS["manoeuvres"]:
             flags += ["--manoeuvres", self.manoeuvres]
         if self.drop_scans > 0:
@@ -161,6 +181,25 @@ class Drive:
         if self.map_shift > 0:
             flags += ["--prior-global-offset", "%s,%s" % (fmt_num(self.map_shift), fmt_num(self.map_shift))]
         return flags
+
+    def gnss_flags(self):
+        """simulate_urban's GNSS flags. The canyon model needs canyons: on the procedural city
+        'canyon' and 'origin' drive through its downtown of towers (--downtown; an OSM world has
+        its own buildings), so that the two modes share their streets."""
+        flags = {"rtk": ["--rtk"], "canyon": ["--gnss-model", "canyon"]}.get(self.gnss, [])
+        if self.gnss in ("canyon", "origin") and self.world.path is None:
+            flags.append("--downtown")
+        return flags
+
+    def slam_runs(self):
+        """The drive's SLAM runs (folder, with the OSM prior, flags beside --osm/--no-osm): with
+        OSM, the GNSS baseline without it, and odometry + loops (slam_odom: no GNSS after the
+        first fix, no OSM). An 'origin' drive has no GNSS after the first fix in any run, so its
+        run without OSM is odometry + loops already: slam_odom would repeat it and is not run."""
+        if self.gnss == "origin":
+            return [SlamRun("slam_osm", True, NO_GNSS), SlamRun("slam_no_osm", False, NO_GNSS)]
+        return [SlamRun("slam_osm", True, ()), SlamRun("slam_no_osm", False, ()),
+                SlamRun("slam_odom", False, NO_GNSS)]
 
     def axes(self):
         return {"drive": self.name, "world": self.world.label, "world_file": self.world.path,
@@ -180,9 +219,9 @@ class Drive:
         return scans
 
     def estimated_seconds(self):
-        """Wall time with both cores: simulate, two offline_slam passes, evaluate."""
+        """Wall time with both cores: simulate, the offline_slam runs, evaluate."""
         scans = self.estimated_scans()
-        return scans / SIM_SCANS_PER_S + 2 * scans / SLAM_SCANS_PER_S + DRIVE_OVERHEAD_S
+        return scans / SIM_SCANS_PER_S + len(self.slam_runs()) * scans / SLAM_SCANS_PER_S + DRIVE_OVERHEAD_S
 
 
 BURST = re.compile(r"^(\d+)(@\d+(\.\d*)?)?$")

@@ -3,7 +3,15 @@ timing.json, simulate_urban's sim_info.json). Older tools lack keys: every missi
 (shown as '-'), never an exception."""
 import math
 
-BASELINE_LABEL = "odom+loops"  # evaluate_slam --baseline-label of the run without OSM
+# evaluate_slam --baseline-label of the run without OSM (slam_no_osm): the GNSS baseline, what a
+# user has without the OSM prior; on an 'origin' drive it has no GNSS after the first fix, so it
+# is odometry + loops.
+GNSS_LABEL = "gnss"
+ODOM_LABEL = "odom+loops"
+
+
+def baseline_label(gnss_mode):
+    return ODOM_LABEL if gnss_mode == "origin" else GNSS_LABEL
 
 
 def dig(doc, *path):
@@ -27,7 +35,7 @@ def ratio(a, b):
     return a / b
 
 
-def baseline_block(evaluation, label=BASELINE_LABEL):
+def baseline_block(evaluation, label=GNSS_LABEL):
     block = dig(evaluation, label)
     if isinstance(block, dict):
         return block, label
@@ -114,4 +122,37 @@ def parse_metrics(evaluation, timing_osm=None, timing_no_osm=None, sim_info=None
     tracking = t_osm.get("tracking")
     m["tracking"] = tracking if isinstance(tracking, dict) else None
     m["lost_events"] = n(dig(t_osm, "tracking", "lost_events"))
+    m.update(fix_metrics(sim))
     return m
+
+
+# The fixes' errors over the drive, as simulate_urban measured them (sim_info.json "gnss_ins";
+# the canyon model adds the 95 % error, the NLOS share and the reported accuracy).
+FIX_KEYS = {"fix_rms": "gnss_error_rms_m", "fix_p95": "gnss_error_p95_m", "fix_max": "gnss_error_max_m",
+            "fix_nlos_share": "nlos_fix_share", "fix_outage_s": "outage_s",
+            "fix_reported_mean": "reported_accuracy_mean_m", "fix_true_mean": "gnss_error_mean_m"}
+
+
+def fix_metrics(sim_info):
+    gnss = dig(sim_info, "gnss_ins")
+    gnss = gnss if isinstance(gnss, dict) else {}
+    m = {key: number_or_none(gnss.get(name)) for key, name in FIX_KEYS.items()}
+    first = gnss.get("first_fix_error_enu_m")  # the map origin's error: all an 'origin' run has
+    ok = isinstance(first, list) and len(first) >= 2 and all(number_or_none(v) is not None for v in first[:2])
+    m["first_fix_error"] = math.hypot(first[0], first[1]) if ok else None
+    return m
+
+
+def odometry_metrics(m, evaluation_odom, gnss_mode):
+    """The odometry + loops run's ATE and t-RPE, and the OSM run's ATE change against it [%],
+    beside parse_metrics' m. On an 'origin' drive the run without OSM is that run (no GNSS
+    after the first fix in either): its numbers, as one run measured them. Missing: None."""
+    if gnss_mode == "origin":
+        ate, rpe, run = m.get("ate_no_osm"), m.get("rpe_no_osm"), "slam_no_osm"
+    else:
+        ate = number_or_none(dig(evaluation_odom, "slam", "ate_m", "mean"))
+        rpe = number_or_none(dig(evaluation_odom, "slam", "rpe_trans_m", "mean"))
+        run = "slam_odom" if ate is not None else None
+    r = ratio(m.get("ate_osm"), ate)
+    return {"ate_odom": ate, "rpe_odom": rpe, "ate_change_odom_pct": None if r is None else 100.0 * (r - 1.0),
+            "odom_run": run, "baseline": baseline_label(gnss_mode)}

@@ -1,71 +1,64 @@
-"""The matrix's drives: the presets (quick, default, stress), the grid designs ('product' and
+"""The matrix's drives: the presets (default, quick, gnss, stress), the grid designs ('product' and
 'rotation') and the axes given on the command line, which replace the preset's."""
 import itertools
 
 from .drives import (GNSS_MODES, PRIOR_MODELS, REPO, SENSORS, SIM_DEFAULTS, Drive, MatrixError, World,
                      parse_burst, parse_world)
 
+
+def preset(**fields):
+    """A matrix's axes and design: the simulator's default for every axis not given (the value
+    that runs on a simulator without the axis' flag), one world (the city), seed 1, 300 m, and
+    the product of the axes."""
+    axes = {"worlds": ["city"], "seeds": [1], "lengths": [300], "prior_models": [SIM_DEFAULTS["prior_model"]],
+            "sensors": [SIM_DEFAULTS["sensor"]], "gnss": [SIM_DEFAULTS["gnss"]],
+            "manoeuvres": [SIM_DEFAULTS["manoeuvres"]], "drop_scans": [SIM_DEFAULTS["drop_scans"]],
+            "dropout_burst": [SIM_DEFAULTS["dropout_burst"]], "map_shifts": [SIM_DEFAULTS["map_shift"]],
+            "design": "product"}
+    axes.update(fields)
+    return axes
+
+
+# Where GNSS fails (doc/matrix.md, "GNSS modes"): per world an urban-canyon and a GNSS-denied
+# drive of seeds 1-3, 300 m (on the procedural city with its downtown, seeds 1 and 2 spend 25 %
+# and 64 % of their route in it, seed 3 none); independent/hdl64e, so that canyon and origin of
+# one seed share route and map.
+WHERE_GNSS_FAILS = [{"seed": s, "length": 300, "gnss": g} for g in ("canyon", "origin") for s in (1, 2, 3)]
+BOTH_WORLDS = ["karlsruhe", "city"]
+
 PRESETS = {
-    # 2 worlds x 3 seeds x {300 m: 3 drives, 1500 m: 1 drive} = 24 drives. The (prior model,
-    # sensor) pairs rotate so that each appears with both worlds and both lengths.
-    "default": {
-        "worlds": ["karlsruhe", "city"],
-        "seeds": [1, 2, 3],
-        "lengths": [300, 1500],
-        "prior_models": list(PRIOR_MODELS),
-        "sensors": list(SENSORS),
-        "gnss": ["noisy"],
-        "manoeuvres": ["none"],
-        "drop_scans": [0.0],
-        "dropout_burst": [0],
-        "map_shifts": [0.0],
-        "design": "rotation",
-        "per_cell_short": 3,
-        "per_cell_long": 1,
+    # 2 worlds x 3 seeds x {300 m: 3 drives, 1500 m: 1 drive} = 24 drives, GNSS noisy. The (prior
+    # model, sensor) pairs rotate so that each appears with both worlds and both lengths.
+    "default": preset(
+        worlds=BOTH_WORLDS, seeds=[1, 2, 3], lengths=[300, 1500], prior_models=list(PRIOR_MODELS),
+        sensors=list(SENSORS), design="rotation", per_cell_short=3, per_cell_long=1,
         # + per world 2 drives whose map is shifted by 1.5 m as a whole: seed 1's first fix is
-        # good (0.7 m off), so a map that pulls the trajectory shows as a loss (doc/matrix.md).
-        "extra_drives": [{"seed": s, "length": 300, "prior_model": "global", "map_shift": 1.5}
-                         for s in (1, 4)],
-    },
-    # 2 worlds x 2 (prior model, sensor) pairs, 200 m: 4 drives, about 6 minutes.
-    "quick": {
-        "worlds": ["karlsruhe", "city"],
-        "seeds": [1],
-        "lengths": [200],
-        "prior_models": ["independent", "global"],
-        "sensors": list(SENSORS),
-        "gnss": ["noisy"],
-        "manoeuvres": ["none"],
-        "drop_scans": [0.0],
-        "dropout_burst": [0],
-        "map_shifts": [0.0],
-        "design": "rotation",
-        "per_cell_short": 2,
-        "per_cell_long": 2,
-    },
+        # good (0.7 m off), so a map that pulls the trajectory shows as a loss (doc/matrix.md);
+        # the canyon and origin drives; and 2 RTK drives (seeds 2 and 3), whose noisy twins (the
+        # same drives with consumer-grade fixes) are among the 24.
+        extra_drives=[{"seed": s, "length": 300, "prior_model": "global", "map_shift": 1.5} for s in (1, 4)]
+        + WHERE_GNSS_FAILS + [{"seed": s, "length": 300, "prior_model": p, "gnss": "rtk"}
+                              for s, p in ((2, "blocks"), (3, "independent"))]),
+    # 2 worlds x 2 (prior model, sensor) pairs, 200 m: 4 drives, estimated 10 minutes.
+    "quick": preset(worlds=BOTH_WORLDS, lengths=[200], prior_models=["independent", "global"],
+                    sensors=list(SENSORS), design="rotation", per_cell_short=2, per_cell_long=2),
+    # The new GNSS modes alone, for iterating on them: the default's canyon and origin drives
+    # (12; --gnss canyon or --gnss origin selects one mode) and, per world, noisy controls of
+    # seeds 1 and 3 (their routes and maps; on the city without its downtown).
+    "gnss": preset(worlds=BOTH_WORLDS, seeds=[1, 2, 3], gnss=["canyon", "origin"],
+                   extra_drives=[{"seed": s, "length": 300} for s in (1, 3)]),
     # The front-end under manoeuvres and missing scans: per world the plain drive (the control),
     # each stressor alone, and all of them together; 300 m requested (manoeuvres 'all' make the
     # route 1.0-1.6 km): 10 drives.
-    "stress": {
-        "worlds": ["karlsruhe", "city"],
-        "seeds": [1],
-        "lengths": [300],
-        "prior_models": ["independent"],
-        "sensors": ["hdl64e"],
-        "gnss": ["noisy"],
-        "manoeuvres": ["none"],
-        "drop_scans": [0.0],
-        "dropout_burst": [0],
-        "map_shifts": [0.0],
-        "design": "product",
-        "scenarios": [
+    "stress": preset(
+        worlds=BOTH_WORLDS,
+        scenarios=[
             {},
             {"drop_scans": 0.05},
             {"dropout_burst": 20},
             {"manoeuvres": "all"},
             {"manoeuvres": "all", "drop_scans": 0.05, "dropout_burst": 20},
-        ],
-    },
+        ]),
 }
 LONG_DRIVE_M = 1000  # rotation design: drives of at least this length get per_cell_long pairs
 AXES = ("worlds", "seeds", "lengths", "prior_models", "sensors", "gnss", "manoeuvres",
@@ -155,12 +148,8 @@ def axes_from_args(args):
         scenarios = [dict(sc) for sc in p.get("scenarios", [])]
         extras = [dict(x) for x in p.get("extra_drives", [])]
     else:
-        axes = {"worlds": [World("city")], "seeds": [1], "lengths": [300],
-                "prior_models": [SIM_DEFAULTS["prior_model"]], "sensors": [SIM_DEFAULTS["sensor"]],
-                "gnss": [SIM_DEFAULTS["gnss"]], "manoeuvres": [SIM_DEFAULTS["manoeuvres"]],
-                "drop_scans": [SIM_DEFAULTS["drop_scans"]],
-                "dropout_burst": [SIM_DEFAULTS["dropout_burst"]],
-                "map_shifts": [SIM_DEFAULTS["map_shift"]]}
+        axes = {a: list(v) for a, v in preset().items() if a in AXES}
+        axes["worlds"] = [World("city")]
         design, short, long_ = "product", 1, 1
 
     def choice(allowed, what):

@@ -1,17 +1,17 @@
-"""Runs one drive in a folder of its own: simulate_urban and offline_slam with and without OSM
-(or, with --replay, replay_backend on another matrix's dumps), then evaluate_slam; writes the
-drive's result.json, which a later run reads instead of running the drive again."""
+"""Runs one drive in a folder of its own: simulate_urban and its SLAM runs (or, with --replay,
+replay_backend on another matrix's dumps; steps.py), then evaluate_slam; writes the drive's
+result.json, which a later run reads instead of running the drive again."""
 import json
 import os
-import re
 import shutil
 import time
 import traceback
 
-from .evaluation import BASELINE_LABEL, dig, parse_metrics
+from .evaluation import baseline_label, dig, odometry_metrics, parse_metrics
 from .files import last_log_line, read_json, sorted_listdir, unwritable, write_atomically
 from .ground_truth import first_fix, write_full_ground_truth
 from .own_metrics import absolute_offset_metrics, orientation_metrics, own_coverage, read_tum_stamps
+from .steps import replay_backends, run_step, simulate_and_run_slam
 from .tools import StepFailed, Stopped
 
 
@@ -33,27 +33,6 @@ def world_problem(drive):
     if not os.access(drive.world.path, os.R_OK):
         return "error: world file unreadable: %s" % drive.world.path
     return None
-
-
-def rejected_flags_hint(drive, log_path):
-    """simulate_urban prints its usage (status 2) for an option it does not know: today naming it
-    ("unknown option '--x'"), older builds listing the options they know."""
-    try:
-        with open(log_path, errors="replace") as f:
-            text = "".join(line for line in f if not line.startswith("$ "))  # not our command line
-    except OSError:
-        return None
-    if "usage:" not in text:
-        return None
-    named = re.findall(r"unknown option '(--[\w-]+)'", text)
-    if named:
-        unknown = [f for f in drive.new_flags() if f in named]
-    else:
-        unknown = [f for f in drive.new_flags() if f.startswith("--") and f not in text]
-    if unknown:
-        return ("simulate: simulate_urban does not know %s (printed its usage; not built yet?)"
-                % " ".join(unknown))
-    return "simulate: simulate_urban rejected its arguments (printed its usage; see logs/simulate_urban.log)"
 
 
 def run_drive(drive, ctx):
@@ -90,9 +69,9 @@ def _clean(d):
     """Removes an earlier run's files, so that none of them is read as this run's."""
     if os.path.islink(os.path.join(d, "sim")):  # --replay: the source's simulation
         os.remove(os.path.join(d, "sim"))
-    for name in ("sim", "slam_osm", "slam_no_osm"):
+    for name in ("sim", "slam_osm", "slam_no_osm", "slam_odom"):
         shutil.rmtree(os.path.join(d, name), ignore_errors=True)
-    for name in ("evaluation.json", "ground_truth_tum.txt", "result.json"):
+    for name in ("evaluation.json", "evaluation_odom.json", "ground_truth_tum.txt", "result.json"):
         try:
             os.remove(os.path.join(d, name))
         except FileNotFoundError:
@@ -104,103 +83,25 @@ def _clean(d):
             pass
 
 
-def _timed(steps, name, fn):
-    t0 = time.monotonic()
-    fn()
-    steps[name] = round(time.monotonic() - t0, 1)
-
-
 def _run_drive_steps(drive, ctx, d, logs, steps):
     _clean(d)
     write_atomically(os.path.join(d, "drive.json"), json.dumps(drive.axes(), indent=2) + "\n")
-    if ctx.replay_from:
-        sim, drive_dir = _replay_backends(drive, ctx, d, logs, steps)
-    else:
-        sim, drive_dir = _simulate_and_run_slam(drive, ctx, d, logs, steps)
-    return _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir)
-
-
-def _find_drive_dir(sim):
-    """simulate_urban's KITTI raw drive folder (sim/<date>/<date>_drive_NNNN_sync), or None."""
-    drives = sorted(p for p in (os.path.join(sim, a, b) for a in sorted_listdir(sim)
-                                for b in sorted_listdir(os.path.join(sim, a)))
-                    if re.search(r"_drive_\d+_sync$", p) and os.path.isdir(p))
-    return drives[0] if drives else None
-
-
-REPLAY_COPIED = {"slam_osm": ("ground_truth_scans_tum.txt", "ground_truth_tum.txt", "loops.txt", "timing.json"),
-                 "slam_no_osm": ("ground_truth_tum.txt", "timing.json")}
-
-
-def _replay_backends(drive, ctx, d, logs, steps):
-    """--replay FROM: the same drive's back-end inputs (FROM/<drive>/slam_*/dump, written with
-    --dump) through replay_backend with --set; the front-end's files (truth, loops, timing) and
-    the simulation are taken from FROM unchanged."""
-    src = os.path.join(ctx.replay_from, drive.name)
-    sim = os.path.join(d, "sim")
-    if not os.path.isdir(os.path.join(src, "sim")):
-        raise StepFailed("replay: %s has no sim folder (run the matrix there first)" % src)
-    os.symlink(os.path.join(os.path.abspath(src), "sim"), sim)
-    drive_dir = _find_drive_dir(sim)
-    if drive_dir is None:
-        raise StepFailed("replay: no drive folder in %s" % sim)
-    for run, extra in (("slam_osm", []), ("slam_no_osm", ["--no-osm"])):
-        dump = os.path.join(src, run, "dump")
-        if not os.path.isfile(os.path.join(dump, "keyframes.csv")):
-            raise StepFailed("replay: %s missing (run the matrix there with --dump)" % dump)
-        out = os.path.join(d, run)
-        sets = [a for kv in ctx.replay_sets for a in ("--set", kv)]
-        _timed(steps, "replay_" + run, lambda: ctx.run(
-            "replay_backend (%s)" % run, [ctx.tool("replay_backend"), "--dump", dump, "--output", out,
-                                          "--config", ctx.config] + extra + sets,
-            os.path.join(logs, "replay_%s.log" % run)))
-        for name in REPLAY_COPIED[run]:
-            if os.path.isfile(os.path.join(src, run, name)):
-                shutil.copyfile(os.path.join(src, run, name), os.path.join(out, name))
-    return sim, drive_dir
-
-
-def _simulate_and_run_slam(drive, ctx, d, logs, steps):
-    """simulate_urban, then offline_slam with the simulated OSM prior and with --no-osm (the
-    baseline); returns (simulation folder, drive folder)."""
-    sim = os.path.join(d, "sim")
-    sim_log = os.path.join(logs, "simulate_urban.log")
-    cmd = [ctx.tool("simulate_urban"), "--out", sim] + drive.sim_flags() + ctx.sim_args
-    try:
-        _timed(steps, "simulate", lambda: ctx.run("simulate", cmd, sim_log))
-    except StepFailed:
-        hint = rejected_flags_hint(drive, sim_log)
-        if hint:
-            raise StepFailed(hint) from None
-        raise
-    drive_dir = _find_drive_dir(sim)
-    if drive_dir is None:
-        raise StepFailed("simulate: no drive folder in %s (%s)" % (sim, last_log_line(sim_log) or "empty log"))
-    prior = os.path.join(sim, "prior.osm")
-
-    common = [ctx.tool("offline_slam"), "--kitti-raw", drive_dir, "--config", ctx.config]
-    osm_out, no_osm_out = os.path.join(d, "slam_osm"), os.path.join(d, "slam_no_osm")
-
-    def dump(run_out):  # the back-end's inputs, for replay_backend (--replay)
-        return ["--dump", os.path.join(run_out, "dump"), "--dump-without-clouds"] if ctx.dump else []
-
-    _timed(steps, "offline_slam_osm", lambda: ctx.run(
-        "offline_slam (with OSM)", common + ["--osm", prior, "--output", osm_out] + dump(osm_out),
-        os.path.join(logs, "offline_slam_osm.log")))
-    _timed(steps, "offline_slam_no_osm", lambda: ctx.run(
-        "offline_slam --no-osm", common + ["--no-osm", "--output", no_osm_out] + dump(no_osm_out),
-        os.path.join(logs, "offline_slam_no_osm.log")))
-    return sim, drive_dir
-
-
-def _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir):
-    osm_out, no_osm_out = os.path.join(d, "slam_osm"), os.path.join(d, "slam_no_osm")
     notes = []
+    if ctx.replay_from:
+        sim, drive_dir = replay_backends(drive, ctx, d, logs, steps, notes)
+    else:
+        sim, drive_dir = simulate_and_run_slam(drive, ctx, d, logs, steps)
+    return _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir, notes)
+
+
+def _evaluate_drive(drive, ctx, d, logs, steps, sim, drive_dir, notes):
+    osm_out, no_osm_out = os.path.join(d, "slam_osm"), os.path.join(d, "slam_no_osm")
     gt = _whole_drive_ground_truth(d, sim, drive_dir, osm_out, notes)
-    cmd = _evaluate_command(ctx, sim, drive_dir, osm_out, no_osm_out, gt)
+    cmd = _evaluate_command(ctx, sim, drive_dir, osm_out, no_osm_out, gt, baseline_label(drive.gnss))
     report = os.path.join(osm_out, "timing.json")
     evaluation = _run_evaluate(ctx, d, logs, steps, cmd, _newer_evaluate_options(ctx, osm_out, report), notes)
-    metrics = _drive_metrics(evaluation, sim, drive_dir, osm_out, no_osm_out, gt, report)
+    metrics = _drive_metrics(evaluation, sim, drive_dir, osm_out, no_osm_out, gt, report, drive.gnss == "origin")
+    metrics.update(odometry_metrics(metrics, _evaluate_odometry(ctx, d, logs, steps, gt, notes), drive.gnss))
     metrics["ground_truth"] = os.path.relpath(gt, d)
     if notes:
         metrics["notes"] = notes
@@ -226,14 +127,21 @@ def _whole_drive_ground_truth(d, sim, drive_dir, osm_out, notes):
     return gt
 
 
-def _evaluate_command(ctx, sim, drive_dir, osm_out, no_osm_out, gt):
+# Trajectory errors in the plane: the map's height is the first fix's altitude, which no run can
+# correct (the OSM prior is 2-D, the fixes' altitude is off by default), and a canyon's first fix
+# is tens of metres off vertically (poor VDOP, NLOS): in 3-D that constant buried every
+# horizontal difference between the runs. Height is judged by height_drift and tilt.
+PLANAR = ["--planar"]
+
+
+def _evaluate_command(ctx, sim, drive_dir, osm_out, no_osm_out, gt, label):
     fix = first_fix(drive_dir)  # the map frame's origin (the plots' buildings are projected there)
     if fix is None:
         raise StepFailed("evaluate: no OXTS record with a GNSS fix in %s/oxts/data" % drive_dir)
     origin = "%.9f,%.9f" % (fix[0], fix[1])
     return [ctx.tool("evaluate_slam"), "--estimate", os.path.join(osm_out, "trajectory_tum.txt"),
-            "--ground-truth", gt, "--origin", origin,
-            "--baseline", os.path.join(no_osm_out, "trajectory_tum.txt"), "--baseline-label", BASELINE_LABEL,
+            "--ground-truth", gt, "--origin", origin] + PLANAR + [
+            "--baseline", os.path.join(no_osm_out, "trajectory_tum.txt"), "--baseline-label", label,
             "--buildings-true", os.path.join(sim, "buildings_true.geojson"),
             "--buildings-prior", os.path.join(sim, "prior.osm"),
             "--buildings-corrected", os.path.join(osm_out, "buildings_corrected.geojson")]
@@ -259,21 +167,41 @@ def _run_evaluate(ctx, d, logs, steps, cmd, optional, notes):
     eval_log = os.path.join(logs, "evaluate_slam.log")
     evaluation_path = os.path.join(d, "evaluation.json")
     try:
-        _timed(steps, "evaluate", lambda: ctx.run("evaluate", cmd + optional + ["--json"], eval_log,
-                                                  evaluation_path))
+        run_step(ctx, steps, "evaluate", "evaluate", cmd + optional + ["--json"], eval_log,
+                 stdout_path=evaluation_path)
     except StepFailed as e:
         if not optional:
             raise
         notes.append("evaluate_slam failed with %s (%s); evaluated without them" % (" ".join(optional), e))
-        _timed(steps, "evaluate", lambda: ctx.run("evaluate (without --run-report/--loops)", cmd + ["--json"],
-                                                  eval_log, evaluation_path))
+        run_step(ctx, steps, "evaluate", "evaluate (without --run-report/--loops)", cmd + ["--json"],
+                 eval_log, stdout_path=evaluation_path)
     evaluation = read_json(evaluation_path)
     if not isinstance(evaluation, dict):
         raise StepFailed("evaluate: evaluation.json is not JSON: %s" % (last_log_line(evaluation_path) or "empty"))
     return evaluation
 
 
-def _drive_metrics(evaluation, sim, drive_dir, osm_out, no_osm_out, gt, report):
+def _evaluate_odometry(ctx, d, logs, steps, gt, notes):
+    """evaluate_slam --json of the odometry + loops run (slam_odom) alone into
+    evaluation_odom.json: its ATE by the same code, against the same ground truth and without
+    alignment, as the other two runs'. None when the drive has no such folder (an 'origin'
+    drive's run without OSM is that run; a replay of a matrix dumped before it). A failure is
+    noted, not the drive's status: the other runs' numbers stand."""
+    estimate = os.path.join(d, "slam_odom", "trajectory_tum.txt")
+    if not os.path.isdir(os.path.dirname(estimate)):
+        return None
+    path = os.path.join(d, "evaluation_odom.json")
+    try:
+        run_step(ctx, steps, "evaluate_odom", "evaluate (odometry + loops)",
+                 [ctx.tool("evaluate_slam"), "--estimate", estimate, "--ground-truth", gt] + PLANAR + ["--json"],
+                 os.path.join(logs, "evaluate_slam_odom.log"), stdout_path=path)
+    except StepFailed as e:
+        notes.append("%s: no odometry + loops numbers" % e)
+        return None
+    return read_json(path)
+
+
+def _drive_metrics(evaluation, sim, drive_dir, osm_out, no_osm_out, gt, report, first_fix_only):
     """evaluate_slam's numbers with the matrix's own: coverage, orientation, absolute offsets."""
     try:
         coverage = own_coverage(read_tum_stamps(os.path.join(osm_out, "trajectory_tum.txt")),
@@ -284,7 +212,8 @@ def _drive_metrics(evaluation, sim, drive_dir, osm_out, no_osm_out, gt, report):
                             read_json(os.path.join(sim, "sim_info.json")), coverage)
     metrics["own_coverage"] = coverage
     metrics.update(orientation_metrics(osm_out, no_osm_out))
-    metrics.update(absolute_offset_metrics(sim, drive_dir, os.path.join(osm_out, "buildings_corrected.geojson")))
+    metrics.update(absolute_offset_metrics(sim, drive_dir, os.path.join(osm_out, "buildings_corrected.geojson"),
+                                           first_fix_only))
     return metrics
 
 

@@ -126,9 +126,10 @@ def _oxts_latlon(path):
     return (lat, lon) if math.isfinite(lat) and math.isfinite(lon) else None
 
 
-def gnss_mean_error(drive_dir):
+def gnss_mean_error(drive_dir, first_only=False):
     """Mean horizontal (east, north) error [m] of the drive's fixes against oxts_true (the
-    simulator's truth), over the records with a fix; None without them."""
+    simulator's truth), over the records with a fix (first_only: the first of them); None
+    without them."""
     data = os.path.join(drive_dir, "oxts", "data")
     east = north = 0.0
     n = 0
@@ -141,6 +142,8 @@ def gnss_mean_error(drive_dir):
         east += (fix[1] - true[1]) * r * math.cos(math.radians(true[0]))
         north += (fix[0] - true[0]) * r
         n += 1
+        if first_only:
+            break
     return (east / n, north / n) if n else None
 
 
@@ -183,12 +186,13 @@ def offset_bound(map_offset, gnss_offset):
     return math.hypot(bx + w * dx, by + w * dy)
 
 
-def absolute_offset_metrics(sim_dir, drive_dir, corrected_geojson):
+def absolute_offset_metrics(sim_dir, drive_dir, corrected_geojson, first_fix_only=False):
     """Simulated drives only: the fixes' mean error, the observed buildings' mean prior offset
     and offset_bound() of the two ("B_bnd": no estimator's buildings or trajectory end closer
-    in the mean)."""
+    in the mean). first_fix_only: the runs had no fix but the first (an 'origin' drive), so
+    that one is their only absolute reference beside the map."""
     m = {"gnss_mean_error": None, "map_mean_offset": None, "offset_bound": None}
-    b = gnss_mean_error(drive_dir)
+    b = gnss_mean_error(drive_dir, first_fix_only)
     seen = observed_prior_offset(sim_dir, corrected_geojson)
     if b is not None:
         m["gnss_mean_error"] = math.hypot(*b)

@@ -2,7 +2,7 @@
 import statistics
 
 from .drives import SIM_DEFAULTS, fmt_num
-from .evaluation import BASELINE_LABEL, number_or_none
+from .evaluation import baseline_label, number_or_none
 
 
 def f3(x):
@@ -33,9 +33,13 @@ COLUMNS = [
     ("revisits", "revis", 5, fint, None),
     ("recall", "recall", 6, f2, "min"),
     ("false_loops", "false", 5, fint, "max"),
+    ("fix_rms", "fixRMS", 6, f2, "max"),
+    # the three runs (odometry + loops, the GNSS baseline, everything) and OSM's change against both
+    ("ate_odom", "ATE_odo", 7, f3, "max"),
+    ("ate_no_osm", "ATE_gns", 7, f3, "max"),
     ("ate_osm", "ATE_osm", 7, f3, "max"),
-    ("ate_no_osm", "ATE_no", 7, f3, "max"),
-    ("ate_change_pct", "chg%", 7, fpct, "max"),
+    ("ate_change_pct", "chgGns%", 7, fpct, "max"),
+    ("ate_change_odom_pct", "chgOdo%", 7, fpct, "max"),
     ("rpe_ratio", "tRPE_r", 6, f2, "max"),
     ("height_drift", "z_dr", 5, f3, "max"),
     ("tilt_deg", "tilt", 5, f3, "max"),
@@ -56,38 +60,42 @@ def is_ok(row):
     return row.get("status") == "ok"
 
 
+def column_stats(rows, key, direction):
+    """{"median", "worst", "worst_drive", "count"} of one metric over the rows with status ok;
+    worst in the bad direction ("max", "min"; None: no worst)."""
+    vals = [(r["metrics"][key], r["drive"]) for r in rows
+            if is_ok(r) and number_or_none((r.get("metrics") or {}).get(key)) is not None]
+    entry = {"median": None, "worst": None, "worst_drive": None, "count": len(vals)}
+    if vals:
+        entry["median"] = statistics.median(v for v, _ in vals)
+        if direction:
+            pick = max if direction == "max" else min
+            v, d = pick(vals, key=lambda x: x[0])
+            entry["worst"], entry["worst_drive"] = v, d
+    return entry
+
+
 def summarize(rows):
-    """{metric: {"median", "worst", "worst_drive"}} over the rows with status ok."""
-    out = {}
-    for key, _, _, _, direction in COLUMNS:
-        vals = [(r["metrics"][key], r["drive"]) for r in rows
-                if is_ok(r) and number_or_none((r.get("metrics") or {}).get(key)) is not None]
-        entry = {"median": None, "worst": None, "worst_drive": None, "count": len(vals)}
-        if vals:
-            entry["median"] = statistics.median(v for v, _ in vals)
-            if direction:
-                pick = max if direction == "max" else min
-                v, d = pick(vals, key=lambda x: x[0])
-                entry["worst"], entry["worst_drive"] = v, d
-        out[key] = entry
-    return out
+    """{metric: {"median", "worst", "worst_drive", "count"}} over the rows with status ok."""
+    return {key: column_stats(rows, key, direction) for key, _, _, _, direction in COLUMNS}
 
 
 def worst_drive(rows):
-    """(drive, why) of the finished drive whose OSM run did worst against its baseline: the
-    largest ATE change. Drives that did not finish are listed apart."""
+    """(drive, why) of the finished drive whose OSM run did worst against its run without OSM
+    (the GNSS baseline; odometry + loops on an 'origin' drive): the largest ATE change. Drives
+    that did not finish are listed apart."""
     scored = [r for r in rows if is_ok(r)
               and number_or_none((r.get("metrics") or {}).get("ate_change_pct")) is not None]
     if not scored:
         return None, None
     r = max(scored, key=lambda r: r["metrics"]["ate_change_pct"])
     return r["drive"], "ATE change %+.1f %% vs %s (ATE %.3f m with OSM, %.3f m without)" % (
-        r["metrics"]["ate_change_pct"], BASELINE_LABEL, r["metrics"].get("ate_osm") or 0.0,
+        r["metrics"]["ate_change_pct"], baseline_label(r.get("gnss")), r["metrics"].get("ate_osm") or 0.0,
         r["metrics"].get("ate_no_osm") or 0.0)
 
 
 AXIS_COLUMNS = [("#", 3), ("world", 10), ("seed", 4), ("len", 5), ("prior", 11), ("sensor", 6),
-                ("gnss", 5)]
+                ("gnss", 6)]
 
 
 def format_table(rows, summary=None):
@@ -109,7 +117,7 @@ def format_table(rows, summary=None):
     for i, r in enumerate(rows, 1):
         cells = ["%3d" % i, cut(str(r.get("world", "?")), 10).ljust(10), str(r.get("seed", "?")).rjust(4),
                  str(r.get("length_m", "?")).rjust(5), cut(str(r.get("prior_model", "?")), 11).ljust(11),
-                 cut(str(r.get("sensor", "?")), 6).ljust(6), cut(str(r.get("gnss", "?")), 5).ljust(5)]
+                 cut(str(r.get("sensor", "?")), 6).ljust(6), cut(str(r.get("gnss", "?")), 6).ljust(6)]
         for name, w in extra:
             if name == "manoeuvres":
                 cells.append(cut(str(r.get("manoeuvres", "")), w).ljust(w))

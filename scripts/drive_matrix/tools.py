@@ -28,7 +28,7 @@ class Context:
         self.bin_dir = bin_dir
         self.replay_from = replay_from  # --replay: re-run only the back-ends on FROM's dumps
         self.replay_sets = list(replay_sets)
-        self.dump = dump  # offline_slam --dump into slam_osm/dump and slam_no_osm/dump
+        self.dump = dump  # offline_slam --dump into each run's slam_*/dump
         self.config = config
         self.out = out
         self.sim_args = sim_args
