@@ -894,4 +894,9 @@ std::optional<EnuConverter> GraphBackend::origin() const {
   return state_->origin;
 }
 
+std::optional<double> GraphBackend::startHeading() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->initial_yaw;
+}
+
 }  // namespace osm_graph_slam

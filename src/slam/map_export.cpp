@@ -267,8 +267,13 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     write("origin.txt", writeFileAtomically(write.path("origin.txt"), o.str(), &error), error);
   }
   {
-    std::ostringstream h;  // the first keyframe's map heading: replays start from it
-    h << std::setprecision(17) << planarPose(keyframes.front().map_pose).theta << '\n';
+    // Replays start from the heading the run started from. The first keyframe's optimised
+    // heading would hand a replay the outcome it is meant to test (the OSM datum turns a run
+    // about its anchor); it stands in only when no heading was known at the start.
+    const double heading =
+        backend.startHeading().value_or(planarPose(keyframes.front().map_pose).theta);
+    std::ostringstream h;
+    h << std::setprecision(17) << heading << '\n';
     write("initial_heading.txt",
           writeFileAtomically(write.path("initial_heading.txt"), h.str(), &error), error);
   }

@@ -215,6 +215,8 @@ class GraphBackend {
   PoseGraph graphSnapshot() const;
   std::vector<LoopClosureInput> loopClosures() const;  ///< the ones added to the graph
   std::optional<EnuConverter> origin() const;
+  /// The heading the run started from (parameters or setInitialHeading), if one was known.
+  std::optional<double> startHeading() const;
   const GraphBackendParams& params() const { return params_; }
   size_t pendingInputs() const;
 
