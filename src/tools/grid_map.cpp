@@ -1,0 +1,128 @@
+// grid_map: the occupancy grid (cloud/occupancy_grid.h) of a dump (offline_slam --dump, the
+// nodelet's dump_graph) at the poses of a TUM trajectory matched by stamp, written as map_server's
+// map.pgm + map.yaml. With the run's own trajectory_tum.txt it gives save_map's grid again; with
+// ground_truth_tum.txt it shows the grid's own errors apart from the SLAM's pose errors
+// (scripts/evaluate_grid.py compares either with the true footprints).
+#include <pcl/io/pcd_io.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <vector>
+
+#include "osm_graph_slam/cloud/occupancy_grid.h"
+#include "osm_graph_slam/io/map_server_files.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/slam/graph_dump.h"
+#include "osm_graph_slam/slam/pipeline_params_io.h"
+#include "support/command_line.h"
+
+using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
+
+namespace {
+
+/// [s] a keyframe stamp this far from every trajectory pose has no pose.
+constexpr double kMaxStampGap = 0.05;
+
+std::string cloudPath(const std::string& dump, uint64_t id) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "/keyframes/%06lu.pcd", static_cast<unsigned long>(id));
+  return dump + name;
+}
+
+struct Built {
+  size_t inserted = 0, without_pose = 0, without_cloud = 0;
+  std::vector<double> insert_ms;
+};
+
+Built buildGrid(OccupancyGrid& grid, const GraphDump& dump, const std::string& dump_dir,
+                const Trajectory& poses) {
+  Built built;
+  for (const KeyframeInput& kf : dump.keyframes) {
+    Eigen::Isometry3d pose;
+    if (!interpolatePose(poses, kf.stamp, kMaxStampGap, pose)) {
+      ++built.without_pose;
+      continue;
+    }
+    PointCloud cloud;
+    if (pcl::io::loadPCDFile(cloudPath(dump_dir, kf.id), cloud) != 0 || cloud.empty()) {
+      ++built.without_cloud;
+      continue;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    grid.insertKeyframe(kf.id, pose, cloud, kf.floor);
+    built.insert_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count());
+    ++built.inserted;
+  }
+  return built;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CommandLine cli("grid_map",
+                  "The occupancy grid of a dump_graph directory at the poses of a TUM trajectory "
+                  "(matched by keyframe stamp), as map_server's map.pgm + map.yaml.");
+  cli.option("--dump", "DIR", "the dump (offline_slam --dump, dump_graph) with keyframe clouds")
+      .required()
+      .option("--trajectory", "TUM",
+              "the poses: the run's trajectory_tum.txt, or ground_truth_tum.txt")
+      .required()
+      .option("--output", "DIR", "where map.pgm and map.yaml go (the folder must exist)")
+      .required()
+      .option("--config", "OVERRIDES.yaml",
+              "parameter overrides (the grid_* keys of graph_backend)")
+      .defaultText("config/kitti.yaml");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  std::map<std::string, std::string> args = cli.values();
+
+  SlamPipelineParams params;
+  std::string error;
+  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
+  if (!loadPipelineParams(config_dir,
+                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
+                          params, &error)) {
+    std::cerr << "grid_map: " << error << "\n";
+    return 1;
+  }
+  const std::string grid_error = occupancyGridParamsError(params.backend.grid);
+  if (!grid_error.empty()) {
+    std::cerr << "grid_map: " << grid_error << "\n";
+    return 1;
+  }
+  GraphDump dump;
+  if (!readGraphDump(args["dump"], dump, &error)) {
+    std::cerr << "grid_map: " << error << "\n";
+    return 1;
+  }
+  const TrajectoryReadResult poses = readTrajectory(args["trajectory"]);
+  if (!poses.ok) {
+    std::cerr << "grid_map: " << poses.error << "\n";
+    return 1;
+  }
+
+  OccupancyGrid grid(params.backend.grid);
+  Built built = buildGrid(grid, dump, args["dump"], poses.trajectory);
+  const OccupancyGridImage image = grid.image();
+  const std::string out = args["output"];
+  if (image.cells.empty() || !writeFileAtomically(out + "/map.pgm", mapServerPgm(image), &error) ||
+      !writeFileAtomically(out + "/map.yaml", mapServerYaml(image, "map.pgm"), &error)) {
+    std::cerr << "grid_map: " << (image.cells.empty() ? "no grid cell" : error) << "\n";
+    return 1;
+  }
+  std::sort(built.insert_ms.begin(), built.insert_ms.end());
+  std::cout << std::fixed << std::setprecision(2) << "grid_map: " << built.inserted
+            << " keyframes (" << built.without_pose << " without a pose, " << built.without_cloud
+            << " without a cloud), " << image.width << " x " << image.height << " cells of "
+            << image.resolution << " m; insert "
+            << (built.insert_ms.empty() ? 0.0 : built.insert_ms[built.insert_ms.size() / 2])
+            << " ms median, " << (built.insert_ms.empty() ? 0.0 : built.insert_ms.back())
+            << " ms max per keyframe\n";
+  return 0;
+}
