@@ -185,6 +185,7 @@ struct OccupancyGrid::Tile {
   int32_t sum[kCells] = {};           ///< log-odds, fixed point
   int32_t observations[kCells] = {};  ///< keyframes that hit or crossed the cell
   uint32_t stamp[kCells] = {};        ///< the last render that counted the cell
+  uint32_t hit_stamp[kCells] = {};    ///< the last render that saw an obstacle in it
 };
 
 OccupancyGrid::OccupancyGrid(const OccupancyGridParams& params) : params_(params) {
@@ -252,12 +253,34 @@ OccupancyGrid::Tile& OccupancyGrid::tileAt(int64_t tx, int64_t ty) {
   return *tile;
 }
 
-void OccupancyGrid::addEvidence(int64_t cx, int64_t cy, bool hit, uint32_t stamp, int sign) {
+OccupancyGrid::Tile& OccupancyGrid::cell(int64_t cx, int64_t cy, size_t* index) {
   const int64_t tx = floorDiv(cx, kTileSize), ty = floorDiv(cy, kTileSize);
-  Tile& tile = tileAt(tx, ty);
-  const size_t i = static_cast<size_t>((cy - ty * kTileSize) * kTileSize + (cx - tx * kTileSize));
-  if (tile.stamp[i] == stamp) return;  // this keyframe counted the cell already (hits first)
+  *index = static_cast<size_t>((cy - ty * kTileSize) * kTileSize + (cx - tx * kTileSize));
+  return tileAt(tx, ty);
+}
+
+bool OccupancyGrid::besideHit(int64_t cx, int64_t cy, uint32_t stamp) {
+  size_t i = 0;
+  const Tile& tile = cell(cx, cy, &i);
+  const int64_t lx = static_cast<int64_t>(i) % kTileSize, ly = static_cast<int64_t>(i) / kTileSize;
+  if (lx > 0 && lx + 1 < kTileSize && ly > 0 && ly + 1 < kTileSize)  // all four in this tile
+    return tile.hit_stamp[i - 1] == stamp || tile.hit_stamp[i + 1] == stamp ||
+           tile.hit_stamp[i - kTileSize] == stamp || tile.hit_stamp[i + kTileSize] == stamp;
+  static constexpr int kSides[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  for (const auto& d : kSides)
+    if (cell(cx + d[0], cy + d[1], &i).hit_stamp[i] == stamp) return true;
+  return false;
+}
+
+void OccupancyGrid::addEvidence(int64_t cx, int64_t cy, bool hit, uint32_t stamp, int sign) {
+  size_t i = 0;
+  Tile& tile = cell(cx, cy, &i);
+  if (tile.stamp[i] == stamp) return;  // this keyframe counted the cell already
   tile.stamp[i] = stamp;
+  // A ray grazing a corner the keyframe sees would free a cell inside the building: cells beside
+  // the keyframe's own obstacles are not free for it (hits are rendered before rays).
+  if (!hit && besideHit(cx, cy, stamp)) return;
+  if (hit) tile.hit_stamp[i] = stamp;
   tile.sum[i] += sign * (hit ? hit_update_ : miss_update_);
   tile.observations[i] += sign;
 }

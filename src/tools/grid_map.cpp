@@ -7,9 +7,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <vector>
 
@@ -25,8 +27,22 @@ using osm_graph_slam::tools::CommandLine;
 
 namespace {
 
-/// [s] a keyframe stamp this far from every trajectory pose has no pose.
-constexpr double kMaxStampGap = 0.05;
+/// [s] a keyframe's pose is the trajectory's pose at its stamp, within this (the runs write the
+/// keyframes' stamps; interpolating would invent poses the trajectory does not hold).
+constexpr double kStampTolerance = 1e-3;
+
+/// The pose stamped nearest to t, if within kStampTolerance (poses in time order).
+bool poseAt(const Trajectory& poses, double t, Eigen::Isometry3d* pose) {
+  const auto after = std::lower_bound(poses.begin(), poses.end(), t,
+                                      [](const StampedPose& p, double s) { return p.stamp < s; });
+  for (auto it : {after, after == poses.begin() ? after : std::prev(after)}) {
+    if (it != poses.end() && std::abs(it->stamp - t) <= kStampTolerance) {
+      *pose = it->pose;
+      return true;
+    }
+  }
+  return false;
+}
 
 std::string cloudPath(const std::string& dump, uint64_t id) {
   char name[64];
@@ -44,7 +60,7 @@ Built buildGrid(OccupancyGrid& grid, const GraphDump& dump, const std::string& d
   Built built;
   for (const KeyframeInput& kf : dump.keyframes) {
     Eigen::Isometry3d pose;
-    if (!interpolatePose(poses, kf.stamp, kMaxStampGap, pose)) {
+    if (!poseAt(poses, kf.stamp, &pose)) {
       ++built.without_pose;
       continue;
     }

@@ -74,7 +74,9 @@ class OccupancyGrid {
     Eigen::Isometry3d pose;
     PlanarScan scan;
   };
-  Tile& tileAt(int64_t cx, int64_t cy);
+  Tile& tileAt(int64_t tx, int64_t ty);
+  Tile& cell(int64_t cx, int64_t cy, size_t* index);
+  bool besideHit(int64_t cx, int64_t cy, uint32_t stamp);
   void render(const KeptKeyframe& kf, int sign);
   void traceFree(const Eigen::Vector2d& from, const Eigen::Vector2d& to, bool include_end,
                  uint32_t stamp, int sign);
