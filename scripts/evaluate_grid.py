@@ -13,6 +13,11 @@ resolution in the map frame, and prints the numbers of issue 58's targets:
                         marked free: should be 0
   occupied_near_walls   of the occupied cells, the share whose centre lies within --wall-tolerance
                         of a footprint edge
+  wall_length_seen_m    footprint edge length (sampled every 5 cm) with an observed cell centre
+                        within --wall-tolerance: the walls the drive saw
+  wall_length_occupied  of that length, the share with an occupied cell centre within
+                        --wall-tolerance (the real drive's target: >= 80 % against the corrected
+                        OSM walls, 0.3 m)
 
 The map frame is offline_slam's: ENU at --origin (the drive's first GNSS fix), so the grid's own
 absolute error (the SLAM's) is part of the numbers; --search-shift M also reports the best
@@ -234,6 +239,33 @@ def share_near_walls(cells, width, meta, rings, tolerance):
     return near / occupied if occupied else float("nan"), occupied
 
 
+def wall_length_metrics(cells, width, height, meta, rings, tolerance, step=0.05):
+    res, (ox, oy) = meta["resolution"], meta["origin"][:2]
+    reach = int(math.ceil(tolerance / res)) + 1
+    seen = occupied = 0.0
+    for ring in rings:
+        for a, b in zip(ring, ring[1:] + ring[:1]):
+            length = math.hypot(b[0] - a[0], b[1] - a[1])
+            n = max(1, int(math.ceil(length / step)))
+            for k in range(n):
+                t = (k + 0.5) / n
+                px, py = a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])
+                cx, cy = int(math.floor((px - ox) / res)), int(math.floor((py - oy) / res))
+                near_seen = near_occupied = False
+                for y in range(max(0, cy - reach), min(height, cy + reach + 1)):
+                    for x in range(max(0, cx - reach), min(width, cx + reach + 1)):
+                        v = cells[y * width + x]
+                        if v == UNKNOWN or math.hypot(ox + (x + 0.5) * res - px,
+                                                      oy + (y + 0.5) * res - py) > tolerance:
+                            continue
+                        near_seen = True
+                        near_occupied = near_occupied or v == OCCUPIED
+                seen += near_seen * length / n
+                occupied += near_occupied * length / n
+    return {"wall_length_seen_m": seen,
+            "wall_length_occupied": occupied / seen if seen else float("nan")}
+
+
 def grid_metrics(cells, width, height, raster):
     wall_seen = wall_occupied = wall_occupied_1cell = 0
     free_seen = free_occupied = inside_free = inside_seen = 0
@@ -271,6 +303,7 @@ def evaluate(yaml_path, buildings_path, origin, wall_tolerance=0.3, search_shift
                                rasterise(rings, width, height, meta["resolution"], grid_origin)))
     result["occupied_near_walls"], result["occupied_cells"] = share_near_walls(
         cells, width, meta, rings, wall_tolerance)
+    result.update(wall_length_metrics(cells, width, height, meta, rings, wall_tolerance))
     if search_shift > 0:
         result["best_shift"] = best_shift(cells, width, height, meta, rings, search_shift)
     return result

@@ -81,6 +81,8 @@ class EvaluateGridTest(unittest.TestCase):
         self.assertEqual(r["free_inside"], 0)
         self.assertEqual(r["occupied_near_walls"], 1.0)  # the edges run 0.15 m from the wall cells' centres
         self.assertGreater(r["free_cells_observed"], 1000)
+        self.assertAlmostEqual(r["wall_length_seen_m"], 24.0, places=6)  # the whole outline
+        self.assertAlmostEqual(r["wall_length_occupied"], 1.0)
 
     def test_stray_obstacles_and_free_cells_inside_are_counted(self):
         cells = list(self.cells)
@@ -95,6 +97,15 @@ class EvaluateGridTest(unittest.TestCase):
         self.assertEqual(r["occupied_right"], 1.0)
         self.assertAlmostEqual(r["free_marked_occupied"], 1.0 / r["free_cells_observed"])
         self.assertEqual(r["free_inside"], 1)
+
+    def test_a_wall_the_grid_calls_free_is_not_confirmed(self):
+        cells = list(self.cells)
+        for i, v in enumerate(cells):  # the east wall (x 3.0-3.5) free instead of occupied
+            if v == eg.OCCUPIED and cell_centre(i)[0] > 3.0 and -2.5 < cell_centre(i)[1] < 2.5:
+                cells[i] = eg.FREE
+        r = self.evaluate(cells)
+        self.assertAlmostEqual(r["wall_length_seen_m"], 24.0, places=6)
+        self.assertAlmostEqual(r["wall_length_occupied"], 20.0 / 24.0, delta=0.05)
 
     def test_a_shifted_truth_is_found(self):
         shifted = [(x + 1.0, y + 1.0) for x, y in BUILDING]
