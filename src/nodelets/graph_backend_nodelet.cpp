@@ -461,8 +461,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   bool onSaveMap(SaveMap::Request& req, SaveMap::Response& res) {
     std::lock_guard<std::mutex> graph_lock(graph_mutex_);
     backend_->update();  // include everything received so far
-    // The saved map.pgm is the grid slam/grid_map shows, brought up to this update.
-    if (grid_) updateGridMap(*grid_, backend_->keyframes());
+    // The saved map.pgm is the grid slam/grid_map shows, both brought up to this update.
+    std_msgs::Header header;
+    header.frame_id = node_params_.map_frame;
+    header.stamp = lastStamp();
+    publishGridMap(backend_->keyframes(), header);
     const MapExportResult r =
         saveMap(*backend_, req.destination, req.resolution, nullptr, grid_.get());
     res.success = r.success;
