@@ -9,6 +9,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -194,6 +195,25 @@ TEST_F(ExportFixture, SaveMapWritesTheOccupancyGridAsMapServerReadsIt) {
     EXPECT_EQ(mismatched, 0);
     EXPECT_GT(occupied, 100) << "the street's walls";
   }
+}
+
+// A bad grid parameter is one clear error and costs the save nothing else: every other file is
+// written, the message says why map.pgm is missing.
+TEST_F(ExportFixture, ABadGridResolutionSkipsOnlyTheGridWithTheReason) {
+  GraphBackendParams params = backend_->params();
+  params.grid.resolution = std::numeric_limits<double>::quiet_NaN();
+  GraphBackend backend(params);
+  backend.setOrigin(49.0, 8.4, 110.0);
+  drive_->feed(backend, drive_->odometry(0.0, 1.0), drive_->truth);
+  backend.update();
+  const std::string dir = tempDir("save_map_bad_grid");
+  const MapExportResult r = saveMap(backend, dir, 0.2);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.files.size(), 7u);
+  EXPECT_FALSE(fs::exists(dir + "/map.pgm"));
+  EXPECT_NE(r.message.find("no map.pgm: grid_resolution must be a finite number > 0"),
+            std::string::npos)
+      << r.message;
 }
 
 TEST_F(ExportFixture, AFailedOrInterruptedSaveLeavesThePreviousFilesUnchanged) {
