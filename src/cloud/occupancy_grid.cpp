@@ -111,8 +111,8 @@ std::string occupancyGridParamsError(const OccupancyGridParams& p) {
     return "grid_min_range must be >= 0 and below grid_max_range";
   if (p.max_range / p.resolution > 1e5)
     return "grid_max_range / grid_resolution is above 1e5 cells per ray";
-  if (!finitePositive(p.azimuth_step_deg) || p.azimuth_step_deg > 45.0)
-    return "grid_azimuth_step_deg must be in (0, 45]";
+  if (!std::isfinite(p.azimuth_step_deg) || p.azimuth_step_deg < 0.01 || p.azimuth_step_deg > 45.0)
+    return "grid_azimuth_step_deg must be in [0.01, 45]";
   if (!probability(p.hit_probability) || p.hit_probability <= 0.5)
     return "grid_hit_probability must be in (0.5, 1)";
   if (!probability(p.miss_probability) || p.miss_probability >= 0.5)
@@ -122,7 +122,8 @@ std::string occupancyGridParamsError(const OccupancyGridParams& p) {
     return "grid_min_probability must be below grid_max_probability, both in (0, 1)";
   if (!std::isfinite(p.ground_percentile) || p.ground_percentile < 0.0 || p.ground_percentile > 1.0)
     return "grid_ground_percentile must be in [0, 1]";
-  if (!finitePositive(p.ground_cell)) return "grid_ground_cell must be a finite number > 0";
+  if (!finitePositive(p.ground_cell) || p.max_range / p.ground_cell > 1000.0)
+    return "grid_ground_cell must be > 0 and at least grid_max_range / 1000";
   if (!std::isfinite(p.ground_tolerance) || p.ground_tolerance < 0.0)
     return "grid_ground_tolerance must be >= 0";
   if (!std::isfinite(p.move_translation) || p.move_translation < 0.0 ||

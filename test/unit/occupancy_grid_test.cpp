@@ -176,6 +176,12 @@ TEST(OccupancyGrid, BadParametersAreOneClearError) {
   OccupancyGridParams certain;
   certain.hit_probability = 1.0;
   EXPECT_NE(errorOf(certain).find("grid_hit_probability"), std::string::npos);
+  OccupancyGridParams fine_sectors;  // would allocate 36 million sectors per keyframe
+  fine_sectors.azimuth_step_deg = 1e-5;
+  EXPECT_NE(errorOf(fine_sectors).find("grid_azimuth_step_deg"), std::string::npos);
+  OccupancyGridParams fine_ground;
+  fine_ground.ground_cell = 1e-4;
+  EXPECT_NE(errorOf(fine_ground).find("grid_ground_cell"), std::string::npos);
   EXPECT_EQ(errorOf(OccupancyGridParams()), "");
 }
 
