@@ -1,9 +1,10 @@
 // GraphBackendNodelet: keyframes, wall segments, OSM buildings and loop closures -> GraphBackend
 // (slam/), optimised on its own thread every optimization_period (or optimize_every_keyframes);
-// publishes the corrected pose, path, buildings, markers, map cloud and TF map -> odom; services
-// save_map and dump_graph.
+// publishes the corrected pose, path, buildings, markers, map cloud, the occupancy grid and TF
+// map -> odom; services save_map and dump_graph.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/OccupancyGrid.h>
 #include <nav_msgs/Path.h>
 #include <nodelet/nodelet.h>
 #include <ros/callback_queue.h>
@@ -42,6 +43,7 @@
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
 #include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/grid_map.h"
 #include "osm_graph_slam/slam/keyframe_input.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/optimization_schedule.h"
@@ -83,6 +85,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     buildings_pub_ = nh.advertise<BuildingArray>("slam/buildings", 1, true);
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("slam/markers", 1, true);
     map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("slam/map_points", 1, true);
+    startGridMap(nh, params.grid);
     subscribeInputs(nh, params.inputs.use_imu);
     save_srv_ = pnh.advertiseService("save_map", &GraphBackendNodelet::onSaveMap, this);
     dump_srv_ = pnh.advertiseService("dump_graph", &GraphBackendNodelet::onDumpGraph, this);
@@ -91,6 +94,18 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                  params.use_osm ? "on" : "off", toString(params.mode), scheduleText().c_str(),
                  node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(),
                  node_params_.base_link_frame.c_str());
+  }
+
+  /// A grid with bad parameters is an error said once; the rest of the back-end runs without it.
+  void startGridMap(ros::NodeHandle& nh, const OccupancyGridParams& params) {
+    if (!params.enabled) return;
+    const std::string error = occupancyGridParamsError(params);
+    if (!error.empty()) {
+      NODELET_ERROR("graph_backend: %s; slam/grid_map is off", error.c_str());
+      return;
+    }
+    grid_ = std::make_unique<OccupancyGrid>(params);
+    grid_pub_ = nh.advertise<nav_msgs::OccupancyGrid>("slam/grid_map", 1, true);
   }
 
   std::string scheduleText() const {
@@ -381,12 +396,26 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (markers_pub_.getNumSubscribers() > 0)
       markers_pub_.publish(
           backendMarkers(backend_->graphSnapshot(), keyframes, backend_->buildings(), header));
+    publishGridMap(keyframes, header);
     if (map_pub_.getNumSubscribers() > 0) {  // built only while someone listens
       sensor_msgs::PointCloud2Ptr cloud(new sensor_msgs::PointCloud2);
       toPointCloud2(*buildMapCloud(keyframes, node_params_.map_cloud_resolution), *cloud);
       cloud->header = header;
       map_pub_.publish(cloud);
     }
+  }
+
+  /// Kept in step with the graph after every optimisation (new keyframes inserted, moved ones
+  /// re-rendered) even without subscribers: the latched message and save_map need it whole.
+  void publishGridMap(const std::vector<KeyframeState>& keyframes, const std_msgs::Header& header) {
+    if (!grid_) return;
+    const GridMapUpdate update = updateGridMap(*grid_, keyframes);
+    if (update.inserted == 0 && update.moved == 0) return;
+    nav_msgs::OccupancyGridPtr msg(new nav_msgs::OccupancyGrid);
+    toOccupancyGridMsg(grid_->image(), header, *msg);
+    grid_pub_.publish(msg);
+    NODELET_DEBUG("grid: +%zu keyframes, %zu re-rendered (%.1f ms)", update.inserted, update.moved,
+                  update.move_ms);
   }
 
   void publishTf(const ros::WallTimerEvent&) {
@@ -432,7 +461,13 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   bool onSaveMap(SaveMap::Request& req, SaveMap::Response& res) {
     std::lock_guard<std::mutex> graph_lock(graph_mutex_);
     backend_->update();  // include everything received so far
-    const MapExportResult r = saveMap(*backend_, req.destination, req.resolution);
+    // The saved map.pgm is the grid slam/grid_map shows, both brought up to this update.
+    std_msgs::Header header;
+    header.frame_id = node_params_.map_frame;
+    header.stamp = lastStamp();
+    publishGridMap(backend_->keyframes(), header);
+    const MapExportResult r =
+        saveMap(*backend_, req.destination, req.resolution, nullptr, grid_.get());
     res.success = r.success;
     res.message = r.message;
     res.files = r.files;
@@ -478,7 +513,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::chrono::steady_clock::time_point last_keyframe_wall_;
 
   tf2_ros::TransformBroadcaster tf_broadcaster_;
-  ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_;
+  ros::Publisher pose_pub_, path_pub_, buildings_pub_, markers_pub_, map_pub_, grid_pub_;
+  /// Null when grid_enabled is false or its keys are bad.
+  std::unique_ptr<OccupancyGrid> grid_;
   std::unique_ptr<KeyframeAiding> aiding_;  ///< imu/data and gps/fix by time, the first heading
   std::atomic<bool> first_keyframe_seen_{false};
   /// Subscriptions and the TF timer (subscribeInputs); outlives them (they unregister from it).

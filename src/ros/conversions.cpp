@@ -147,6 +147,18 @@ Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double p
   return out;
 }
 
+void toOccupancyGridMsg(const OccupancyGridImage& grid, const std_msgs::Header& header,
+                        nav_msgs::OccupancyGrid& msg) {
+  msg.header = header;
+  msg.info.map_load_time = header.stamp;
+  msg.info.resolution = static_cast<float>(grid.resolution);
+  msg.info.width = static_cast<uint32_t>(grid.width);
+  msg.info.height = static_cast<uint32_t>(grid.height);
+  msg.info.origin =
+      toPoseMsg(Eigen::Isometry3d(Eigen::Translation3d(grid.origin.x(), grid.origin.y(), 0.0)));
+  msg.data = grid.cells;
+}
+
 double navSatFixStd(const sensor_msgs::NavSatFix& fix) {
   if (fix.position_covariance_type == sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN) return 0.0;
   const double var = 0.5 * (fix.position_covariance[0] + fix.position_covariance[4]);

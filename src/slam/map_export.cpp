@@ -1,10 +1,12 @@
 #include "osm_graph_slam/slam/map_export.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "osm_graph_slam/cloud/map_cloud.h"
@@ -13,11 +15,13 @@
 #include "osm_graph_slam/common/xml_escape.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/map_server_files.h"
 #include "osm_graph_slam/io/pcd_file.h"
 #include "osm_graph_slam/io/staged_folder.h"
 #include "osm_graph_slam/io/trajectory_io.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
+#include "osm_graph_slam/slam/grid_map.h"
 
 namespace osm_graph_slam {
 namespace {
@@ -66,6 +70,39 @@ std::string poseRow(const Eigen::Isometry3d& pose) {
 std::string missingText(size_t missing) {
   return missing == 0 ? std::string()
                       : ", " + std::to_string(missing) + " keyframes missing (never received)";
+}
+
+/// map.pgm + map.yaml of `grid`, or of a grid built here from the keyframes. Returns a note for the
+/// save's message: the build's cost per keyframe, or why no grid was written.
+std::string writeGridMap(const GraphBackend& backend, const std::vector<KeyframeState>& keyframes,
+                         const OccupancyGrid* grid, Writer& write) {
+  const OccupancyGridParams& params = backend.params().grid;
+  if (!grid && !params.enabled) return {};
+  std::optional<OccupancyGrid> built;
+  std::string note;
+  if (!grid) {
+    const std::string invalid = occupancyGridParamsError(params);
+    if (!invalid.empty()) return "; no map.pgm: " + invalid;
+    built.emplace(params);
+    GridMapUpdate update = updateGridMap(*built, keyframes);
+    grid = &*built;
+    if (!update.insert_ms.empty()) {
+      std::sort(update.insert_ms.begin(), update.insert_ms.end());
+      std::ostringstream os;
+      os << std::fixed << std::setprecision(2) << "; grid " << update.inserted << " keyframes, "
+         << update.insert_ms[update.insert_ms.size() / 2] << " ms median, "
+         << update.insert_ms.back() << " ms max per keyframe";
+      note = os.str();
+    }
+  }
+  const OccupancyGridImage image = grid->image();
+  if (image.cells.empty()) return "; no map.pgm: no keyframe cloud gave a grid cell";
+  std::string error;
+  write("map.pgm", writeFileAtomically(write.path("map.pgm"), mapServerPgm(image), &error), error);
+  write("map.yaml",
+        writeFileAtomically(write.path("map.yaml"), mapServerYaml(image, "map.pgm"), &error),
+        error);
+  return note;
 }
 
 }  // namespace
@@ -137,7 +174,8 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
 }
 
 MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
-                        double resolution, const ScanContextParams* scan_context) {
+                        double resolution, const ScanContextParams* scan_context,
+                        const OccupancyGrid* grid) {
   MapExportResult result;
   const std::vector<KeyframeState> keyframes = backend.keyframes();
   if (keyframes.empty()) {
@@ -179,6 +217,7 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
                                               scan_context ? *scan_context : ScanContextParams()),
                         write.path("map_package"), &error),
         error);
+  const std::string grid_note = writeGridMap(backend, keyframes, grid, write);
 
   result.success = write.finish();
   if (result.success)
@@ -186,7 +225,7 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
                      std::to_string(map->size()) + " map points, " +
                      std::to_string(buildings.size()) + " buildings, " +
                      std::to_string(keyframes.size()) + " keyframes" +
-                     missingText(backend.missingKeyframes()) + ")";
+                     missingText(backend.missingKeyframes()) + ")" + grid_note;
   return result;
 }
 

@@ -56,6 +56,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   if (!readDeclaredParams(r, p.buildings, error)) ok = false;
   readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
   if (!readParams(r, p.schedule, error)) ok = false;
+  if (!readDeclaredParams(r, p.grid, error)) ok = false;
   return ok;
 }
 

@@ -288,6 +288,7 @@ int main(int argc, char** argv) {
   }
   writeRunFiles(pipeline, out, truth_by_stamp);
   warnIfTrackLost(pipeline.timings().tracking);
+  if (!json) std::cout << "saved: " << saved.message << "\n";  // files, and the grid's cost
   if (json) {
     std::cout << pipeline.timingJson() << "\n";
   } else {

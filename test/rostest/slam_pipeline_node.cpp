@@ -9,6 +9,7 @@
 // TF, save_map, dump_graph / unwritable folder.
 #include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
+#include <nav_msgs/OccupancyGrid.h>
 #include <nav_msgs/Odometry.h>
 #include <nav_msgs/Path.h>
 #include <nodelet/NodeletLoad.h>
@@ -36,6 +37,7 @@
 #include <sstream>
 #include <vector>
 
+#include "map_server_reader.h"
 #include "osm_graph_slam/BuildingArray.h"
 #include "osm_graph_slam/DumpGraph.h"
 #include "osm_graph_slam/FloorCoeffs.h"
@@ -87,6 +89,8 @@ struct Inbox {
   BuildingArray::ConstPtr slam_buildings;
   int loops = 0;
   std::vector<FloorCoeffs::ConstPtr> floors;
+  nav_msgs::OccupancyGrid::ConstPtr grid_map;
+  int grid_messages = 0;
 
   template <typename F>
   auto locked(F f) {
@@ -185,6 +189,13 @@ void subscribe() {
           in.path = m;
           in.last_path_time = ros::WallTime::now();
           return ++in.path_messages;
+        });
+      }));
+  P->subs.push_back(nh.subscribe<nav_msgs::OccupancyGrid>(
+      "slam/grid_map", 2, [&in](const nav_msgs::OccupancyGrid::ConstPtr& m) {
+        in.locked([&] {
+          in.grid_map = m;
+          return ++in.grid_messages;
         });
       }));
   P->subs.push_back(
@@ -542,6 +553,42 @@ TEST_F(SlamPipeline, TfTreeMatchesLatestPose) {
   EXPECT_TRUE(P->tf_buffer->canTransform("base_link", "velo_link", ros::Time(0)));
 }
 
+/// map.yaml + map.pgm, read as map_server reads them, hold the grid slam/grid_map published last
+/// (save_map publishes the grid it saves), cell by cell.
+void expectSavedGridIsThePublishedOne(const std::string& yaml) {
+  Inbox& in = P->inbox;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(5.0);
+  nav_msgs::OccupancyGrid::ConstPtr published;
+  test::MapServerMap saved;
+  do {  // the latched message of the save may still be on its way
+    ros::WallDuration(0.1).sleep();
+    published = in.locked([&] { return in.grid_map; });
+    saved = test::readMapServerMap(yaml);
+    ASSERT_TRUE(saved.error.empty()) << saved.error;
+  } while ((!published || int(published->info.width) != saved.width) &&
+           ros::WallTime::now() < deadline);
+  ASSERT_TRUE(published) << "nothing on slam/grid_map";
+  EXPECT_EQ(published->header.frame_id, "map");
+  ASSERT_EQ(int(published->info.width), saved.width);
+  ASSERT_EQ(int(published->info.height), saved.height);
+  EXPECT_NEAR(published->info.origin.position.x, saved.origin_x, 1e-6);
+  EXPECT_NEAR(published->info.origin.position.y, saved.origin_y, 1e-6);
+  size_t mismatched = 0, occupied = 0, free = 0;
+  for (size_t i = 0; i < published->data.size(); ++i) {
+    const int8_t v = published->data[i];
+    const int8_t expected = v >= 65 ? 100 : (v >= 0 && v <= 19) ? 0 : -1;
+    mismatched += saved.cells[i] != expected;
+    occupied += expected == 100;
+    free += expected == 0;
+  }
+  std::cout << "[slam_pipeline] grid " << saved.width << " x " << saved.height << ": " << occupied
+            << " occupied, " << free << " free cells, "
+            << in.locked([&] { return in.grid_messages; }) << " messages\n";
+  EXPECT_EQ(mismatched, 0u);
+  EXPECT_GT(occupied, 500u) << "the street's walls";
+  EXPECT_GT(free, 5000u) << "the street";
+}
+
 TEST_F(SlamPipeline, SaveMapWritesFilesThatParse) {
   ASSERT_TRUE(P->drive_done) << "the drive did not complete (see SlamPipeline.Drive)";
   Inbox& in = P->inbox;
@@ -552,8 +599,9 @@ TEST_F(SlamPipeline, SaveMapWritesFilesThatParse) {
   srv.request.resolution = 0.5;
   ASSERT_TRUE(ros::service::call(saveMapService(), srv));
   ASSERT_TRUE(srv.response.success) << srv.response.message;
-  EXPECT_EQ(srv.response.files.size(), 7u);  // with the localisation map package
+  EXPECT_EQ(srv.response.files.size(), 9u);  // with the localisation map package and map.pgm
   for (const auto& f : srv.response.files) EXPECT_TRUE(fs::exists(f)) << f;
+  expectSavedGridIsThePublishedOne((out / "map.yaml").string());
 
   pcl::PointCloud<pcl::PointXYZI> map;
   ASSERT_EQ(pcl::io::loadPCDFile((out / "map.pcd").string(), map), 0);

@@ -9,16 +9,20 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
+#include "map_server_reader.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/graph/g2o_io.h"
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/map_server_files.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/osm/osm_reader.h"
 #include "osm_graph_slam/slam/graph_dump.h"
+#include "osm_graph_slam/slam/grid_map.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "street_drive.h"
 
@@ -107,7 +111,7 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   const std::string dir = tempDir("save_map");
   const MapExportResult r = saveMap(*backend_, dir, 0.2);
   ASSERT_TRUE(r.success) << r.message;
-  EXPECT_EQ(r.files.size(), 7u);
+  EXPECT_EQ(r.files.size(), 9u);  // with map.pgm + map.yaml (grid_enabled)
   for (const auto& f : r.files) EXPECT_TRUE(fs::exists(f)) << f;
   // The map package for localisation loads back with every keyframe.
   MapPackage package;
@@ -158,6 +162,58 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   const G2oReadResult g2o = readG2o(dir + "/graph.g2o", &graph);
   ASSERT_TRUE(g2o.ok) << g2o.message;
   EXPECT_GE(graph.numVertices(), 12u);
+}
+
+// save_map's map.pgm + map.yaml, read back as map_server reads them, are the grid of the keyframes
+// at their optimised poses, cell by cell; the grid a caller keeps (the nodelet's) is the one saved.
+TEST_F(ExportFixture, SaveMapWritesTheOccupancyGridAsMapServerReadsIt) {
+  OccupancyGrid grid(backend_->params().grid);
+  const GridMapUpdate update = updateGridMap(grid, backend_->keyframes());
+  EXPECT_EQ(update.inserted, 12u);
+  const OccupancyGridImage image = grid.image();
+  const OccupancyGrid* kept = &grid;
+  for (const OccupancyGrid* given : {static_cast<const OccupancyGrid*>(nullptr), kept}) {
+    const std::string dir = tempDir(given ? "save_map_given_grid" : "save_map_grid");
+    const MapExportResult r = saveMap(*backend_, dir, 0.2, nullptr, given);
+    ASSERT_TRUE(r.success) << r.message;
+    const test::MapServerMap map = test::readMapServerMap(dir + "/map.yaml");
+    ASSERT_TRUE(map.error.empty()) << map.error;
+    ASSERT_EQ(map.width, image.width);
+    ASSERT_EQ(map.height, image.height);
+    EXPECT_NEAR(map.origin_x, image.origin.x(), 1e-9);
+    EXPECT_NEAR(map.origin_y, image.origin.y(), 1e-9);
+    int mismatched = 0, occupied = 0;
+    for (int y = 0; y < map.height; ++y)
+      for (int x = 0; x < map.width; ++x) {
+        const MapServerCell c = mapServerClass(image.at(x, y));
+        const int8_t expected = c == MapServerCell::kOccupied ? 100
+                                : c == MapServerCell::kFree   ? 0
+                                                              : -1;
+        mismatched += map.at(x, y) != expected;
+        occupied += expected == 100;
+      }
+    EXPECT_EQ(mismatched, 0);
+    EXPECT_GT(occupied, 100) << "the street's walls";
+  }
+}
+
+// A bad grid parameter is one clear error and costs the save nothing else: every other file is
+// written, the message says why map.pgm is missing.
+TEST_F(ExportFixture, ABadGridResolutionSkipsOnlyTheGridWithTheReason) {
+  GraphBackendParams params = backend_->params();
+  params.grid.resolution = std::numeric_limits<double>::quiet_NaN();
+  GraphBackend backend(params);
+  backend.setOrigin(49.0, 8.4, 110.0);
+  drive_->feed(backend, drive_->odometry(0.0, 1.0), drive_->truth);
+  backend.update();
+  const std::string dir = tempDir("save_map_bad_grid");
+  const MapExportResult r = saveMap(backend, dir, 0.2);
+  ASSERT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.files.size(), 7u);
+  EXPECT_FALSE(fs::exists(dir + "/map.pgm"));
+  EXPECT_NE(r.message.find("no map.pgm: grid_resolution must be a finite number > 0"),
+            std::string::npos)
+      << r.message;
 }
 
 TEST_F(ExportFixture, AFailedOrInterruptedSaveLeavesThePreviousFilesUnchanged) {

@@ -2,12 +2,14 @@
 // Message <-> core type conversions shared by every nodelet and tool (ROS side only).
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>
+#include <nav_msgs/OccupancyGrid.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <Eigen/Geometry>
 #include <string>
 
+#include "osm_graph_slam/cloud/occupancy_grid.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 
 namespace osm_graph_slam {
@@ -32,6 +34,10 @@ Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& transform);
 /// The fix's horizontal standard deviation [m] from its covariance (mean of the east and north
 /// variances), or 0 when the covariance is unknown or not a usable number.
 double navSatFixStd(const sensor_msgs::NavSatFix& fix);
+
+/// The grid in the message's layout (row-major, row 0 at the lowest y, origin its corner).
+void toOccupancyGridMsg(const OccupancyGridImage& grid, const std_msgs::Header& header,
+                        nav_msgs::OccupancyGrid& msg);
 
 Eigen::Isometry3d fromXyzRpy(double x, double y, double z, double roll, double pitch, double yaw);
 

@@ -6,6 +6,7 @@
 // from them. The YAML keys are flat (a field's key is its name, or its slice's prefix + its name).
 #include <string>
 
+#include "osm_graph_slam/cloud/occupancy_grid_params.h"
 #include "osm_graph_slam/common/param_declaration.h"
 #include "osm_graph_slam/graph/information.h"
 #include "osm_graph_slam/graph/pose_graph.h"
@@ -521,6 +522,9 @@ struct GraphBackendParams {
   BuildingConstraintParams buildings;
   OptimizationScheduleParams schedule;
   LineMatcherParams matcher;  ///< read below "line_matcher/" by readParams(LineMatcherParams)
+  /// Not the graph's: the 2-D grid rendered from its keyframes (slam/grid_map.h), kept here so
+  /// that save_map, the nodelet and the offline runners read it with the back-end's keys.
+  OccupancyGridParams grid;
 
   /// The keys of this level but "mode" (an enum, read by readParams()).
   template <class V>
@@ -544,6 +548,7 @@ struct GraphBackendParams {
     osm_prior.visit(v);
     buildings.visit(v);
     schedule.visit(v);
+    grid.visit(v);
   }
 };
 

@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/cloud/occupancy_grid.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/slam/graph_backend.h"
@@ -29,11 +30,14 @@ MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
 std::string buildingsToOsmXml(const std::vector<Building>& buildings);
 
 /// save_map: map.pcd, buildings_corrected.geojson, buildings_corrected.osm,
-/// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o, and map_package/ (localization/
+/// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o, map_package/ (localization/
 /// map_package.h: what offline_localization loads), its Scan Context descriptors made with
-/// scan_context (default parameters when null).
+/// scan_context (default parameters when null), and with grid_enabled map.pgm + map.yaml
+/// (io/map_server_files.h): `grid` when given (the one the nodelet publishes), else one built from
+/// the keyframes with the back-end's grid parameters.
 MapExportResult saveMap(const GraphBackend& backend, const std::string& directory,
-                        double resolution, const ScanContextParams* scan_context = nullptr);
+                        double resolution, const ScanContextParams* scan_context = nullptr,
+                        const OccupancyGrid* grid = nullptr);
 
 /// dump_graph: everything needed to rebuild and re-optimise the graph offline by replaying it
 /// into a GraphBackend (keyframes.csv, keyframes/<id>.pcd, segments.csv, floors.csv, loops.csv,
