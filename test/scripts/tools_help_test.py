@@ -89,7 +89,7 @@ class ToolsHelp(unittest.TestCase):
         for name in tool_names():
             with self.subTest(tool=name):
                 _, out, _ = help_run(name)
-                # The first option with a value placeholder ("  --name VALUE  description").
+                # The first option that takes a value ("  --name VALUE  description").
                 match = re.search(r"^  (?:-\w, )?(--[\w-]+) [^\s-]", out, re.M)
                 if match is None:  # flags and positional arguments only (mulran2bag)
                     continue
