@@ -2,6 +2,7 @@
 
 #include <pcl/io/pcd_io.h>
 
+#include <fstream>
 #include <type_traits>
 
 #include "osm_graph_slam/io/trajectory_io.h"
@@ -33,6 +34,23 @@ bool writePcdAtomically(const std::string& path, const PointCloud& cloud, std::s
     return false;
   }
   return writeFileAtomically(path, binaryPcd(cloud), error);
+}
+
+bool readPcd(const std::string& path, PointCloud& cloud, std::string* error) {
+  std::ifstream probe(path);
+  if (!probe) {
+    if (error) *error = "cannot open " + path;
+    return false;
+  }
+  if (pcl::io::loadPCDFile(path, cloud) != 0) {
+    if (error) *error = path + ": not a readable PCD file";
+    return false;
+  }
+  if (cloud.empty()) {
+    if (error) *error = path + " holds no point";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace osm_graph_slam

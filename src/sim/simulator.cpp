@@ -453,7 +453,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   PriorMapInfo prior_info;
   const std::vector<PriorBuilding> prior = [&] {
     PriorPerturbationParams pp = params_.prior;
-    pp.seed = params_.seed;
+    pp.seed = params_.prior_seed != 0 ? params_.prior_seed : params_.seed;
     return perturbBuildings(scene_, pp, &prior_info);
   }();
   ok = writeBuildingsGeoJson((fs::path(out_dir) / "buildings_true.geojson").string(), scene_, *enu_,
@@ -517,6 +517,7 @@ bool UrbanSimulator::writeDataset(const std::string& out_dir, SimulationStats& s
   std::ostringstream info;
   info << "{\n  \"seed\": " << params_.seed << ",\n";
   if (params_.world_seed != 0) info << "  \"world_seed\": " << params_.world_seed << ",\n";
+  if (params_.prior_seed != 0) info << "  \"prior_seed\": " << params_.prior_seed << ",\n";
   info << "  \"world\": \""
        << (params_.osm_path.empty() ? std::string("procedural") : params_.osm_path) << "\",\n"
        << downtownJson(scene_) << "  \"enu_origin\": {\"lat\": " << fmt("%.9f", enu_->originLat())

@@ -58,38 +58,52 @@ BackendState::MapWeighting BackendState::mapWeighting(const OsmPriorParams& p) c
           p.osm_datum_kernel_without_gnss, p.osm_datum_reassociate_distance_without_gnss};
 }
 
-int BackendState::gnssBiasWindow(double stamp, const GnssParams& p) const {
-  const double windows = gnss_bias_start && std::isfinite(stamp)
-                             ? (stamp - *gnss_bias_start) / std::max(p.gnss_bias_window, 1e-3)
-                             : 0.0;
-  return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
+uint32_t BackendState::sessionOf(uint64_t keyframe) const {
+  const auto it = keyframes.find(keyframe);
+  return it != keyframes.end() ? it->second.session : 0;
 }
 
-int BackendState::odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p) const {
+namespace {
+constexpr double kLastWindow = GraphBackend::kSessionWindows - 1;
+}  // namespace
+
+int BackendState::gnssBiasWindow(const Session& session, double stamp, const GnssParams& p) {
+  const double windows =
+      session.gnss_bias_start && std::isfinite(stamp)
+          ? (stamp - *session.gnss_bias_start) / std::max(p.gnss_bias_window, 1e-3)
+          : 0.0;
+  return static_cast<int>(std::clamp(std::floor(windows), 0.0, kLastWindow));
+}
+
+int BackendState::odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p) {
   // A non-finite path length (a corrupt message) counts as the first window.
   const double windows =
       std::isfinite(accum_distance) ? accum_distance / p.odometry_scale_window : 0.0;
-  return static_cast<int>(std::clamp(std::floor(windows), 0.0, 1e8));
+  return static_cast<int>(std::clamp(std::floor(windows), 0.0, kLastWindow));
 }
 
-int BackendState::gnssBiasVertex(double stamp, const GnssParams& p, double scale) {
-  if (!gnss_bias_start) gnss_bias_start = stamp;
-  const int k = gnssBiasWindow(stamp, p);
-  const auto found = gnss_bias_vertices.find(k);
-  if (found != gnss_bias_vertices.end()) return found->second;
-  const int id = GraphBackend::kGnssBiasVertexTop - k;
+int BackendState::gnssBiasVertex(uint32_t session_id, double stamp, const GnssParams& p,
+                                 double scale) {
+  Session& session = sessions[session_id];
+  if (!session.gnss_bias_start) session.gnss_bias_start = stamp;
+  const int k = gnssBiasWindow(session, stamp, p);
+  auto& vertices = session.gnss_bias_vertices;
+  const auto found = vertices.find(k);
+  if (found != vertices.end()) return found->second;
+  const int id = GraphBackend::kGnssBiasVertexTop -
+                 static_cast<int>(session_id) * GraphBackend::kSessionWindows - k;
   // Without altitude evidence the vertical bias is unused; any positive deviation keeps it tame.
   const double vertical = p.gnss_bias_std_vertical > 0.0 ? p.gnss_bias_std_vertical : 1.0;
   const Eigen::Vector3d var =
       Eigen::Vector3d(p.gnss_bias_std * p.gnss_bias_std, p.gnss_bias_std * p.gnss_bias_std,
                       vertical * vertical) *
       (scale * scale);
-  const auto before = gnss_bias_vertices.lower_bound(k);  // windows are met in time order
+  const auto before = vertices.lower_bound(k);  // windows are met in time order
   // A fix mode whose accuracy differs by more than 1.5x (RTK lost or regained) has a bias of its
   // own: it starts afresh instead of continuing the previous window's.
-  bool fresh = before == gnss_bias_vertices.begin();
+  bool fresh = before == vertices.begin();
   if (!fresh) {
-    const double r = scale / gnss_bias_scales.at(std::prev(before)->first);
+    const double r = scale / session.gnss_bias_scales.at(std::prev(before)->first);
     fresh = !(r > 1.0 / 1.5 && r < 1.5);
   }
   if (fresh) {
@@ -102,24 +116,27 @@ int BackendState::gnssBiasVertex(double stamp, const GnssParams& p, double scale
     const auto& [j, prev] = *std::prev(before);
     const double window = std::max(p.gnss_bias_window, 1e-3);
     const double phi = p.gnss_bias_tau > 0.0 ? std::exp(-(k - j) * window / p.gnss_bias_tau) : 0.0;
-    const double step = phi * scale / gnss_bias_scales.at(j);
+    const double step = phi * scale / session.gnss_bias_scales.at(j);
     const Eigen::Vector3d step_var = var * std::max(1.0 - phi * phi, 1e-6);
     graph.addVertexPointXYZ(id,
                             step * graph.vertexPointXYZ(prev).value_or(Eigen::Vector3d::Zero()));
     graph.addEdgePointXYZGaussMarkov(prev, id, step, step_var.cwiseInverse().asDiagonal());
   }
-  gnss_bias_vertices.emplace(k, id);
-  gnss_bias_scales.emplace(k, scale);
+  vertices.emplace(k, id);
+  session.gnss_bias_scales.emplace(k, scale);
   return id;
 }
 
-int BackendState::odometryScaleVertex(double accum_distance, const OdometryEdgeParams& p) {
+int BackendState::odometryScaleVertex(uint32_t session_id, double accum_distance,
+                                      const OdometryEdgeParams& p) {
+  auto& vertices = sessions[session_id].scale_vertices;
   const int k = odometryScaleWindow(accum_distance, p);
-  const auto found = scale_vertices.find(k);
-  if (found != scale_vertices.end()) return found->second;
-  const int id = GraphBackend::kScaleVertexTop - k;
-  const auto before = scale_vertices.lower_bound(k);
-  if (before == scale_vertices.begin()) {
+  const auto found = vertices.find(k);
+  if (found != vertices.end()) return found->second;
+  const int id = GraphBackend::kScaleVertexTop -
+                 static_cast<int>(session_id) * GraphBackend::kSessionWindows - k;
+  const auto before = vertices.lower_bound(k);
+  if (before == vertices.begin()) {
     graph.addVertexScale(id, 1.0);
     graph.addPriorScale(id, 1.0, 1.0 / (p.odometry_scale_std * p.odometry_scale_std));
   } else {
@@ -129,7 +146,7 @@ int BackendState::odometryScaleVertex(double accum_distance, const OdometryEdgeP
     graph.addVertexScale(id, graph.vertexScale(prev).value_or(1.0));
     graph.addEdgeScaleDifference(prev, id, 0.0, 1.0 / var);
   }
-  scale_vertices.emplace(k, id);
+  vertices.emplace(k, id);
   return id;
 }
 
@@ -148,7 +165,8 @@ std::vector<int> BackendState::fixRobots() {
   };
   for (const auto& [id, kf] : keyframes) fix(static_cast<int>(id));
   // The odometry's scale belongs to the trajectory: with every pose fixed it has nothing to do.
-  for (const auto& [window, vid] : scale_vertices) fix(vid);
+  for (const auto& [id, session] : sessions)
+    for (const auto& [window, vid] : session.scale_vertices) fix(vid);
   return fixed_now;
 }
 
@@ -170,10 +188,21 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
     for (const auto& [window, vid] : windows)
       if (window < first_free) hold(vid);
   };
-  if (const auto first = keyframes.lower_bound(window_start); first != keyframes.end()) {
+  // A session whose keyframes are all held has every window held; the others from their first
+  // free keyframe's windows.
+  std::map<uint32_t, const KeyframeState*> first_free;
+  for (auto it = keyframes.lower_bound(window_start); it != keyframes.end(); ++it)
+    first_free.emplace(it->second.session, &it->second);
+  for (const auto& [id, session] : sessions) {
+    const auto free = first_free.find(id);
+    const bool all_held = free == first_free.end();
     if (odometry.odometry_scale_window > 0.0)
-      holdBefore(scale_vertices, odometryScaleWindow(first->second.accum_distance, odometry));
-    holdBefore(gnss_bias_vertices, gnssBiasWindow(first->second.stamp, gnss));
+      holdBefore(session.scale_vertices,
+                 all_held ? GraphBackend::kSessionWindows
+                          : odometryScaleWindow(free->second->accum_distance, odometry));
+    holdBefore(session.gnss_bias_vertices,
+               all_held ? GraphBackend::kSessionWindows
+                        : gnssBiasWindow(session, free->second->stamp, gnss));
   }
   std::set<int64_t> seen_from_window;
   for (const auto& e : building_edges)

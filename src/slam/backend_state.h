@@ -46,9 +46,8 @@ struct BackendState {
   std::map<int64_t, BuildingState> buildings;
   std::map<uint64_t, std::vector<LineSegment2>> early_segments;  ///< keyframe not yet inserted
   std::map<uint64_t, Eigen::Vector4d> early_floors;              ///< keyframe not yet inserted
-  std::optional<uint64_t> last_floor_keyframe;               ///< the newest keyframe with a floor
-  std::deque<LoopClosureInput> early_loops;                  ///< current keyframe not yet in
-  std::vector<std::pair<Eigen::Vector2d, double>> coverage;  ///< answered OSM queries
+  std::deque<LoopClosureInput> early_loops;                      ///< current keyframe not yet in
+  std::vector<std::pair<Eigen::Vector2d, double>> coverage;      ///< answered OSM queries
   std::optional<EnuConverter> origin;
   Eigen::Isometry3d map_to_odom = Eigen::Isometry3d::Identity();
   bool heading_initialized = false;
@@ -56,8 +55,6 @@ struct BackendState {
   bool heading_known_at_start = false;  ///< initial_yaw was known when the first keyframe came
   size_t gnss_priors = 0;               ///< GNSS prior edges added
   size_t gnss_gated = 0;                ///< fixes the innovation gate kept out
-  /// [m] odometry path length at the last fix that passed the gate (none yet: nullopt)
-  std::optional<double> gnss_passed_at;
   /// GNSS priors hold the trajectory (at least two fixes; one origin anchors no better than the
   /// soft anchor): building and datum priors created from then on take their tighter deviations
   /// (OsmPriorParams::building_prior_std_xy vs ..._without_gnss).
@@ -72,12 +69,26 @@ struct BackendState {
   };
   MapWeighting mapWeighting(const OsmPriorParams& p) const;
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
-  std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
-  std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex
-  std::map<int, double> gnss_bias_scales;  ///< window -> its deviation's scale (reported accuracy)
-  std::map<int, int> scale_vertices;       ///< odometry scale window -> its scale vertex
-  /// accum_distance -> (keyframe, INS yaw) of the keyframes with an INS heading
-  std::map<double, std::pair<uint64_t, double>> ins_headings;
+  /// What one session (a drive of a multi-session map; a single run is session 0) keeps of its
+  /// own: its chain's newest keyframe, its GNSS bias and odometry scale windows, the GNSS gate's
+  /// and the INS heading edges' last keyframes, its floor chain. Drives share buildings and the
+  /// OSM datum, never a receiver's bias or an odometry's scale.
+  struct Session {
+    uint64_t newest_keyframe = 0;
+    std::optional<double> gnss_bias_start;   ///< stamp where GNSS bias window 0 starts
+    std::map<int, int> gnss_bias_vertices;   ///< window -> its bias vertex
+    std::map<int, double> gnss_bias_scales;  ///< window -> its deviation's scale
+    std::map<int, int> scale_vertices;       ///< odometry scale window -> its scale vertex
+    /// [m] odometry path length at the last fix that passed the gate (none yet: nullopt)
+    std::optional<double> gnss_passed_at;
+    /// accum_distance -> (keyframe, INS yaw) of the keyframes with an INS heading
+    std::map<double, std::pair<uint64_t, double>> ins_headings;
+    std::optional<uint64_t> last_floor_keyframe;  ///< the newest keyframe with a floor
+  };
+  std::map<uint32_t, Session> sessions;
+  std::map<uint32_t, double> session_start_yaw;  ///< known ENU yaw of a session's first keyframe
+  /// The session of a keyframe in the graph (session 0 when unknown).
+  uint32_t sessionOf(uint64_t keyframe) const;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;
   size_t loops_checked_by_window = 0;  ///< loops[0..n) were checked after a windowed update
@@ -103,17 +114,20 @@ struct BackendState {
   int buildingVertex(BuildingState& b, OsmMode mode, const OsmPriorParams& p);
   /// Where a building is expected before anything observed it: its prior moved by the datum.
   Pose2 predictedPose(const BuildingState& b, const OsmPriorParams& p) const;
-  /// Index of the GNSS bias window holding stamp (0 before the first fix or for a bad stamp).
-  int gnssBiasWindow(double stamp, const GnssParams& p) const;
-  /// Index of the odometry scale's path window holding accum_distance (0 for a bad length).
-  int odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p) const;
-  /// The GNSS bias vertex of the window holding stamp (gnss_bias_std > 0), created on first use
-  /// with deviation gnss_bias_std x scale (the first fix of the window decides the scale) and tied
-  /// to the previous window's by the Gauss-Markov process of the bias over its deviation.
-  int gnssBiasVertex(double stamp, const GnssParams& p, double scale = 1.0);
-  /// The odometry scale vertex of the path window holding accum_distance (created on first use:
-  /// a prior around 1 for the first window, a random walk from the previous one otherwise).
-  int odometryScaleVertex(double accum_distance, const OdometryEdgeParams& p);
+  /// Index of the session's GNSS bias window holding stamp (0 before its first fix or for a bad
+  /// stamp; at most GraphBackend::kSessionWindows - 1).
+  static int gnssBiasWindow(const Session& session, double stamp, const GnssParams& p);
+  /// Index of the odometry scale's path window holding accum_distance (0 for a bad length; at
+  /// most GraphBackend::kSessionWindows - 1).
+  static int odometryScaleWindow(double accum_distance, const OdometryEdgeParams& p);
+  /// The GNSS bias vertex of the session's window holding stamp (gnss_bias_std > 0), created on
+  /// first use with deviation gnss_bias_std x scale (the first fix of the window decides the
+  /// scale) and tied to the session's previous window by the Gauss-Markov process of the bias
+  /// over its deviation.
+  int gnssBiasVertex(uint32_t session, double stamp, const GnssParams& p, double scale = 1.0);
+  /// The odometry scale vertex of the session's path window holding accum_distance (created on
+  /// first use: a prior around 1 for its first window, a random walk from the previous one).
+  int odometryScaleVertex(uint32_t session, double accum_distance, const OdometryEdgeParams& p);
   /// The OSM datum: where the map as a whole sits relative to ENU, held at zero by a prior.
   int datumVertex(const OsmPriorParams& p);
   /// The datum's deviation for this run (with or without GNSS priors); <= 0: no datum.

@@ -181,20 +181,21 @@ void GraphBackend::processOsm(BackendUpdateReport& report) {
 
 void GraphBackend::reportOdometryScale() {
   const BackendState& s = *state_;
-  for (const auto& [window, vid] : s.scale_vertices) {
-    const double scale = s.graph.vertexScale(vid).value_or(1.0);
-    if (std::abs(scale - 1.0) <= kOdometryScaleWarning) continue;
-    char text[320];
-    std::snprintf(text, sizeof(text),
-                  "the odometry's scale is estimated at %.4f over %.0f-%.0f m of path: the "
-                  "scan matching is %.1f %% %s than the map and loops say (a LiDAR range or "
-                  "vertical-angle calibration error?); logged once",
-                  scale, window * params_.odometry.odometry_scale_window,
-                  (window + 1) * params_.odometry.odometry_scale_window,
-                  std::abs(scale - 1.0) * 100.0, scale > 1.0 ? "shorter" : "longer");
-    logger_->warnOnce("odometry scale", text);
-    return;
-  }
+  for (const auto& [session, windows] : s.sessions)
+    for (const auto& [window, vid] : windows.scale_vertices) {
+      const double scale = s.graph.vertexScale(vid).value_or(1.0);
+      if (std::abs(scale - 1.0) <= kOdometryScaleWarning) continue;
+      char text[320];
+      std::snprintf(text, sizeof(text),
+                    "the odometry's scale is estimated at %.4f over %.0f-%.0f m of path (session "
+                    "%u): the scan matching is %.1f %% %s than the map and loops say (a LiDAR "
+                    "range or vertical-angle calibration error?); logged once",
+                    scale, window * params_.odometry.odometry_scale_window,
+                    (window + 1) * params_.odometry.odometry_scale_window, session,
+                    std::abs(scale - 1.0) * 100.0, scale > 1.0 ? "shorter" : "longer");
+      logger_->warnOnce("odometry scale", text);
+      return;
+    }
 }
 
 void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
@@ -205,18 +206,23 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     incoming.swap(pending_->keyframes);
     segments.swap(pending_->segments);
   }
-  attachSegments(std::move(segments));
   std::sort(incoming.begin(), incoming.end(),
             [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
   const size_t gated_before = state_->gnss_gated;
   for (auto& in : incoming) {
     if (!acceptable(in)) continue;
-    countMissing(in.id, report);
+    // A new session numbers its keyframes afresh: the ids between are not missing.
+    if (state_->sessions.count(in.session))
+      countMissing(in.id, report);
+    else
+      state_->keyframe_ids.restartAt(in.id);
     insertKeyframe(in);
     ++report.keyframes_added;
     state_->dirty = true;
   }
   report.gnss_gated += state_->gnss_gated - gated_before;
+  // After the keyframes they name are in: a new session's ids are far ahead of the last one's.
+  attachSegments(std::move(segments));
   dropOrphanSegments();
 }
 
@@ -238,8 +244,14 @@ void GraphBackend::attachSegments(std::map<uint64_t, std::vector<LineSegment2>> 
 
 bool GraphBackend::acceptable(const KeyframeInput& in) const {
   const BackendState& s = *state_;
-  if (in.id >= static_cast<uint64_t>(kOsmDatumVertex)) {
+  if (in.id >= static_cast<uint64_t>(kKeyframeIdLimit)) {
     logger_->warnOnce("kf_id", "keyframe id " + std::to_string(in.id) + " is too large; ignored");
+    return false;
+  }
+  if (in.session >= static_cast<uint32_t>(kMaxSessions)) {
+    logger_->warnOnce("kf_session", "keyframe " + std::to_string(in.id) + " of session " +
+                                        std::to_string(in.session) + ": at most " +
+                                        std::to_string(kMaxSessions) + " sessions; ignored");
     return false;
   }
   if (!s.keyframes.empty() && in.id <= s.keyframes.rbegin()->first) {
@@ -267,6 +279,7 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   BackendState& s = *state_;
   KeyframeState kf;
   kf.id = in.id;
+  kf.session = in.session;
   kf.stamp = in.stamp;
   kf.odom_pose = in.odom_pose;
   kf.accum_distance = in.accum_distance;
@@ -281,10 +294,14 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   kf.ins_yaw = in.ins_yaw;
   kf.cloud = in.cloud;
   if (in.floor) s.early_floors[in.id] = *in.floor;
+  const auto session = s.sessions.find(in.session);
   if (s.keyframes.empty())
     anchorFirstKeyframe(in, kf);
+  else if (session == s.sessions.end())
+    anchorSessionStart(in, kf);
   else
-    linkToPrevious(in, kf);
+    linkToPrevious(in, kf, s.keyframes.at(session->second.newest_keyframe));
+  s.sessions[in.session].newest_keyframe = in.id;
   addKeyframePriors(in, kf);
   auto early = s.early_segments.find(in.id);
   if (early != s.early_segments.end()) {
@@ -334,6 +351,42 @@ void GraphBackend::anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& k
   s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
 }
 
+void GraphBackend::anchorSessionStart(const KeyframeInput& in, KeyframeState& kf) {
+  // A further drive starts at its own first fix with its own heading. Nothing ties it to the
+  // drives before but the buildings they share and the loops between them, so it is left free
+  // within its fix's deviation; with no fix it is held loosely where odometry and the heading
+  // put it from the origin, until those join it.
+  BackendState& s = *state_;
+  const int vid = static_cast<int>(in.id);
+  const auto yaw = s.session_start_yaw.find(in.session);
+  const std::optional<double> start_yaw =
+      yaw != s.session_start_yaw.end() ? std::optional<double>(yaw->second) : std::nullopt;
+  if (!start_yaw || !in.gnss_position)
+    logger_->warn("session " + std::to_string(in.session) + " starts (keyframe " +
+                  std::to_string(in.id) + ") without " + (start_yaw ? "a GNSS fix" : "a heading") +
+                  ": placed from the map origin until loops or buildings join it");
+  kf.map_pose = initialMapToOdom(in.odom_pose, start_yaw,
+                                 in.gnss_position.value_or(Eigen::Vector2d::Zero())) *
+                in.odom_pose;
+  if (in.gnss_altitude) kf.map_pose.translation().z() = *in.gnss_altitude;
+  if (in.gravity_roll_pitch)
+    kf.map_pose =
+        attitudeMeasurement(kf.map_pose, in.gravity_roll_pitch->x(), in.gravity_roll_pitch->y());
+  s.graph.addVertexSE3(vid, kf.map_pose);
+  const bool gnss_held = gnssPriors() && in.gnss_position.has_value();
+  // Held (deviation 1e3: free) by the fixes that follow; a fix without GNSS priors holds it with
+  // its deviation; no fix leaves it free for the loops and buildings to place.
+  const double xy_std = !gnss_held && in.gnss_position
+                            ? in.gnss_std.value_or(params_.gnss.anchor_std_xy)
+                            : kUnheldStd;
+  const double z_std = gnss_held && gnssAltitude() ? kUnheldStd : kSessionStartStdZ;
+  const double yaw_std = start_yaw ? params_.gnss.gnss_first_yaw_std : M_PI;
+  Matrix6d info = Matrix6d::Zero();
+  info.diagonal() << 1.0 / (xy_std * xy_std), 1.0 / (xy_std * xy_std), 1.0 / (z_std * z_std),
+      1.0 / (0.01 * 0.01), 1.0 / (0.01 * 0.01), 1.0 / (yaw_std * yaw_std);
+  s.graph.addPriorSE3(vid, kf.map_pose, info, EdgeOptions{0, {}});
+}
+
 namespace {
 
 /// The odometry edge's information: from the match's fitness, plus its Hessian (translation,
@@ -354,14 +407,14 @@ Matrix6d odometryEdgeInformation(const KeyframeInput& in, const Eigen::Isometry3
 
 }  // namespace
 
-void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf) {
+void GraphBackend::linkToPrevious(const KeyframeInput& in, KeyframeState& kf,
+                                  const KeyframeState& prev) {
   BackendState& s = *state_;
   const int vid = static_cast<int>(in.id);
-  const KeyframeState& prev = s.keyframes.rbegin()->second;
   const Eigen::Isometry3d delta = prev.odom_pose.inverse() * in.odom_pose;
   // A re-anchored step is a guess, not a measurement of the odometry's scale.
   const int scale = params_.odometry.odometry_scale_window > 0.0 && !in.reanchored
-                        ? s.odometryScaleVertex(in.accum_distance, params_.odometry)
+                        ? s.odometryScaleVertex(in.session, in.accum_distance, params_.odometry)
                         : -1;
   Eigen::Isometry3d scaled_delta = delta;
   if (scale >= 0) scaled_delta.translation() *= s.graph.vertexScale(scale).value_or(1.0);
@@ -456,8 +509,8 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
   const EdgeOptions options{
       0, kernelNamed(params_.gnss.gnss_prior_kernel, params_.gnss.gnss_prior_kernel_width)};
   if (params_.gnss.gnss_bias_std > 0.0)
-    s.graph.addEdgeSE3PositionWithOffset(vid, s.gnssBiasVertex(in.stamp, params_.gnss, scale), fix,
-                                         info, options);
+    s.graph.addEdgeSE3PositionWithOffset(
+        vid, s.gnssBiasVertex(in.session, in.stamp, params_.gnss, scale), fix, info, options);
   else if (altitude)
     s.graph.addPriorSE3XYZ(vid, fix, info, options);
   else
@@ -466,11 +519,12 @@ void GraphBackend::addGnssPrior(const KeyframeInput& in) {
 
 bool GraphBackend::gnssFixPassesGate(const KeyframeInput& in, const KeyframeState& kf) {
   BackendState& s = *state_;
+  std::optional<double>& passed_at = s.sessions[in.session].gnss_passed_at;
   const GnssParams& g = params_.gnss;
-  if (g.gnss_innovation_gate > 0.0 && s.gnss_passed_at) {
+  if (g.gnss_innovation_gate > 0.0 && passed_at) {
     const double reported = g.gnss_prior_std * gnssAccuracyScale(in);
     const double inherited = std::hypot(g.gnss_prior_std, g.gnss_bias_std);
-    const double drift = g.gnss_gate_drift * std::max(0.0, in.accum_distance - *s.gnss_passed_at);
+    const double drift = g.gnss_gate_drift * std::max(0.0, in.accum_distance - *passed_at);
     const double deviation = std::sqrt(reported * reported + inherited * inherited + drift * drift);
     const double innovation = (*in.gnss_position - kf.map_pose.translation().head<2>()).norm();
     if (innovation > g.gnss_innovation_gate * deviation) {
@@ -484,7 +538,7 @@ bool GraphBackend::gnssFixPassesGate(const KeyframeInput& in, const KeyframeStat
       return false;
     }
   }
-  s.gnss_passed_at = in.accum_distance;
+  passed_at = in.accum_distance;
   return true;
 }
 
@@ -503,15 +557,16 @@ void GraphBackend::addInsHeadingChange(const KeyframeInput& in) {
   // heading drift; its constant bias (and its yaw frame's offset from the map's) cancels, so the
   // absolute heading stays with the anchor and the map instead of being held at the INS's bias.
   BackendState& s = *state_;
-  const auto back = s.ins_headings.upper_bound(in.accum_distance - params_.gnss.ins_heading_span);
-  if (back != s.ins_headings.begin()) {
+  auto& headings = s.sessions[in.session].ins_headings;
+  const auto back = headings.upper_bound(in.accum_distance - params_.gnss.ins_heading_span);
+  if (back != headings.begin()) {
     const auto& [from_id, from_yaw] = std::prev(back)->second;
     const double info = 1.0 / (2.0 * params_.gnss.ins_heading_std * params_.gnss.ins_heading_std);
     s.graph.addEdgeSE3YawDifference(
         static_cast<int>(from_id), static_cast<int>(in.id), wrapAngle(*in.ins_yaw - from_yaw), info,
         EdgeOptions{0, RobustKernel::huber(params_.gnss.ins_heading_kernel_width)});
   }
-  s.ins_headings[in.accum_distance] = {in.id, *in.ins_yaw};
+  headings[in.accum_distance] = {in.id, *in.ins_yaw};
 }
 
 bool GraphBackend::gnssAltitude() const {
@@ -631,9 +686,10 @@ void GraphBackend::flushFloors(BackendUpdateReport& report) {
 
 void GraphBackend::linkFloor(KeyframeState& kf, BackendUpdateReport& report) {
   BackendState& s = *state_;
-  const std::optional<uint64_t> prev_id = s.last_floor_keyframe;
+  std::optional<uint64_t>& last = s.sessions[kf.session].last_floor_keyframe;
+  const std::optional<uint64_t> prev_id = last;
   if (prev_id && *prev_id >= kf.id) return;  // out of order: keep the newer chain
-  s.last_floor_keyframe = kf.id;
+  last = kf.id;
   if (!params_.floor.floor_edges || !prev_id) return;
   const KeyframeState& prev = s.keyframes.at(*prev_id);
   // Far apart along the path, or stamped before the previous one (the time jumped back: a looped
@@ -774,6 +830,11 @@ void GraphBackend::setInitialHeading(double yaw) {
   logger_->info("initial heading set to " + std::to_string(yaw * 180.0 / M_PI) + " deg");
 }
 
+void GraphBackend::setSessionHeading(uint32_t session, double yaw) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  state_->session_start_yaw[session] = yaw;
+}
+
 void GraphBackend::updateMapToOdom() {
   BackendState& s = *state_;
   if (s.keyframes.empty()) return;
@@ -852,8 +913,9 @@ std::optional<Pose2> GraphBackend::osmDatum() const {
 std::vector<double> GraphBackend::odometryScales() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   std::vector<double> out;
-  for (const auto& [window, vid] : state_->scale_vertices)
-    out.push_back(state_->graph.vertexScale(vid).value_or(1.0));
+  for (const auto& [session, windows] : state_->sessions)
+    for (const auto& [window, vid] : windows.scale_vertices)
+      out.push_back(state_->graph.vertexScale(vid).value_or(1.0));
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include "osm_graph_slam/slam/graph_dump.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
@@ -11,6 +12,7 @@
 
 #include "osm_graph_slam/common/upper_triangle.h"
 #include "osm_graph_slam/io/building_geojson.h"
+#include "osm_graph_slam/io/pcd_file.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 
 namespace osm_graph_slam {
@@ -158,6 +160,22 @@ bool readGraphDump(const std::string& dir, GraphDump& dump, std::string* error) 
   for (auto& kf : dump.keyframes)
     if (auto it = floors.find(kf.id); it != floors.end()) kf.floor = it->second;
   return true;
+}
+
+size_t loadDumpClouds(const std::string& dir, GraphDump& dump, std::string* error) {
+  size_t missing = 0;
+  for (auto& kf : dump.keyframes) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "/keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
+    auto cloud = std::make_shared<PointCloud>();
+    std::string why;
+    if (readPcd(dir + name, *cloud, &why)) {
+      kf.cloud = std::move(cloud);
+    } else {
+      if (missing++ == 0 && error) *error = why;
+    }
+  }
+  return missing;
 }
 
 }  // namespace osm_graph_slam

@@ -133,7 +133,7 @@ void OsmAssociation::addNonRigidEdges(BackendState& s, uint64_t id, KeyframeStat
     }
     // Consecutive keyframes see a wall with the same errors (motion distortion, calibration):
     // one edge per building_edge_spacing metres of path, not one per keyframe.
-    if (b->last_edge_distance &&
+    if (b->last_edge_distance && b->last_edge_session == kf.session &&
         kf.accum_distance - *b->last_edge_distance < params_.building_edge_spacing)
       continue;
     ++report.local_attempts;
@@ -176,6 +176,7 @@ void OsmAssociation::addLocalEdge(BackendState& s, uint64_t id, KeyframeState& k
                   kernelNamed(params_.building_edge_kernel, params_.building_edge_kernel_width)});
   s.building_edges.push_back({edge, id, b.prior.id, z, info});
   b.last_edge_distance = kf.accum_distance;
+  b.last_edge_session = kf.session;
   s.observed(b, mode_);
   ++report.building_edges;
   s.dirty = true;

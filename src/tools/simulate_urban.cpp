@@ -39,6 +39,18 @@ void declareDriveOptions(tools::CommandLine& cli, Options& o) {
               "the world's layout and heights (0: the seed); another --seed drives other roads "
               "of the same world",
               &p.world_seed)
+      .option("--prior-seed", "N",
+              "the prior map's seed (0: the seed); drives of one world share one prior map with it",
+              &p.prior_seed)
+      .option("--start-day", "K", "the drive starts K days after the default start time",
+              [&p](const std::string& v) {
+                char* end = nullptr;
+                const long days = std::strtol(v.c_str(), &end, 10);
+                if (end == v.c_str() || *end != '\0' || days < 0 || days > 36500)
+                  return std::string("expects a whole number of days, 0 to 36500");
+                p.start_time_ns += static_cast<StampNs>(days) * 86400LL * 1000000000LL;
+                return std::string();
+              })
       .option("--length", "M", "route length", &p.route.length)
       .option("--speed", "V", "cruise speed, m/s", &p.route.cruise_speed)
       .option("--scans", "N", "stop after N scans (0: whole route)", &p.max_scans)

@@ -21,6 +21,8 @@ class SequenceGaps {
     if (!last_ || id > *last_) last_ = id;
     return gap;
   }
+  /// The stream restarts its numbering at id (a new session): nothing before it is missing.
+  void restartAt(uint64_t id) { last_ = id; }
   uint64_t missing() const { return missing_; }
   /// "ids a..b" of the latest gap, for a log line.
   const std::string& lastGap() const { return last_gap_; }

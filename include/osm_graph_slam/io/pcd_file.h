@@ -11,4 +11,7 @@ namespace osm_graph_slam {
 /// error: PCL would write a file that its own reader refuses.
 bool writePcdAtomically(const std::string& path, const PointCloud& cloud, std::string* error);
 
+/// Reads a PCD file; false with the reason when it is missing, unreadable or holds no point.
+bool readPcd(const std::string& path, PointCloud& cloud, std::string* error);
+
 }  // namespace osm_graph_slam

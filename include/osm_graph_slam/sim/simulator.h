@@ -37,6 +37,9 @@ struct SimulationParams {
   /// Two drives with the same world_seed and different seeds take other routes through the same
   /// world (a map drive and a drive to localise on it), each with its own clutter and noise.
   uint64_t world_seed = 0;
+  /// The prior map's seed (its perturbation: errors, removed and phantom buildings); 0: seed.
+  /// Drives of one world that share it share one prior map, as a fleet shares one OSM.
+  uint64_t prior_seed = 0;
   std::string osm_path;  ///< empty: procedural city
   /// ENU origin. NaN: for an OSM extract the centre of its buildings' bounding box (a point of
   /// the extract), for the procedural city Karlsruhe (49.0110, 8.4170).

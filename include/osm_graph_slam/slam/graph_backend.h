@@ -31,6 +31,10 @@ class BuildingConstraints;
 
 struct KeyframeInput {
   uint64_t id = 0;
+  /// The drive it belongs to in a multi-session map (slam/session_merge.h); a run of its own is
+  /// session 0. A session's keyframes form one odometry chain with its own GNSS bias and
+  /// odometry scale; sessions are joined by loops and the buildings they share.
+  uint32_t session = 0;
   double stamp = 0.0;
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();  ///< base_link in odom
   double accum_distance = 0.0;
@@ -123,6 +127,7 @@ struct BackendUpdateReport {
 
 struct KeyframeState {
   uint64_t id = 0;
+  uint32_t session = 0;  ///< as received (KeyframeInput)
   double stamp = 0.0;
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
@@ -154,6 +159,7 @@ struct BuildingState {
   int vertex_id = -1;
   size_t observations = 0;                   ///< robot↔building edges
   std::optional<double> last_edge_distance;  ///< path distance of its newest edge's keyframe
+  uint32_t last_edge_session = 0;            ///< the session of that keyframe
   /// The prior with outline, reference pose and segments moved to the current estimate.
   Building corrected() const;
 };
@@ -184,6 +190,9 @@ class GraphBackend {
   /// ENU yaw of the first keyframe (e.g. from an IMU), if the heading is not known yet: the
   /// trajectory so far is rotated about the origin. Ignored once the heading is set.
   void setInitialHeading(double yaw);
+  /// ENU yaw of the first keyframe of a session other than the first one (a multi-session map):
+  /// it starts there, at its first GNSS fix. Call before that session's keyframes arrive.
+  void setSessionHeading(uint32_t session, double yaw);
   void addKeyframe(KeyframeInput keyframe);
   void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
   /// The floor plane (a, b, c, d) under a keyframe's base_link (floor_detection).
@@ -229,6 +238,14 @@ class GraphBackend {
   /// Vertex id of the odometry scale of path window k (odometry_scale_window > 0):
   /// kScaleVertexTop − k (below every GNSS bias window of a drive shorter than five years).
   static constexpr int kScaleVertexTop = kGnssBiasVertexTop - (1 << 24);
+  /// GNSS bias and odometry scale windows per session: session s's window k is vertex
+  /// kGnssBiasVertexTop − s·kSessionWindows − k (45 h of 10 s bias windows, 1,600 km of 100 m
+  /// scale windows; later windows share the last one).
+  static constexpr int kSessionWindows = 1 << 14;
+  /// Sessions with vertices of their own below kScaleVertexTop; keyframe ids stay below
+  /// kKeyframeIdLimit.
+  static constexpr int kMaxSessions = 1 << 10;
+  static constexpr int kKeyframeIdLimit = kScaleVertexTop - kMaxSessions * kSessionWindows;
   /// The estimated offset of the OSM map as a whole (ENU), when the datum is on and in the graph.
   std::optional<Pose2> osmDatum() const;
   /// The estimated odometry scale of each path window, in path order (empty when
@@ -242,6 +259,10 @@ class GraphBackend {
   void processOsm(BackendUpdateReport& report);
   /// 1 %: twice what a KITTI HDL-64E's vertical-angle bias gives (0.46 % in the simulator).
   static constexpr double kOdometryScaleWarning = 0.01;
+  /// [m] a further session's start height: its fix's altitude (or odometry's) is not the map's
+  /// vertical datum; loops, the floors and the fixes' altitude settle it.
+  static constexpr double kSessionStartStdZ = 2.0;
+  static constexpr double kUnheldStd = 1e3;  ///< a prior's deviation that holds nothing
   /// GNSS prior edges on keyframes (gnss_prior_std > 0 and the heading known).
   bool gnssPriors() const;
   /// The innovation gate (GnssParams::gnss_innovation_gate); counts what it keeps out.
@@ -264,7 +285,9 @@ class GraphBackend {
   /// to where the loop says (its provisional odometry link follows).
   void placeAfterRestart(const LoopClosureInput& loop);
   void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
-  void linkToPrevious(const KeyframeInput& in, KeyframeState& kf);
+  /// The first keyframe of a further session: at its GNSS fix with its start heading, free.
+  void anchorSessionStart(const KeyframeInput& in, KeyframeState& kf);
+  void linkToPrevious(const KeyframeInput& in, KeyframeState& kf, const KeyframeState& prev);
   void addKeyframePriors(const KeyframeInput& in, KeyframeState& kf);  ///< GNSS, gravity
   void dropOrphanSegments();
   void flushLoops(BackendUpdateReport& report);

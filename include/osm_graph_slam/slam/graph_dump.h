@@ -22,6 +22,10 @@ struct GraphDump {
 /// Reads what dumpGraph wrote. Returns false with the file (and line) at fault.
 bool readGraphDump(const std::string& directory, GraphDump& dump, std::string* error);
 
+/// Loads keyframes/<id>.pcd of every keyframe into its cloud (dumpGraph's layout). Returns how
+/// many keyframes have none; the first reason is in *error.
+size_t loadDumpClouds(const std::string& directory, GraphDump& dump, std::string* error);
+
 /// Feeds the dump in keyframe order, calling update() every `optimize_every` keyframes as the
 /// offline pipeline does (loops arrive with their newer keyframe; buildings are available from
 /// the start). Returns the last update's report with the match counts and times (total_ms,
