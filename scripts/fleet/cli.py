@@ -64,7 +64,7 @@ def build_parser():
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="use the running Dask cluster at ADDRESS (tcp://host:8786) as it is")
     where.add_argument("--workers", type=int, metavar="N",
-                       help="worker processes of the local cluster (default: cores // 2, at least 1: %d here)"
+                       help="worker processes of the local cluster (default: one per core: %d here)"
                        % cluster.default_workers())
     return ap
 

@@ -15,11 +15,11 @@ from . import worker_path
 
 
 def default_workers(cores=None):
-    """Drives at a time on this machine: one per two cores, at least one. offline_slam runs its
-    parallel stages (registration, the back-end's solver) on every core, so two drives per two
-    cores mostly wait for each other and need twice the memory (doc/fleet.md, "Workers")."""
-    cores = cores or os.cpu_count() or 1
-    return max(1, cores // 2)
+    """Drives at a time on this machine: one per core. A drive's tools keep 0.76 cores busy on
+    average (doc/matrix.md, "Time budget": their serial parts), so two drives on two cores
+    overlap one's serial parts with the other's parallel ones, as the matrix's --jobs 2 does
+    (doc/fleet.md, "Workers")."""
+    return max(1, cores or os.cpu_count() or 1)
 
 
 def local_cluster(workers):

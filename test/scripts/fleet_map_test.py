@@ -195,7 +195,7 @@ class WorkerPathTest(unittest.TestCase):
             cluster.close(client, local)
 
     def test_default_workers(self):
-        self.assertEqual([cluster.default_workers(c) for c in (1, 2, 3, 8)], [1, 1, 1, 4])
+        self.assertEqual([cluster.default_workers(c) for c in (1, 2, 8)], [1, 2, 8])
 
 
 @NEEDS_DASK
