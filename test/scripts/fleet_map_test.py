@@ -10,6 +10,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -25,7 +26,6 @@ from matrix_fakes import REPO  # noqa: E402
 from fleet_fakes import FAKE_ENV, make_fake_bin, read_calls  # noqa: E402
 
 try:
-    import distributed  # noqa: F401
     from fleet import cluster
     from fleet.cli import main as fleet_main
     HAVE_DASK = True
@@ -196,6 +196,23 @@ class WorkerPathTest(unittest.TestCase):
 
     def test_default_workers(self):
         self.assertEqual([cluster.default_workers(c) for c in (1, 2, 8)], [1, 2, 8])
+
+
+class FleetPackageLayoutTest(unittest.TestCase):
+    def test_each_module_imports_only_those_listed_above_it(self):
+        # As drive_matrix: the package's docstring lists the modules in dependency order.
+        package = os.path.join(SCRIPTS, "fleet")
+        with open(os.path.join(package, "__init__.py")) as f:
+            order = re.findall(r"^    (\w+)\.py ", f.read(), re.M)
+        modules = sorted(f for f in os.listdir(package) if f.endswith(".py") and f != "__init__.py")
+        self.assertEqual(sorted(n + ".py" for n in order), modules)
+        for i, name in enumerate(order):
+            with open(os.path.join(package, name + ".py")) as f:
+                text = f.read()
+            self.assertLessEqual(text.count("\n"), 300, name)
+            for other in re.findall(r"^from \.(\w+) import|^from \. import (\w+)", text, re.M):
+                other = other[0] or other[1]
+                self.assertIn(other, order[:i], "%s.py imports %s.py, listed below it" % (name, other))
 
 
 @NEEDS_DASK
