@@ -2,7 +2,7 @@
 on local Dask clusters of worker processes with fake C++ tools (fleet_fakes.py, matrix_fakes.py):
 every drive exactly once in the map although a worker process is killed mid-drive, a drive that
 fails on every try, a corrupt dump, resume, and the matrix's rows on Dask against the thread
-pool's. About 30 s (each test starts a cluster of two worker processes).
+pool's. About 20 s (each test starts a cluster of two worker processes).
 
     /usr/bin/python3 -m unittest test/scripts/fleet_map_test.py -v      (from the repo root)
 """
