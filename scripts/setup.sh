@@ -26,6 +26,9 @@ PACKAGES=(
   libcurl4-openssl-dev libnanoflann-dev libtbb-dev nlohmann-json3-dev libyaml-cpp-dev
   # tests, plots, screenshots
   libgtest-dev googletest python3-matplotlib python3-numpy xvfb xauth
+  # scripts/fleet_map.py and slam_matrix.py --executor dask (python3-distributed brings
+  # psutil, tornado, cloudpickle, msgpack)
+  python3-distributed python3-dask
 )
 
 missing=()

@@ -13,11 +13,12 @@ drives (result.json) are not run again. doc/matrix.md describes presets, axes an
 
     scripts/slam_matrix.py --preset quick
     scripts/slam_matrix.py --preset default --jobs 2
+    scripts/slam_matrix.py --preset default --executor dask --jobs 2      (or --scheduler tcp://HOST:8786)
     scripts/slam_matrix.py --preset default --check --max-ate-ratio 1.0 --min-coverage 0.95
     scripts/slam_matrix.py --world city --seed 1,2 --length 300 --prior-model global --list
 
 The code is in the package drive_matrix/ beside this script (its __init__.py lists the modules).
-Python 3 standard library only.
+Python 3 standard library only (the Dask executor: python3-distributed, doc/fleet.md).
 """
 import os
 import sys

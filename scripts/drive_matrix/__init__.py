@@ -12,8 +12,9 @@ depending only on those above it:
     tools.py         running a tool in its own process group; evaluate_slam's known options
     steps.py         simulate_urban and the SLAM runs (or their --replay); flags a tool lacks
     one_drive.py     one drive: its steps, evaluate, result.json
-    scheduler.py     which drives run, --jobs at a time; the time estimate
+    scheduler.py     which drives run, --jobs at a time (threads, or Dask tasks); the time estimate
     cli.py           the options, main() and the exit status
 
-Python 3 standard library only.
+Python 3 standard library only; the Dask executor (--executor dask, --scheduler) also needs
+python3-distributed and uses ../fleet/cluster.py.
 """

@@ -12,7 +12,7 @@ from .files import unwritable, write_atomically
 from .grid import PRESETS, axes_from_args, build_grid
 from .mode_summary import format_mode_summary, summarize_modes
 from .one_drive import drive_row, world_problem
-from .scheduler import estimate_text, plan, print_flushed, run_matrix
+from .scheduler import EXECUTORS, estimate_text, plan, print_flushed, run_matrix
 from .table import LIMITS, check_rows, format_table, is_ok, summarize, worst_drive
 from .tools import TOOLS, Context, evaluate_options
 
@@ -55,6 +55,12 @@ def build_parser():
                     help="offline_slam --config (default: %(default)s)")
     ap.add_argument("--out", default=os.path.join(REPO, "build_ws", "matrix"), help="default: %(default)s")
     ap.add_argument("--jobs", type=int, default=1, help="drives at a time (each tool uses both cores; default 1)")
+    ap.add_argument("--executor", choices=EXECUTORS, default="threads",
+                    help="threads (default) or dask: the drives as tasks on a local Dask cluster of "
+                         "--jobs worker processes (doc/fleet.md; needs python3-distributed)")
+    ap.add_argument("--scheduler", metavar="ADDRESS",
+                    help="run the drives on the Dask cluster at ADDRESS (tcp://host:8786) as it is "
+                         "(implies --executor dask; --jobs is then the cluster's)")
     ap.add_argument("--keep", action="store_true", help="keep the simulated scans (velodyne_points)")
     ap.add_argument("--dump", action="store_true",
                     help="keep the back-end's inputs (slam_*/dump, without clouds) for --replay")
@@ -157,7 +163,8 @@ def _run_drives(args, drives, to_run, out, sim_args, log):
     ctx = Context(os.path.abspath(args.bin), os.path.abspath(args.config), out, sim_args, args.keep,
                   args.step_timeout, evaluate_options(args.bin) if runnable else (), args.dump,
                   os.path.abspath(args.replay) if args.replay else None, args.set)
-    return run_matrix(drives, ctx, to_run, args.jobs, log=log)
+    return run_matrix(drives, ctx, to_run, args.jobs, log=log, executor=args.executor,
+                      scheduler=args.scheduler)
 
 
 def _require_tools(args):

@@ -1,7 +1,9 @@
 """The tools a drive runs, each in a process group of its own so that a timeout or Ctrl-C can
 stop it with all its children, and which of evaluate_slam's newer options this build knows."""
+import errno
 import os
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -10,6 +12,12 @@ import threading
 from .files import last_log_line
 
 TOOLS = ("simulate_urban", "offline_slam", "evaluate_slam")
+
+# On a Dask worker a tool must not outlive the worker process: a worker that is killed would
+# otherwise leave its tool running, writing into the folder that the task's retry cleans and
+# fills again. setpriv (util-linux) makes the kernel send SIGKILL to the tool when its parent
+# dies; the tool still gets a process group of its own, so timeouts stop it as before.
+SETPRIV = shutil.which("setpriv")
 
 
 class StepFailed(Exception):
@@ -24,7 +32,7 @@ class Context:
     """What every drive needs: tools, folders, options, and the child processes to stop."""
 
     def __init__(self, bin_dir, config, out, sim_args, keep=False, step_timeout=None,
-                 eval_options=(), dump=False, replay_from=None, replay_sets=()):
+                 eval_options=(), dump=False, replay_from=None, replay_sets=(), die_with_parent=False):
         self.bin_dir = bin_dir
         self.replay_from = replay_from  # --replay: re-run only the back-ends on FROM's dumps
         self.replay_sets = list(replay_sets)
@@ -35,16 +43,33 @@ class Context:
         self.keep = keep
         self.step_timeout = step_timeout
         self.eval_options = set(eval_options)  # evaluate_slam options this build knows
+        self.die_with_parent = die_with_parent  # a tool is killed when the process running it dies
+        self._start_local_state()
+
+    def _start_local_state(self):
+        """What belongs to this process only: the stop flag and the tools it runs."""
         self.stopping = threading.Event()
         self._lock = threading.Lock()
         self._procs = set()
 
+    def __getstate__(self):
+        # A Dask worker gets a copy of the context: the settings, not this process's children.
+        state = dict(self.__dict__)
+        for key in ("stopping", "_lock", "_procs"):
+            del state[key]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._start_local_state()
+
     def tool(self, name):
         return os.path.join(self.bin_dir, name)
 
-    def run(self, step, cmd, log_path, stdout_path=None):
+    def run(self, step, cmd, log_path, stdout_path=None, ok_codes=(0,)):
         """Runs cmd (own process group) with its output in log_path (stdout to stdout_path when
-        given); StepFailed names the step, the status and the log's last line."""
+        given); returns its exit status when that is one of ok_codes, else StepFailed names the
+        step, the status and the log's last line."""
         if self.stopping.is_set():
             raise Stopped()
         with open(log_path, "ab") as log:
@@ -53,8 +78,8 @@ class Context:
             out = open(stdout_path, "wb") if stdout_path else log
             try:
                 try:
-                    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=log,
-                                            start_new_session=True)
+                    proc = subprocess.Popen(self._launch_prefix(cmd) + list(cmd), stdin=subprocess.DEVNULL,
+                                            stdout=out, stderr=log, start_new_session=True)
                 except OSError as e:
                     raise StepFailed("%s: cannot start %s: %s" % (step, cmd[0], e.strerror)) from None
                 with self._lock:
@@ -72,8 +97,8 @@ class Context:
                     out.close()
         if self.stopping.is_set():
             raise Stopped()
-        if code == 0:
-            return
+        if code in ok_codes:
+            return code
         tool = os.path.basename(cmd[0])
         last = last_log_line(log_path)
         if code < 0:
@@ -85,6 +110,16 @@ class Context:
         else:
             why = "%s exited with status %d" % (tool, code)
         raise StepFailed("%s: %s: %s" % (step, why, last or "(empty log)"))
+
+    def _launch_prefix(self, cmd):
+        """setpriv before the tool when it must die with this process; a tool that cannot be
+        started fails here as without setpriv (not as setpriv's status 127)."""
+        if not (self.die_with_parent and SETPRIV):
+            return []
+        if os.path.dirname(cmd[0]) and not os.access(cmd[0], os.X_OK):
+            code = errno.EACCES if os.path.exists(cmd[0]) else errno.ENOENT
+            raise OSError(code, os.strerror(code))
+        return [SETPRIV, "--pdeathsig", "KILL", "--"]
 
     @staticmethod
     def _stop(proc):
