@@ -47,6 +47,10 @@ def build_parser():
     sim.add_argument("--first-seed", type=int, default=1, metavar="S",
                      help="route seeds S, S+1, ... and start days 0, 1, ... (default %(default)s)")
     sim.add_argument("--length", type=float, metavar="M", help="route length [m] (default: simulate_urban's)")
+    sim.add_argument("--depot", metavar="X,Y", default="0,0",
+                     help="every route starts at the junction nearest to this ENU point [m], so that "
+                          "the drives share streets as a fleet from one garage does; 'none': a "
+                          "junction drawn from each drive's seed (default %(default)s)")
     sim.add_argument("--sim-args", default=DEFAULT_SIM_ARGS,
                      help="extra simulate_urban options for every drive (default: '%(default)s')")
     ap.add_argument("--osm", metavar="FILE",
@@ -135,7 +139,9 @@ def _simulated(args):
     length = args.length
     if length is not None and length == int(length):
         length = int(length)  # "--length 300", as the matrix passes it
-    return simulated_jobs(args.simulate, args.world_seed, args.prior_seed, length, sim_args, args.first_seed)
+    depot = [] if args.depot == "none" else ["--route-start", args.depot]
+    return simulated_jobs(args.simulate, args.world_seed, args.prior_seed, length, depot + sim_args,
+                          args.first_seed)
 
 
 def _require_tools(args, jobs):

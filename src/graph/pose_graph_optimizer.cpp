@@ -190,37 +190,53 @@ OptimizationResult PoseGraph::optimize(int level, const OptimizerOptions& option
 }
 
 bool PoseGraph::marginalCovariance(int vertex_id, Eigen::MatrixXd* covariance, int level) {
-  const auto it = vertices_.find(vertex_id);
-  if (it == vertices_.end()) {
-    fail("covariance: unknown vertex " + std::to_string(vertex_id));
-    return false;
-  }
-  GraphProblem gp = buildProblem(edges_, vertices_, level, true);
-  if (!gp.vertex_ids.count(vertex_id)) {
-    fail("covariance: vertex " + std::to_string(vertex_id) +
-         " has no edge of level <= " + std::to_string(level));
-    return false;
-  }
-  double* block = it->second.x.data();
-  const int dim = gp.problem->ParameterBlockTangentSize(block);
-  covariance->setZero(dim, dim);
-  if (it->second.fixed) return true;  // a fixed vertex has no uncertainty
+  std::map<int, Eigen::MatrixXd> out;
+  if (!marginalCovariances({vertex_id}, &out, level)) return false;
+  *covariance = out.at(vertex_id);
+  return true;
+}
 
+bool PoseGraph::marginalCovariances(const std::vector<int>& vertex_ids,
+                                    std::map<int, Eigen::MatrixXd>* covariances, int level) {
+  for (int id : vertex_ids)
+    if (!vertices_.count(id)) {
+      fail("covariance: unknown vertex " + std::to_string(id));
+      return false;
+    }
+  GraphProblem gp = buildProblem(edges_, vertices_, level, true);
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (int id : vertex_ids) {
+    if (!gp.vertex_ids.count(id)) {
+      fail("covariance: vertex " + std::to_string(id) +
+           " has no edge of level <= " + std::to_string(level));
+      return false;
+    }
+    double* block = vertices_.at(id).x.data();
+    const int dim = gp.problem->ParameterBlockTangentSize(block);
+    (*covariances)[id] = Eigen::MatrixXd::Zero(dim, dim);  // a fixed vertex has no uncertainty
+    if (!vertices_.at(id).fixed) blocks.emplace_back(block, block);
+  }
+  if (blocks.empty()) return true;
+  // One factorisation for every block asked for.
   ceres::Covariance::Options options;
   options.sparse_linear_algebra_library_type = suiteSparseIfAvailable();
   options.algorithm_type = ceres::SPARSE_QR;
   ceres::Covariance cov(options);
-  const std::vector<std::pair<const double*, const double*>> blocks = {{block, block}};
   if (!cov.Compute(blocks, gp.problem.get())) {
     fail("covariance: Jacobian is rank deficient (fix a vertex or add a prior to set the gauge)");
     return false;
   }
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(dim, dim);
-  if (!cov.GetCovarianceBlockInTangentSpace(block, block, c.data())) {
-    fail("covariance: Ceres could not return the block");
-    return false;
+  for (int id : vertex_ids) {
+    if (vertices_.at(id).fixed) continue;
+    double* block = vertices_.at(id).x.data();
+    const int dim = static_cast<int>((*covariances)[id].rows());
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(dim, dim);
+    if (!cov.GetCovarianceBlockInTangentSpace(block, block, c.data())) {
+      fail("covariance: Ceres could not return the block of vertex " + std::to_string(id));
+      return false;
+    }
+    (*covariances)[id] = c;
   }
-  *covariance = c;
   return true;
 }
 

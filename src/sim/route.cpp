@@ -360,6 +360,14 @@ bool planRoute(const RoadGraph& g, const RouteParams& params, Route& route, std:
   }
   int start = junctions.empty() ? rng.uniformInt(0, int(g.nodes.size()) - 1)
                                 : junctions[rng.uniformInt(0, int(junctions.size()) - 1)];
+  if (params.start_near) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < g.nodes.size(); ++i) {
+      const bool candidate = junctions.empty() || g.adjacency[i].size() >= 3;
+      const double d = (g.nodes[i] - *params.start_near).norm();
+      if (candidate && d < best) best = d, start = int(i);
+    }
+  }
   const ManoeuvreParams& mp = params.manoeuvres;
   const bool with_manoeuvres = mp.any();
   const std::vector<int> straight =

@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <set>
+
+#include <Eigen/Eigenvalues>
 
 #include "backend_state.h"
 #include "building_constraints.h"
@@ -928,10 +931,23 @@ std::vector<BuildingState> GraphBackend::buildings() const {
 
 std::vector<Building> GraphBackend::correctedBuildings() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
+  std::map<int64_t, std::set<uint32_t>> sessions;
+  for (const auto& e : state_->building_edges)
+    sessions[e.building].insert(state_->sessionOf(e.keyframe));
   std::vector<Building> out;
   for (const auto& [id, b] : state_->buildings) {
     Building c = b.corrected();
     c.tags[kObservationsTag] = std::to_string(b.observations);
+    c.tags[kSessionsTag] = std::to_string(sessions.count(id) ? sessions.at(id).size() : 0);
+    char text[32];
+    if (b.sigma_xy) {
+      std::snprintf(text, sizeof(text), "%.3f", *b.sigma_xy);
+      c.tags[kSigmaXyTag] = text;
+    }
+    if (b.sigma_theta) {
+      std::snprintf(text, sizeof(text), "%.3f", *b.sigma_theta * 180.0 / M_PI);
+      c.tags[kSigmaThetaTag] = text;
+    }
     if (state_->origin) {
       c.outline_geo.clear();
       for (const auto& v : c.outline_enu) c.outline_geo.push_back(state_->origin->toGeoPoint(v));
@@ -939,6 +955,28 @@ std::vector<Building> GraphBackend::correctedBuildings() const {
     out.push_back(std::move(c));
   }
   return out;
+}
+
+bool GraphBackend::estimateBuildingUncertainty() {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  BackendState& s = *state_;
+  std::vector<int> vertices;
+  for (const auto& [id, b] : s.buildings)
+    if (b.vertex_id >= 0 && b.observations > 0) vertices.push_back(b.vertex_id);
+  std::map<int, Eigen::MatrixXd> covariances;
+  if (!s.graph.marginalCovariances(vertices, &covariances)) {
+    logger_->warn("the buildings' deviations could not be estimated: " + s.graph.lastError());
+    return false;
+  }
+  for (auto& [id, b] : s.buildings) {
+    const auto c = covariances.find(b.vertex_id);
+    if (b.vertex_id < 0 || c == covariances.end()) continue;
+    const Eigen::Matrix2d xy = c->second.topLeftCorner<2, 2>();
+    b.sigma_xy = std::sqrt(
+        std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(xy).eigenvalues().maxCoeff()));
+    b.sigma_theta = std::sqrt(std::max(0.0, c->second(2, 2)));
+  }
+  return true;
 }
 
 PoseGraph GraphBackend::graphSnapshot() const {

@@ -135,6 +135,11 @@ SessionMergeReport SessionMerge::merge() {
     report.last_update = backend_->update(true);
     report.optimize_ms = msSince(t_opt);
   }
+  if (params_.building_uncertainty) {
+    const auto t_sigma = Clock::now();
+    backend_->estimateBuildingUncertainty();
+    report.uncertainty_ms = msSince(t_sigma);
+  }
   report.buildings_by_sessions = buildingsBySessions();
   return report;
 }

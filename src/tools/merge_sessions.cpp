@@ -101,6 +101,7 @@ std::string summaryJson(const std::vector<SessionFile>& files, const SessionMerg
   }
   j << "},\n  \"stage_seconds\": {\"add\": " << report.add_ms / 1e3
     << ", \"loops\": " << report.loops_ms / 1e3 << ", \"optimize\": " << report.optimize_ms / 1e3
+    << ", \"uncertainty\": " << report.uncertainty_ms / 1e3
     << "},\n  \"merge_seconds\": " << seconds << "\n}\n";
   return j.str();
 }
@@ -131,7 +132,10 @@ int main(int argc, char** argv) {
               "stands for",
               &merge_params.session_gap)
       .flag("--no-inter-session-loops", "join the drives by their buildings only",
-            &merge_params.inter_session_loops, false);
+            &merge_params.inter_session_loops, false)
+      .flag("--no-building-uncertainty",
+            "skip the buildings' marginal deviations (tags of the corrected buildings)",
+            &merge_params.building_uncertainty, false);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   std::map<std::string, std::string> args = cli.values();
   const auto t0 = std::chrono::steady_clock::now();

@@ -52,6 +52,17 @@ void declareDriveOptions(tools::CommandLine& cli, Options& o) {
                 return std::string();
               })
       .option("--length", "M", "route length", &p.route.length)
+      .option("--route-start", "X,Y",
+              "the route starts at the junction nearest to this ENU point [m] (a fleet's "
+              "depot); default: a junction drawn from the seed",
+              [&p](const std::string& v) {
+                double x = 0.0, y = 0.0;
+                char tail = 0;
+                if (std::sscanf(v.c_str(), "%lf,%lf%c", &x, &y, &tail) != 2)
+                  return std::string("expects X,Y in metres");
+                p.route.start_near = Eigen::Vector2d(x, y);
+                return std::string();
+              })
       .option("--speed", "V", "cruise speed, m/s", &p.route.cruise_speed)
       .option("--scans", "N", "stop after N scans (0: whole route)", &p.max_scans)
       .option("--sensor", "hdl64e|os1_64|navtech", "the sensor (navtech radar: doc/radar.md)",

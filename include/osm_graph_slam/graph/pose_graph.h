@@ -280,6 +280,9 @@ class PoseGraph {
   /// SE2 3×3 over (x, y, θ), XY 2×2. False (and lastError()) if the vertex is unknown or not
   /// touched, or the problem is rank deficient (unfixed gauge).
   bool marginalCovariance(int vertex_id, Eigen::MatrixXd* covariance, int level = INT_MAX);
+  /// The same for several vertices with one factorisation (a fixed vertex's is zero).
+  bool marginalCovariances(const std::vector<int>& vertex_ids,
+                           std::map<int, Eigen::MatrixXd>* covariances, int level = INT_MAX);
 
   // --- internal layout, used by src/graph/ (public so the Ceres-side code needs no friends) ----
   struct Vertex {

@@ -10,6 +10,11 @@ namespace osm_graph_slam {
 
 /// Tag the back-end puts on each corrected building: its number of robot<->building edges.
 inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
+/// ... the number of sessions (drives) those edges come from.
+inline constexpr const char* kSessionsTag = "osm_graph_slam:drives";
+/// ... the estimate's marginal deviations: position [m] (the larger axis), heading [deg].
+inline constexpr const char* kSigmaXyTag = "osm_graph_slam:sigma_xy";
+inline constexpr const char* kSigmaThetaTag = "osm_graph_slam:sigma_heading_deg";
 
 /// Pairs of buildings whose outlines intersect with more than min_area [m^2] (shared walls of
 /// touching buildings have zero area and are not counted).

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,9 @@ struct RouteParams {
   double max_decel = 2.0;       ///< [m/s^2]
   double corner_radius = 10.0;  ///< preferred fillet radius at polyline vertices [m]
   ManoeuvreParams manoeuvres;   ///< none by default
+  /// [m] ENU: the route starts at the junction nearest to this point (a fleet's depot: drives of
+  /// one world then share its streets, as real drives from one garage do); none: a seeded one.
+  std::optional<Eigen::Vector2d> start_near;
 };
 
 /// What the vehicle does at a route waypoint besides a normal rounded corner.

@@ -160,6 +160,9 @@ struct BuildingState {
   size_t observations = 0;                   ///< robot↔building edges
   std::optional<double> last_edge_distance;  ///< path distance of its newest edge's keyframe
   uint32_t last_edge_session = 0;            ///< the session of that keyframe
+  /// [m], [rad] the estimate's marginal deviations (the larger axis of x, y), when computed
+  /// (GraphBackend::estimateBuildingUncertainty).
+  std::optional<double> sigma_xy, sigma_theta;
   /// The prior with outline, reference pose and segments moved to the current estimate.
   Building corrected() const;
 };
@@ -219,7 +222,13 @@ class GraphBackend {
   std::vector<std::pair<uint64_t, Eigen::Isometry3d>> keyframeMapPoses() const;
   Trajectory odomTrajectory() const;  ///< the same keyframes as odometry saw them
   std::vector<BuildingState> buildings() const;
-  std::vector<Building> correctedBuildings() const;  ///< outline_geo filled when the origin is set
+  /// outline_geo filled when the origin is set; tagged with the number of robot↔building edges
+  /// and of sessions they come from (kObservationsTag, kSessionsTag) and, once estimated, the
+  /// estimate's deviations (kSigmaXyTag, kSigmaThetaTag).
+  std::vector<Building> correctedBuildings() const;
+  /// The marginal deviations of every observed building's estimate (one factorisation of the
+  /// graph). False with the reason (logged) when the graph has no unique solution.
+  bool estimateBuildingUncertainty();
   std::vector<BuildingObservation> buildingObservations() const;  ///< edges still in the graph
   PoseGraph graphSnapshot() const;
   std::vector<LoopClosureInput> loopClosures() const;  ///< the ones added to the graph

@@ -28,6 +28,9 @@ struct SessionMergeParams {
   double session_gap = 200.0;
   /// Inter-session loop search (off: the sessions share only buildings and the datum).
   bool inter_session_loops = true;
+  /// The buildings' marginal deviations after the merge (GraphBackend::
+  /// estimateBuildingUncertainty): each corrected building says how sure the map is of it.
+  bool building_uncertainty = true;
 };
 
 /// The merged id of keyframe `id` of session `session` (ids of a session stay below the stride).
@@ -51,7 +54,7 @@ struct SessionMergeReport {
   size_t loop_queries = 0;
   /// Observed buildings by the number of sessions that observed them (robot↔building edges).
   std::map<size_t, size_t> buildings_by_sessions;
-  double add_ms = 0.0, loops_ms = 0.0, optimize_ms = 0.0;
+  double add_ms = 0.0, loops_ms = 0.0, optimize_ms = 0.0, uncertainty_ms = 0.0;
   BackendUpdateReport last_update;
 };
 
