@@ -75,14 +75,15 @@ def stamp_text(ns):
     return "%d.%09d" % (ns // 1000000000, ns % 1000000000)
 
 
-def write_full_ground_truth(sim_dir, drive_dir, out_path):
+def write_full_ground_truth(sim_dir, drive_dir, out_path, map_origin=None):
     """The true base_link pose of every scan (TUM) in offline_slam's map frame, ENU at the
-    first OXTS fix: simulate_urban's ground_truth/poses_imu.txt (ENU at sim_info's origin) moved
-    through ECEF. offline_slam's own ground_truth_tum.txt has only the estimate's keyframes, so
-    it cannot show a gap in the estimate; this one has the whole drive. Returns the pose count."""
+    first OXTS fix (or at map_origin, (lat, lon, alt): a merged map's): simulate_urban's
+    ground_truth/poses_imu.txt (ENU at sim_info's origin) moved through ECEF. offline_slam's own
+    ground_truth_tum.txt has only the estimate's keyframes, so it cannot show a gap in the
+    estimate; this one has the whole drive. Returns the pose count."""
     with open(os.path.join(sim_dir, "sim_info.json")) as f:
         origin = json.load(f)["enu_origin"]
-    first = first_fix(drive_dir)
+    first = map_origin or first_fix(drive_dir)
     if first is None:
         raise ValueError("no OXTS record with a GNSS fix")
     with open(os.path.join(drive_dir, "oxts", "timestamps.txt")) as f:

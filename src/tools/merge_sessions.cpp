@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -72,6 +73,25 @@ bool writeSessionTrajectories(const SessionMerge& merge, const std::vector<Sessi
     std::ofstream(dir + "/source.txt") << files[merged_files[s]].dir << "\n";
   }
   return true;
+}
+
+/// The inter-session loops by session and stamp (for the evaluation against ground truth).
+bool writeInterSessionLoops(const SessionMerge& merge, const SessionMergeReport& report,
+                            const std::string& path, std::string* error) {
+  std::map<uint64_t, double> stamps;
+  for (const auto& kf : merge.backend().keyframes()) stamps[kf.id] = kf.stamp;
+  std::ostringstream csv;
+  csv << std::setprecision(17)
+      << "# from_session from_stamp to_session to_stamp x y z qx qy qz qw (from in to's frame)\n";
+  for (const auto& l : report.inter_session_loops) {
+    const Eigen::Quaterniond q(l.relative_pose.linear());
+    const Eigen::Vector3d t = l.relative_pose.translation();
+    csv << SessionMerge::sessionOf(l.from_id) << ' ' << stamps[l.from_id] << ' '
+        << SessionMerge::sessionOf(l.to_id) << ' ' << stamps[l.to_id] << ' ' << t.x() << ' '
+        << t.y() << ' ' << t.z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w()
+        << '\n';
+  }
+  return writeFileAtomically(path, csv.str(), error);
 }
 
 std::string summaryJson(const std::vector<SessionFile>& files, const SessionMergeReport& report,
@@ -177,7 +197,8 @@ int main(int argc, char** argv) {
     std::cerr << "merge_sessions: the map was not saved: " << saved.message << "\n";
     return 1;
   }
-  if (!writeSessionTrajectories(merge, files, merged_files, out, &error)) {
+  if (!writeSessionTrajectories(merge, files, merged_files, out, &error) ||
+      !writeInterSessionLoops(merge, report, out + "/inter_session_loops.csv", &error)) {
     std::cerr << "merge_sessions: " << error << "\n";
     return 1;
   }
