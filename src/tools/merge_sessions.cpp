@@ -59,18 +59,30 @@ bool readSession(SessionFile& file, GraphDump& dump) {
   return true;
 }
 
-/// Each session's keyframe poses in the merged map, as TUM trajectories.
-bool writeSessionTrajectories(const SessionMerge& merge, const std::vector<SessionFile>& files,
-                              const std::vector<size_t>& merged_files, const std::string& out,
-                              std::string* error) {
+/// Each session's view of the merged map, a folder evaluate_map reads as a run: its keyframe
+/// poses in the merged map (trajectory_tum.txt), the merged buildings, and dump/ linked to the
+/// session's own dump (its clouds, with the session's own ids and stamps).
+bool writeSessionRuns(const SessionMerge& merge, const std::vector<SessionFile>& files,
+                      const std::vector<size_t>& merged_files, const std::string& out,
+                      std::string* error) {
   std::vector<Trajectory> per_session(merged_files.size());
   for (const auto& kf : merge.backend().keyframes())
     if (kf.session < per_session.size()) per_session[kf.session].push_back({kf.stamp, kf.map_pose});
   for (size_t s = 0; s < merged_files.size(); ++s) {
-    const std::string dir = out + "/sessions/" + std::to_string(s);
-    fs::create_directories(dir);
-    if (!writeTumTrajectory(dir + "/trajectory_tum.txt", per_session[s], error)) return false;
-    std::ofstream(dir + "/source.txt") << files[merged_files[s]].dir << "\n";
+    const fs::path dir = fs::path(out) / "sessions" / std::to_string(s);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (!writeTumTrajectory((dir / "trajectory_tum.txt").string(), per_session[s], error))
+      return false;
+    fs::remove(dir / "buildings_corrected.geojson", ec);
+    fs::copy_file(fs::path(out) / "buildings_corrected.geojson",
+                  dir / "buildings_corrected.geojson", ec);
+    fs::remove(dir / "dump", ec);
+    fs::create_directory_symlink(fs::absolute(files[merged_files[s]].dir), dir / "dump", ec);
+    if (ec) {
+      if (error) *error = "cannot write " + dir.string() + ": " + ec.message();
+      return false;
+    }
   }
   return true;
 }
@@ -197,7 +209,7 @@ int main(int argc, char** argv) {
     std::cerr << "merge_sessions: the map was not saved: " << saved.message << "\n";
     return 1;
   }
-  if (!writeSessionTrajectories(merge, files, merged_files, out, &error) ||
+  if (!writeSessionRuns(merge, files, merged_files, out, &error) ||
       !writeInterSessionLoops(merge, report, out + "/inter_session_loops.csv", &error)) {
     std::cerr << "merge_sessions: " << error << "\n";
     return 1;
