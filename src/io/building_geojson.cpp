@@ -35,6 +35,9 @@ std::string buildingsToGeoJson(const std::vector<Building>& buildings) {
         {"type", "Feature"},
         {"geometry", {{"type", "Polygon"}, {"coordinates", {ringToJson(b.outline_geo)}}}},
         {"properties", {{"id", b.id}, {"tags", b.tags}}}};
+    // A relation's outer rings share its id; a replay or a merge tells them apart by part.
+    if (b.part != 0) feature["properties"]["part"] = b.part;
+    if (b.version > 0) feature["properties"]["version"] = b.version;
     features.push_back(std::move(feature));
   }
   json doc = {{"type", "FeatureCollection"}, {"features", std::move(features)}};
@@ -68,6 +71,8 @@ BuildingFileResult parseBuildingsGeoJson(const std::string& text) {
       b.id =
           props.contains("id") ? props.value("id", int64_t{0}) : props.value("osm_id", int64_t{0});
       if (props.contains("tags")) b.tags = props.at("tags").get<OsmTags>();
+      b.part = props.value("part", 0);
+      b.version = props.value("version", 0);
       result.buildings.push_back(std::move(b));
       ++index;
     }

@@ -401,6 +401,7 @@ class OsmCollector {
     }
     Building building;
     building.id = way.id();
+    building.version = static_cast<int>(way.version());
     building.tags = copyTags(way.tags());
     if (!ringToOutline(nodes, building.outline_geo)) {
       ++out_.stats.skipped_degenerate;

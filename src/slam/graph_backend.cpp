@@ -932,12 +932,16 @@ std::vector<BuildingState> GraphBackend::buildings() const {
 std::vector<Building> GraphBackend::correctedBuildings() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   std::map<int64_t, std::set<uint32_t>> sessions;
-  for (const auto& e : state_->building_edges)
+  std::map<int64_t, std::set<uint64_t>> keyframes;
+  for (const auto& e : state_->building_edges) {
     sessions[e.building].insert(state_->sessionOf(e.keyframe));
+    keyframes[e.building].insert(e.keyframe);
+  }
   std::vector<Building> out;
   for (const auto& [id, b] : state_->buildings) {
     Building c = b.corrected();
     c.tags[kObservationsTag] = std::to_string(b.observations);
+    c.tags[kKeyframesTag] = std::to_string(keyframes.count(id) ? keyframes.at(id).size() : 0);
     c.tags[kSessionsTag] = std::to_string(sessions.count(id) ? sessions.at(id).size() : 0);
     char text[32];
     if (b.sigma_xy) {

@@ -159,8 +159,9 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings) {
     // Ways keep their OSM id; a building from a multipolygon relation becomes a new way that
     // names its relation.
     const bool way = b.id > 0;
-    ways << "  <way id='" << (way ? b.id : next_way--) << "'" << (way ? " version='1'" : "")
-         << ">\n";
+    ways << "  <way id='" << (way ? b.id : next_way--) << "'";
+    if (way) ways << " version='" << std::max(b.version, 1) << "'";
+    ways << ">\n";
     for (int64_t r : refs) ways << "    <nd ref='" << r << "'/>\n";
     ways << "    <nd ref='" << refs.front() << "'/>\n";
     for (const auto& [k, v] : b.tags)

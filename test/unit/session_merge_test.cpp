@@ -1,6 +1,7 @@
 // Many drives, one map (slam/session_merge.h): drives of one known world joined into one graph.
 // Shared buildings average the drives' GNSS biases; inter-session loops join drives of one
 // street, and a drive whose fixes put it on the wrong street gets no loop.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -8,6 +9,7 @@
 
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/eval/building_metrics.h"
+#include "osm_graph_slam/osm/building_set.h"
 #include "osm_graph_slam/sim/synthetic_world.h"
 #include "osm_graph_slam/slam/session_merge.h"
 #include "street_drive.h"
@@ -229,6 +231,17 @@ Eigen::Vector2d meanOffset(const std::vector<Building>& corrected) {
   return n ? Eigen::Vector2d(sum / n) : Eigen::Vector2d::Zero();
 }
 
+/// The median of the corrected buildings' position deviations (kSigmaXyTag), 0 when absent.
+double medianSigma(const std::vector<Building>& corrected) {
+  std::vector<double> sigmas;
+  for (const auto& b : corrected)
+    if (auto it = b.tags.find(kSigmaXyTag); it != b.tags.end())
+      sigmas.push_back(std::stod(it->second));
+  if (sigmas.empty()) return 0.0;
+  std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
+  return sigmas[sigmas.size() / 2];
+}
+
 }  // namespace
 
 TEST(SessionMerge, TwoDrivesWithOppositeReceiverBiasesPutTheSharedBuildingsBetweenNearerTheTruth) {
@@ -245,11 +258,11 @@ TEST(SessionMerge, TwoDrivesWithOppositeReceiverBiasesPutTheSharedBuildingsBetwe
     const std::vector<Building> corrected = merge.backend().correctedBuildings();
     return std::make_tuple(meanOffset(corrected),
                            evaluateBuildings(corrected, street().truth).mean_corner_error,
-                           report.buildings_by_sessions);
+                           report.buildings_by_sessions, medianSigma(corrected));
   };
-  const auto [offset_a, error_a, seen_a] = run({&a});
-  const auto [offset_b, error_b, seen_b] = run({&b});
-  const auto [offset_ab, error_ab, seen_ab] = run({&a, &b});
+  const auto [offset_a, error_a, seen_a, sigma_a] = run({&a});
+  const auto [offset_b, error_b, seen_b, sigma_b] = run({&b});
+  const auto [offset_ab, error_ab, seen_ab, sigma_ab] = run({&a, &b});
   std::printf(
       "[session_merge] building offset (y) a %.3f, b %.3f, merged %.3f m; corner error "
       "a %.3f, b %.3f, merged %.3f m\n",
@@ -261,6 +274,10 @@ TEST(SessionMerge, TwoDrivesWithOppositeReceiverBiasesPutTheSharedBuildingsBetwe
   EXPECT_LT(std::abs(offset_ab.y()),
             0.5 * std::min(std::abs(offset_a.y()), std::abs(offset_b.y())));
   EXPECT_LT(error_ab, std::min(error_a, error_b));
+  std::printf("[session_merge] median building deviation: a %.3f, b %.3f, merged %.3f m\n", sigma_a,
+              sigma_b, sigma_ab);
+  EXPECT_GT(sigma_a, 0.0) << "every observed building says how sure the map is of it";
+  EXPECT_LT(sigma_ab, 0.85 * std::min(sigma_a, sigma_b)) << "two drives are surer than one";
   ASSERT_TRUE(seen_ab.count(2)) << "buildings seen by both drives";
   EXPECT_EQ(seen_ab.count(1) ? seen_ab.at(1) : 0u, 0u) << "both drives see the whole street";
 }

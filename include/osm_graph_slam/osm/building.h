@@ -20,6 +20,9 @@ struct Building {
   int64_t id = 0;  ///< OSM way id; multipolygon relations are stored as -relation id
   /// Outer ring index of a multipolygon relation (0 for ways); (id, part) is unique.
   int part = 0;
+  /// The way's OSM version (0: unknown, e.g. a simulated or GeoJSON building): an editor uploads
+  /// a corrected way against the version it was read at.
+  int version = 0;
   OsmTags tags;
   std::vector<GeoPoint> outline_geo;  ///< closed ring, first vertex not repeated
   Polygon2 outline_enu;               ///< same ring in ENU [m] (filled by EnuConverter)

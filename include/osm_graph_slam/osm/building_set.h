@@ -10,7 +10,8 @@ namespace osm_graph_slam {
 
 /// Tag the back-end puts on each corrected building: its number of robot<->building edges.
 inline constexpr const char* kObservationsTag = "osm_graph_slam:observations";
-/// ... the number of sessions (drives) those edges come from.
+/// ... the number of keyframes those edges come from, and of sessions (drives).
+inline constexpr const char* kKeyframesTag = "osm_graph_slam:keyframes";
 inline constexpr const char* kSessionsTag = "osm_graph_slam:drives";
 /// ... the estimate's marginal deviations: position [m] (the larger axis), heading [deg].
 inline constexpr const char* kSigmaXyTag = "osm_graph_slam:sigma_xy";

@@ -223,7 +223,8 @@ class GraphBackend {
   Trajectory odomTrajectory() const;  ///< the same keyframes as odometry saw them
   std::vector<BuildingState> buildings() const;
   /// outline_geo filled when the origin is set; tagged with the number of robot↔building edges
-  /// and of sessions they come from (kObservationsTag, kSessionsTag) and, once estimated, the
+  /// and of keyframes and sessions they come from (kObservationsTag, kKeyframesTag,
+  /// kSessionsTag) and, once estimated, the
   /// estimate's deviations (kSigmaXyTag, kSigmaThetaTag).
   std::vector<Building> correctedBuildings() const;
   /// The marginal deviations of every observed building's estimate (one factorisation of the
