@@ -266,3 +266,34 @@ def plot(rows, path):
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def compare_maps(joint_dir, other_dir):
+    """How far a merged map (solved in tiles) is from the joint solve: keyframe positions (by
+    stamp, every session) and building reference corners (by id), mean and max [m]."""
+    def keyframes(d):
+        out = {}
+        sessions = os.path.join(d, "sessions")
+        for s in os.listdir(sessions):
+            for row in read_tum(os.path.join(sessions, s, "trajectory_tum.txt")):
+                out[(s, round(row[0], 3))] = row[1:3]
+        return out
+
+    def corners(d):
+        with open(os.path.join(d, "buildings_corrected.geojson")) as f:
+            doc = json.load(f)
+        out = {}
+        for feature in doc["features"]:
+            ring = feature["geometry"]["coordinates"][0]
+            props = feature["properties"]
+            lon, lat = min(ring, key=lambda p: (p[0], p[1]))[:2]
+            # metres per degree near the ring: a local equirectangular projection is exact enough
+            out[(props["id"], props.get("part", 0))] = (lat * 111320.0, lon * 111320.0 * math.cos(math.radians(lat)))
+        return out
+
+    result = {}
+    for name, read in (("keyframes", keyframes), ("buildings", corners)):
+        a, b = read(joint_dir), read(other_dir)
+        d = [math.hypot(a[k][0] - b[k][0], a[k][1] - b[k][1]) for k in a if k in b]
+        result[name] = {"compared": len(d), "mean_m": sum(d) / len(d) if d else None, "max_m": max(d) if d else None}
+    return result

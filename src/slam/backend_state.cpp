@@ -212,6 +212,36 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
   return fixed_now;
 }
 
+std::vector<int> BackendState::holdOutsideTile(const std::set<uint64_t>& free_keyframes,
+                                               const std::set<int64_t>& free_buildings,
+                                               const OdometryEdgeParams& odometry,
+                                               const GnssParams& gnss) {
+  std::vector<int> fixed_now;
+  auto hold = [&](int vid) {
+    if (graph.isFixed(vid)) return;
+    graph.setFixed(vid, true);
+    fixed_now.push_back(vid);
+  };
+  std::map<uint32_t, std::set<int>> free_scale, free_bias;
+  for (const auto& [id, kf] : keyframes) {
+    if (!free_keyframes.count(id)) {
+      hold(static_cast<int>(id));
+      continue;
+    }
+    free_scale[kf.session].insert(odometryScaleWindow(kf.accum_distance, odometry));
+    free_bias[kf.session].insert(gnssBiasWindow(sessions[kf.session], kf.stamp, gnss));
+  }
+  for (const auto& [id, session] : sessions) {
+    for (const auto& [window, vid] : session.scale_vertices)
+      if (!free_scale[id].count(window)) hold(vid);
+    for (const auto& [window, vid] : session.gnss_bias_vertices)
+      if (!free_bias[id].count(window)) hold(vid);
+  }
+  for (const auto& [bid, b] : buildings)
+    if (b.vertex_id >= 0 && !free_buildings.count(bid)) hold(b.vertex_id);
+  return fixed_now;
+}
+
 void BackendState::release(const std::vector<int>& held, const OsmPriorParams& p) {
   std::set<int> stay;
   for (const auto& [bid, b] : buildings)

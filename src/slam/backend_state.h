@@ -7,6 +7,7 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -142,6 +143,12 @@ struct BackendState {
   /// observes; returns the vertices it fixed (to free again after the update).
   std::vector<int> holdOutsideWindow(uint64_t window_start, const OdometryEdgeParams& odometry,
                                      const GnssParams& gnss);
+  /// Fixes every keyframe but `free_keyframes`, every building but `free_buildings`, and the
+  /// GNSS bias and odometry scale windows none of the free keyframes lies in (a map tile solved
+  /// with the rest of the graph held); returns the vertices it fixed.
+  std::vector<int> holdOutsideTile(const std::set<uint64_t>& free_keyframes,
+                                   const std::set<int64_t>& free_buildings,
+                                   const OdometryEdgeParams& odometry, const GnssParams& gnss);
   /// Frees the vertices holdOutsideWindow() fixed, except buildings that must stay at their
   /// prior (the gate may have removed their last observation meanwhile).
   void release(const std::vector<int>& held, const OsmPriorParams& p);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <limits>
 #include <set>
 
 #include <Eigen/Eigenvalues>
@@ -766,11 +767,17 @@ bool GraphBackend::newLoopDisagrees(uint64_t window_start) {
 void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
                                   bool phase1) {
   BackendState& s = *state_;
-  const OptimizerOptions& options = params_.schedule.optimizer;
   report.window_start = window_start;
-  const std::vector<int> held =
-      window_start ? s.holdOutsideWindow(*window_start, params_.odometry, params_.gnss)
-                   : std::vector<int>{};
+  runPhases(report,
+            window_start ? s.holdOutsideWindow(*window_start, params_.odometry, params_.gnss)
+                         : std::vector<int>{},
+            phase1);
+}
+
+void GraphBackend::runPhases(BackendUpdateReport& report, const std::vector<int>& held,
+                             bool phase1) {
+  BackendState& s = *state_;
+  const OptimizerOptions& options = params_.schedule.optimizer;
   // One optimisation at `level` into `result`, its time added to the update's stage.
   auto solve = [&](int level, OptimizationResult& result, double& stage_ms) {
     result = s.graph.optimize(level, options);
@@ -819,6 +826,67 @@ void GraphBackend::optimizePhases(BackendUpdateReport& report, std::optional<uin
   for (int vid : unfix) s.graph.setFixed(vid, false);
   s.release(held, params_.osm_prior);
   updateMapToOdom();
+}
+
+TileSolveReport GraphBackend::optimizeInTiles(const TileSolveParams& params) {
+  const auto t0 = Clock::now();
+  update(false);  // queued inputs into the graph (a windowed update at most)
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  BackendState& s = *state_;
+  TileSolveReport out;
+  const double size = std::max(params.tile_size, 1.0);
+  using Tile = std::pair<int64_t, int64_t>;
+  // The grid starts at the map's south-west corner: a map smaller than a tile is one tile.
+  Eigen::Vector2d corner = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  for (const auto& [id, kf] : s.keyframes)
+    corner = corner.cwiseMin(kf.map_pose.translation().head<2>());
+  for (const auto& [bid, b] : s.buildings) corner = corner.cwiseMin(b.pose.translation());
+  auto tileOf = [size, corner](const Eigen::Vector2d& p) {
+    return Tile{static_cast<int64_t>(std::floor((p.x() - corner.x()) / size)),
+                static_cast<int64_t>(std::floor((p.y() - corner.y()) / size))};
+  };
+  // Tiles are fixed once, from where the keyframes and buildings are now: a vertex that moves
+  // across a border during the sweeps stays in its tile.
+  std::map<Tile, std::pair<std::set<uint64_t>, std::set<int64_t>>> tiles;
+  for (const auto& [id, kf] : s.keyframes)
+    tiles[tileOf(kf.map_pose.translation().head<2>())].first.insert(id);
+  for (const auto& [bid, b] : s.buildings)
+    if (b.vertex_id >= 0) tiles[tileOf(b.pose.translation())].second.insert(bid);
+  out.tiles = tiles.size();
+  std::vector<const Tile*> order;
+  for (int colour : {0, 1})
+    for (const auto& [tile, members] : tiles)
+      if (((tile.first + tile.second) % 2 + 2) % 2 == colour) order.push_back(&tile);
+  for (const auto& [tile, members] : tiles)
+    out.largest_tile_keyframes = std::max(out.largest_tile_keyframes, members.first.size());
+
+  auto positions = [&s] {
+    std::vector<Eigen::Vector2d> p;
+    for (const auto& [id, kf] : s.keyframes) p.push_back(kf.map_pose.translation().head<2>());
+    for (const auto& [bid, b] : s.buildings) p.push_back(b.pose.translation());
+    return p;
+  };
+  for (out.sweeps = 1; out.sweeps <= params.max_sweeps; ++out.sweeps) {
+    const std::vector<Eigen::Vector2d> before = positions();
+    for (const Tile* tile : order) {
+      const auto t_tile = Clock::now();
+      const auto& [free_keyframes, free_buildings] = tiles.at(*tile);
+      BackendUpdateReport report;
+      runPhases(report,
+                s.holdOutsideTile(free_keyframes, free_buildings, params_.odometry, params_.gnss),
+                true);
+      out.slowest_tile_ms = std::max(out.slowest_tile_ms, msSince(t_tile));
+    }
+    const std::vector<Eigen::Vector2d> after = positions();
+    out.last_sweep_max_move = 0.0;
+    for (size_t i = 0; i < before.size(); ++i)
+      out.last_sweep_max_move = std::max(out.last_sweep_max_move, (after[i] - before[i]).norm());
+    if (out.last_sweep_max_move <= params.tolerance) break;
+  }
+  out.sweeps = std::min(out.sweeps, params.max_sweeps);
+  s.dirty = false;
+  out.total_ms = msSince(t0);
+  return out;
 }
 
 void GraphBackend::setInitialHeading(double yaw) {

@@ -7,7 +7,7 @@
 namespace osm_graph_slam {
 
 BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend,
-                                    int optimize_every) {
+                                    int optimize_every, bool final_full_batch) {
   if (dump.origin) backend.setOrigin(dump.origin->x(), dump.origin->y(), dump.origin->z());
   if (!dump.buildings.empty()) backend.addBuildings(dump.buildings, Eigen::Vector2d::Zero(), 1e9);
   std::multimap<uint64_t, const LoopClosureInput*> loops_by_from;
@@ -36,7 +36,7 @@ BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend
       since_update = 0;
     }
   }
-  report = backend.update(true);
+  report = backend.update(final_full_batch);
   accumulate(report);
   // Counts and times summed over every update; the optimisation results are the last update's.
   report.building_edges = total.building_edges;

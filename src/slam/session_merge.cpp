@@ -123,18 +123,22 @@ SessionMergeReport SessionMerge::merge() {
     report.sessions.push_back(summary);
     report.keyframes += d.keyframes.size();
   }
-  report.last_update = replayGraphDump(all, *backend_, params_.optimize_every);
+  const bool tiled = params_.tiles.tile_size > 0.0;
+  report.last_update = replayGraphDump(all, *backend_, params_.optimize_every, !tiled);
   report.add_ms = msSince(t_add);
 
   if (params_.inter_session_loops && sessions_.size() > 1) {
     const auto t_loops = Clock::now();
     report.inter_session_loops = findInterSessionLoops(report);
     report.loops_ms = msSince(t_loops);
-    const auto t_opt = Clock::now();
     for (const auto& l : report.inter_session_loops) backend_->addLoopClosure(l);
-    report.last_update = backend_->update(true);
-    report.optimize_ms = msSince(t_opt);
   }
+  const auto t_opt = Clock::now();
+  if (tiled)
+    report.tiles = backend_->optimizeInTiles(params_.tiles);
+  else if (!report.inter_session_loops.empty())
+    report.last_update = backend_->update(true);
+  report.optimize_ms = msSince(t_opt);
   if (params_.building_uncertainty) {
     const auto t_sigma = Clock::now();
     backend_->estimateBuildingUncertainty();

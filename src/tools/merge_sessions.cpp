@@ -133,8 +133,14 @@ std::string summaryJson(const std::vector<SessionFile>& files, const SessionMerg
   }
   j << "},\n  \"stage_seconds\": {\"add\": " << report.add_ms / 1e3
     << ", \"loops\": " << report.loops_ms / 1e3 << ", \"optimize\": " << report.optimize_ms / 1e3
-    << ", \"uncertainty\": " << report.uncertainty_ms / 1e3
-    << "},\n  \"merge_seconds\": " << seconds << "\n}\n";
+    << ", \"uncertainty\": " << report.uncertainty_ms / 1e3 << "},\n";
+  if (report.tiles)
+    j << "  \"tiles\": {\"count\": " << report.tiles->tiles
+      << ", \"sweeps\": " << report.tiles->sweeps
+      << ", \"last_sweep_max_move_m\": " << report.tiles->last_sweep_max_move
+      << ", \"largest_tile_keyframes\": " << report.tiles->largest_tile_keyframes
+      << ", \"slowest_tile_seconds\": " << report.tiles->slowest_tile_ms / 1e3 << "},\n";
+  j << "  \"merge_seconds\": " << seconds << "\n}\n";
   return j.str();
 }
 
@@ -165,6 +171,12 @@ int main(int argc, char** argv) {
               &merge_params.session_gap)
       .flag("--no-inter-session-loops", "join the drives by their buildings only",
             &merge_params.inter_session_loops, false)
+      .option("--tile-size", "M",
+              "solve the merged graph in square map tiles of this size, tile by tile with the "
+              "rest held, until they agree (0: one joint solve)",
+              &merge_params.tiles.tile_size)
+      .option("--tile-sweeps", "N", "at most N sweeps over the tiles",
+              &merge_params.tiles.max_sweeps)
       .flag("--no-building-uncertainty",
             "skip the buildings' marginal deviations (tags of the corrected buildings)",
             &merge_params.building_uncertainty, false);

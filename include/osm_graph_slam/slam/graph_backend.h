@@ -175,6 +175,24 @@ struct BuildingObservation {
   Eigen::Matrix3d information;  ///< in the building's axes
 };
 
+/// How the graph is solved in map tiles (GraphBackend::optimizeInTiles).
+struct TileSolveParams {
+  double tile_size = 500.0;  ///< [m] square tiles of the map frame
+  int max_sweeps = 8;        ///< over every tile
+  /// [m] stop once no keyframe or building moved more than this in a sweep.
+  double tolerance = 0.005;
+};
+
+/// What optimizeInTiles did.
+struct TileSolveReport {
+  size_t tiles = 0;
+  int sweeps = 0;
+  double last_sweep_max_move = 0.0;  ///< [m]
+  size_t largest_tile_keyframes = 0;
+  double total_ms = 0.0;
+  double slowest_tile_ms = 0.0;
+};
+
 /// map -> odom that puts the first keyframe at `position` (default: the map origin) with the
 /// given ENU yaw (or with odometry's yaw when unknown), keeping odometry's roll and pitch.
 Eigen::Isometry3d initialMapToOdom(const Eigen::Isometry3d& first_odom_pose,
@@ -227,6 +245,13 @@ class GraphBackend {
   /// kSessionsTag) and, once estimated, the
   /// estimate's deviations (kSigmaXyTag, kSigmaThetaTag).
   std::vector<Building> correctedBuildings() const;
+  /// Solves the graph tile by tile instead of at once (a city's graph in bounded pieces): a
+  /// keyframe belongs to the tile holding its position, a building to the one holding its
+  /// reference corner; each tile's keyframes and buildings are optimised (all phases) with the
+  /// rest of the graph held, the tiles in checkerboard order (tiles of one colour share no
+  /// border), sweeps repeated until nothing moves more than the tolerance. Queued inputs are
+  /// taken in first (update() without optimising). The joint solve is update(true).
+  TileSolveReport optimizeInTiles(const TileSolveParams& params);
   /// The marginal deviations of every observed building's estimate (one factorisation of the
   /// graph). False with the reason (logged) when the graph has no unique solution.
   bool estimateBuildingUncertainty();
@@ -309,6 +334,8 @@ class GraphBackend {
   /// the robots where the last joint phase left them (only building edges changed since).
   void optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
                       bool phase1 = true);
+  /// The phases with the vertices `held` fixed (freed again at the end, see release()).
+  void runPhases(BackendUpdateReport& report, const std::vector<int>& held, bool phase1);
   /// The oldest keyframe a routine update frees (optimization_window), nullopt: all of them.
   std::optional<uint64_t> windowStart() const;
   /// Loops added since the last check that reach from the window to a held keyframe and still

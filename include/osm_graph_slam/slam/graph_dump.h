@@ -30,7 +30,9 @@ size_t loadDumpClouds(const std::string& directory, GraphDump& dump, std::string
 /// offline pipeline does (loops arrive with their newer keyframe; buildings are available from
 /// the start). Returns the last update's report with the match counts and times (total_ms,
 /// stage_ms) summed over all updates.
+/// final_full_batch false: the last update is a routine one too (optimization_window), for a
+/// caller that solves the whole graph its own way (GraphBackend::optimizeInTiles).
 BackendUpdateReport replayGraphDump(const GraphDump& dump, GraphBackend& backend,
-                                    int optimize_every);
+                                    int optimize_every, bool final_full_batch = true);
 
 }  // namespace osm_graph_slam

@@ -31,6 +31,9 @@ struct SessionMergeParams {
   /// The buildings' marginal deviations after the merge (GraphBackend::
   /// estimateBuildingUncertainty): each corrected building says how sure the map is of it.
   bool building_uncertainty = true;
+  /// Solve in map tiles (GraphBackend::optimizeInTiles) instead of one joint solve; the
+  /// tile size 0: joint.
+  TileSolveParams tiles{0.0};
 };
 
 /// The merged id of keyframe `id` of session `session` (ids of a session stay below the stride).
@@ -56,6 +59,7 @@ struct SessionMergeReport {
   std::map<size_t, size_t> buildings_by_sessions;
   double add_ms = 0.0, loops_ms = 0.0, optimize_ms = 0.0, uncertainty_ms = 0.0;
   BackendUpdateReport last_update;
+  std::optional<TileSolveReport> tiles;  ///< when solved in tiles
 };
 
 class SessionMerge {
