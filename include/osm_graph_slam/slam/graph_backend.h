@@ -160,7 +160,8 @@ struct BuildingState {
   size_t observations = 0;                   ///< robot↔building edges
   std::optional<double> last_edge_distance;  ///< path distance of its newest edge's keyframe
   uint32_t last_edge_session = 0;            ///< the session of that keyframe
-  /// [m], [rad] the estimate's marginal deviations (the larger axis of x, y), when computed
+  /// [m], [rad] the estimate's deviations given the trajectory (the larger axis of x, y), when
+  /// computed
   /// (GraphBackend::estimateBuildingUncertainty).
   std::optional<double> sigma_xy, sigma_theta;
   /// The prior with outline, reference pose and segments moved to the current estimate.
@@ -252,8 +253,8 @@ class GraphBackend {
   /// border), sweeps repeated until nothing moves more than the tolerance. Queued inputs are
   /// taken in first (update() without optimising). The joint solve is update(true).
   TileSolveReport optimizeInTiles(const TileSolveParams& params);
-  /// The marginal deviations of every observed building's estimate (one factorisation of the
-  /// graph). False with the reason (logged) when the graph has no unique solution.
+  /// The deviations of every observed building's estimate given the trajectory (robot poses
+  /// held; one factorisation). False with the reason (logged) when they have no unique solution.
   bool estimateBuildingUncertainty();
   std::vector<BuildingObservation> buildingObservations() const;  ///< edges still in the graph
   PoseGraph graphSnapshot() const;
@@ -334,6 +335,9 @@ class GraphBackend {
   /// the robots where the last joint phase left them (only building edges changed since).
   void optimizePhases(BackendUpdateReport& report, std::optional<uint64_t> window_start,
                       bool phase1 = true);
+  /// Translates every free keyframe and building (and the datum) by the mean residual of the
+  /// GNSS fixes: the coarse step of optimizeInTiles.
+  void shiftMapToFixes();
   /// The phases with the vertices `held` fixed (freed again at the end, see release()).
   void runPhases(BackendUpdateReport& report, const std::vector<int>& held, bool phase1);
   /// The oldest keyframe a routine update frees (optimization_window), nullopt: all of them.
