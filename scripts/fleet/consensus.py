@@ -172,10 +172,11 @@ def merge(bin_dir, config, dumps, out, log_path):
         return json.load(f)
 
 
-def evaluate_count(fleet_dir, drives, n, bin_dir, config):
-    """Merges the first n drives and scores the merged map; a dict of the figures."""
+def evaluate_count(fleet_dir, drives, n, bin_dir, config, folder="consensus"):
+    """Merges the first n drives into fleet_dir/folder/n<N> and scores the merged map; a dict
+    of the figures."""
     chosen = drives[:n]
-    out = os.path.join(fleet_dir, "consensus", "n%02d" % n)
+    out = os.path.join(fleet_dir, folder, "n%02d" % n)
     os.makedirs(out, exist_ok=True)
     summary = merge(bin_dir, config, [d[3] for d in chosen], os.path.join(out, "merged"),
                     os.path.join(out, "merge_sessions.log"))

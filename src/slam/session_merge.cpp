@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <set>
 
 #include "osm_graph_slam/osm/enu_converter.h"
@@ -51,6 +52,50 @@ void mergeIds(GraphDump& dump, uint32_t session) {
 }
 
 }  // namespace
+
+std::vector<size_t> inconsistentLoops(const std::vector<LoopClosureInput>& loops,
+                                      const std::map<uint64_t, Eigen::Isometry3d>& poses,
+                                      const std::map<uint64_t, double>& stamps,
+                                      const SessionMergeParams& params) {
+  struct Offset {
+    std::pair<uint32_t, uint32_t> sessions;
+    double stamp;
+    Eigen::Vector2d offset;
+  };
+  std::vector<std::optional<Offset>> offsets;
+  for (const auto& l : loops) {
+    const auto from = poses.find(l.from_id), to = poses.find(l.to_id);
+    const auto stamp = stamps.find(l.from_id);
+    if (from == poses.end() || to == poses.end() || stamp == stamps.end()) {
+      offsets.emplace_back();
+      continue;
+    }
+    const Eigen::Vector3d said = (to->second * l.relative_pose).translation();
+    offsets.push_back(Offset{{SessionMerge::sessionOf(l.from_id), SessionMerge::sessionOf(l.to_id)},
+                             stamp->second,
+                             (said - from->second.translation()).head<2>()});
+  }
+  std::vector<size_t> refused;
+  for (size_t i = 0; i < offsets.size(); ++i) {
+    if (!offsets[i]) continue;
+    std::vector<double> dx, dy;
+    for (size_t j = 0; j < offsets.size(); ++j)
+      if (j != i && offsets[j] && offsets[j]->sessions == offsets[i]->sessions &&
+          std::abs(offsets[j]->stamp - offsets[i]->stamp) <= params.loop_consistency_window) {
+        dx.push_back(offsets[j]->offset.x());
+        dy.push_back(offsets[j]->offset.y());
+      }
+    if (static_cast<int>(dx.size()) < params.loop_consistency_min_neighbours) continue;
+    auto median = [](std::vector<double>& v) {
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    const Eigen::Vector2d neighbours(median(dx), median(dy));
+    if ((offsets[i]->offset - neighbours).norm() > params.loop_consistency_distance)
+      refused.push_back(i);
+  }
+  return refused;
+}
 
 SessionMerge::SessionMerge(const GraphBackendParams& backend, const LoopDetectorParams& loops,
                            const SessionMergeParams& params, std::shared_ptr<const Logger> logger)
@@ -185,8 +230,18 @@ std::vector<LoopClosureInput> SessionMerge::findInterSessionLoops(SessionMergeRe
     for (const auto& kf : keyframes)
       if (kf.cloud && poses.count(kf.id)) detector.addKeyframe(loopKeyframe(kf, 0.0));
   }
+  std::map<uint64_t, double> stamps;
+  for (const auto& session : sessions_)
+    for (const auto& kf : session.dump.keyframes) stamps[kf.id] = kf.stamp;
+  const std::vector<size_t> refused = inconsistentLoops(loops, poses, stamps, params_);
+  for (auto it = refused.rbegin(); it != refused.rend(); ++it) {
+    --report.sessions[sessionOf(loops[*it].from_id)].inter_session_loops;
+    loops.erase(loops.begin() + static_cast<std::ptrdiff_t>(*it));
+  }
+  report.loops_inconsistent = refused.size();
   logger_->info("inter-session loops: " + std::to_string(loops.size()) + " from " +
-                std::to_string(report.loop_queries) + " keyframes searched");
+                std::to_string(report.loop_queries) + " keyframes searched (" +
+                std::to_string(refused.size()) + " refused as inconsistent with their neighbours)");
   return loops;
 }
 

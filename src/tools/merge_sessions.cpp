@@ -125,6 +125,7 @@ std::string summaryJson(const std::vector<SessionFile>& files, const SessionMerg
   }
   j << "\n  ],\n  \"keyframes\": " << report.keyframes
     << ",\n  \"inter_session_loops\": " << report.inter_session_loops.size()
+    << ",\n  \"loops_inconsistent\": " << report.loops_inconsistent
     << ",\n  \"loop_queries\": " << report.loop_queries << ",\n  \"buildings_by_drives\": {";
   bool first = true;
   for (const auto& [drives, count] : report.buildings_by_sessions) {

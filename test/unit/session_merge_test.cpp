@@ -282,3 +282,36 @@ TEST(SessionMerge, TwoDrivesWithOppositeReceiverBiasesPutTheSharedBuildingsBetwe
   ASSERT_TRUE(seen_ab.count(2)) << "buildings seen by both drives";
   EXPECT_EQ(seen_ab.count(1) ? seen_ab.at(1) : 0u, 0u) << "both drives see the whole street";
 }
+
+TEST(SessionMerge, AnAliasedLoopIsRefusedByItsNeighboursBetweenTheSameDrives) {
+  // Ten loops from drive 1 to drive 0 agree that drive 1 sits 0.5 m east and 0.2 m north of
+  // where its fixes put it; one more, a facade period along the street, says 1.5 m further.
+  std::vector<LoopClosureInput> loops;
+  std::map<uint64_t, Eigen::Isometry3d> poses;
+  std::map<uint64_t, double> stamps;
+  for (uint64_t k = 0; k < 11; ++k) {
+    const uint64_t from = mergedKeyframeId(1, k), to = mergedKeyframeId(0, k);
+    Eigen::Isometry3d to_pose = Eigen::Isometry3d::Identity();
+    to_pose.translation() = Eigen::Vector3d(4.0 * k, 0.0, 0.0);
+    Eigen::Isometry3d from_pose = to_pose;
+    from_pose.translation().y() += 1.0;
+    poses[to] = to_pose;
+    poses[from] = from_pose;
+    stamps[from] = 100.0 + k;
+    LoopClosureInput l;
+    l.from_id = from;
+    l.to_id = to;
+    const double noise = 0.05 * std::sin(3.0 * k);
+    l.relative_pose.translation() =
+        Eigen::Vector3d(0.5 + noise + (k == 6 ? 1.5 : 0.0), 1.2 - noise, 0.0);
+    loops.push_back(l);
+  }
+  // A loop to another drive has no neighbours to be judged by: kept.
+  LoopClosureInput lone = loops.front();
+  lone.to_id = mergedKeyframeId(2, 0);
+  poses[lone.to_id] = poses[loops.front().to_id];
+  loops.push_back(lone);
+  const std::vector<size_t> refused = inconsistentLoops(loops, poses, stamps, SessionMergeParams());
+  ASSERT_EQ(refused.size(), 1u);
+  EXPECT_EQ(refused.front(), 6u);
+}

@@ -28,6 +28,14 @@ struct SessionMergeParams {
   double session_gap = 200.0;
   /// Inter-session loop search (off: the sessions share only buildings and the datum).
   bool inter_session_loops = true;
+  /// [m] an inter-session loop is refused when where it puts its keyframe relative to the joint
+  /// map differs by more than this from what its neighbours (loops between the same two
+  /// sessions within loop_consistency_window seconds) say: the drives' relative placement
+  /// error changes slowly, an aliased match (a facade period along a straight street) jumps.
+  /// Measured: correct loops within 0.3 m of their neighbours, aliased ones 1.5 m (16 drives).
+  double loop_consistency_distance = 0.8;
+  double loop_consistency_window = 20.0;    ///< [s] of the newer session's keyframes
+  int loop_consistency_min_neighbours = 3;  ///< fewer: the loop is kept (nothing to judge by)
   /// The buildings' marginal deviations after the merge (GraphBackend::
   /// estimateBuildingUncertainty): each corrected building says how sure the map is of it.
   bool building_uncertainty = true;
@@ -35,6 +43,15 @@ struct SessionMergeParams {
   /// tile size 0: joint.
   TileSolveParams tiles{0.0};
 };
+
+/// Indices of the loops whose offset from the map (where the loop puts its `from` keyframe
+/// minus where `poses` has it) differs by more than loop_consistency_distance from the median
+/// offset of the other loops between the same sessions within loop_consistency_window seconds
+/// (`stamps` of the `from` keyframes).
+std::vector<size_t> inconsistentLoops(const std::vector<LoopClosureInput>& loops,
+                                      const std::map<uint64_t, Eigen::Isometry3d>& poses,
+                                      const std::map<uint64_t, double>& stamps,
+                                      const SessionMergeParams& params);
 
 /// The merged id of keyframe `id` of session `session` (ids of a session stay below the stride).
 constexpr uint64_t kSessionIdStride = uint64_t{1} << 20;
@@ -55,6 +72,7 @@ struct SessionMergeReport {
   size_t keyframes = 0;
   std::vector<LoopClosureInput> inter_session_loops;
   size_t loop_queries = 0;
+  size_t loops_inconsistent = 0;  ///< verified, then refused by the consistency test
   /// Observed buildings by the number of sessions that observed them (robot↔building edges).
   std::map<size_t, size_t> buildings_by_sessions;
   double add_ms = 0.0, loops_ms = 0.0, optimize_ms = 0.0, uncertainty_ms = 0.0;
