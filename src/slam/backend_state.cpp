@@ -156,13 +156,15 @@ bool BackendState::covered(const Eigen::Vector2d& position) const {
   return false;
 }
 
+void BackendState::holdVertex(int vid, std::vector<int>& fixed_now) {
+  if (graph.isFixed(vid)) return;
+  graph.setFixed(vid, true);
+  fixed_now.push_back(vid);
+}
+
 std::vector<int> BackendState::fixRobots() {
   std::vector<int> fixed_now;
-  auto fix = [&](int vid) {
-    if (graph.isFixed(vid)) return;
-    graph.setFixed(vid, true);
-    fixed_now.push_back(vid);
-  };
+  auto fix = [&](int vid) { holdVertex(vid, fixed_now); };
   for (const auto& [id, kf] : keyframes) fix(static_cast<int>(id));
   // The odometry's scale belongs to the trajectory: with every pose fixed it has nothing to do.
   for (const auto& [id, session] : sessions)
@@ -174,11 +176,7 @@ std::vector<int> BackendState::holdOutsideWindow(uint64_t window_start,
                                                  const OdometryEdgeParams& odometry,
                                                  const GnssParams& gnss) {
   std::vector<int> fixed_now;
-  auto hold = [&](int vid) {
-    if (graph.isFixed(vid)) return;
-    graph.setFixed(vid, true);
-    fixed_now.push_back(vid);
-  };
+  auto hold = [&](int vid) { holdVertex(vid, fixed_now); };
   for (auto it = keyframes.begin(); it != keyframes.end() && it->first < window_start; ++it)
     hold(static_cast<int>(it->first));
   // Scales and biases of windows that end before the first free keyframe touch only held poses:
@@ -217,11 +215,7 @@ std::vector<int> BackendState::holdOutsideTile(const std::set<uint64_t>& free_ke
                                                const OdometryEdgeParams& odometry,
                                                const GnssParams& gnss) {
   std::vector<int> fixed_now;
-  auto hold = [&](int vid) {
-    if (graph.isFixed(vid)) return;
-    graph.setFixed(vid, true);
-    fixed_now.push_back(vid);
-  };
+  auto hold = [&](int vid) { holdVertex(vid, fixed_now); };
   std::map<uint32_t, std::set<int>> free_scale, free_bias;
   for (const auto& [id, kf] : keyframes) {
     if (!free_keyframes.count(id)) {

@@ -136,6 +136,8 @@ struct BackendState {
   /// Whether an answered OSM query covers the position.
   bool covered(const Eigen::Vector2d& position) const;
 
+  /// Fixes a free vertex and notes it in fixed_now (to free again after an update).
+  void holdVertex(int vid, std::vector<int>& fixed_now);
   /// Fixes the keyframes and the odometry scales; returns the vertices it fixed.
   std::vector<int> fixRobots();
   /// Fixes the keyframes before window_start, the odometry scales and GNSS biases of windows

@@ -23,6 +23,7 @@
 #include "osm_graph_slam/slam/graph_dump.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "support/command_line.h"
+#include "support/pipeline_config.h"
 
 using namespace osm_graph_slam;
 using osm_graph_slam::tools::CommandLine;
@@ -127,10 +128,7 @@ int main(int argc, char** argv) {
 
   SlamPipelineParams params;
   std::string error;
-  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
-  if (!loadPipelineParams(config_dir,
-                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
-                          params, &error)) {
+  if (!tools::loadToolConfig(args, params, &error)) {
     std::cerr << "grid_map: " << error << "\n";
     return 1;
   }

@@ -18,6 +18,7 @@
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "osm_graph_slam/slam/session_merge.h"
 #include "support/command_line.h"
+#include "support/pipeline_config.h"
 
 using namespace osm_graph_slam;
 using osm_graph_slam::tools::CommandLine;
@@ -187,10 +188,7 @@ int main(int argc, char** argv) {
 
   SlamPipelineParams params;
   std::string error;
-  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
-  if (!loadPipelineParams(config_dir,
-                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
-                          params, &error)) {
+  if (!tools::loadToolConfig(args, params, &error)) {
     std::cerr << "merge_sessions: " << error << "\n";
     return 1;
   }

@@ -24,6 +24,7 @@
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "support/command_line.h"
 #include "support/gnss_option.h"
+#include "support/pipeline_config.h"
 
 using namespace osm_graph_slam;
 using osm_graph_slam::tools::addGnssUseOption;
@@ -131,11 +132,8 @@ int main(int argc, char** argv) {
 
   SlamPipelineParams params;
   std::string error;
-  const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
   const OverrideReader overrides(sets);
-  if (!loadPipelineParams(config_dir,
-                          args.count("config") ? args["config"] : config_dir + "/kitti.yaml",
-                          params, &error) ||
+  if (!tools::loadToolConfig(args, params, &error) ||
       !readParams(overrides, params.backend, &error)) {
     std::cerr << "replay_backend: " << error << "\n";
     return 1;
