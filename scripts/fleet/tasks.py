@@ -118,7 +118,8 @@ def run_merge(dump_folders, settings, tile_size=None):
     cmd = [ctx.tool("merge_sessions")]
     for d in dump_folders:
         cmd += ["--session", d]
-    cmd += ["--output", merged, "--json", summary_path]
+    # The drives' parameters: a back-end replayed with other ones is another back-end.
+    cmd += ["--output", merged, "--json", summary_path, "--config", settings.config]
     if tile_size is not None:
         cmd += ["--tile-size", str(tile_size)]
     code = ctx.run("merge", cmd, os.path.join(logs, "merge_sessions.log"), ok_codes=(0, MERGE_PARTIAL))
