@@ -8,6 +8,7 @@ those above it (and on drive_matrix's files, steps and tools):
     tasks.py        on a worker: one drive (simulate_urban, offline_slam --dump), the merge
     report.py       the progress line and the summary (text and fleet_summary.json)
     run.py          drives as tasks with retries, progress, then the merge task
+    consensus.py    fleet_consensus.py: the first N drives merged and scored against the truth
     cli.py          the options, main() and the exit status
 
 The drive matrix's --executor dask uses cluster.py too. Needs python3-distributed (Debian).
