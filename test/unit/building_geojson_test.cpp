@@ -13,7 +13,7 @@ TEST(BuildingGeoJson, RoundTripKeepsIdsTagsAndCoordinates) {
   a.outline_geo = {{49.01, 8.41}, {49.0101, 8.41}, {49.0101, 8.4102}, {49.01, 8.4102}};
   Building b;
   b.id = -42;  // a multipolygon relation
-  b.part = 2;   // its third outer ring
+  b.part = 2;  // its third outer ring
   b.outline_geo = {{49.02, 8.42}, {49.0201, 8.42}, {49.0201, 8.4201}};
   const BuildingFileResult r = parseBuildingsGeoJson(buildingsToGeoJson({a, b}));
   ASSERT_TRUE(r.ok) << r.error;
