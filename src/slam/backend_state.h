@@ -70,7 +70,7 @@ struct BackendState {
   };
   MapWeighting mapWeighting(const OsmPriorParams& p) const;
   int next_building_vertex = GraphBackend::kBuildingVertexBase;
-  /// What one session (a drive of a multi-session map; a single run is session 0) keeps of its
+  /// What one session (a drive of a multi-session map; a single run has session id 0) keeps of its
   /// own: its chain's newest keyframe, its GNSS bias and odometry scale windows, the GNSS gate's
   /// and the INS heading edges' last keyframes, its floor chain. Drives share buildings and the
   /// OSM datum, never a receiver's bias or an odometry's scale.
@@ -88,7 +88,7 @@ struct BackendState {
   };
   std::map<uint32_t, Session> sessions;
   std::map<uint32_t, double> session_start_yaw;  ///< known ENU yaw of a session's first keyframe
-  /// The session of a keyframe in the graph (session 0 when unknown).
+  /// The session of a keyframe in the graph (session id 0 when unknown).
   uint32_t sessionOf(uint64_t keyframe) const;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph
   std::vector<LoopClosureInput> loops;

@@ -32,7 +32,7 @@ class BuildingConstraints;
 struct KeyframeInput {
   uint64_t id = 0;
   /// The drive it belongs to in a multi-session map (slam/session_merge.h); a run of its own is
-  /// session 0. A session's keyframes form one odometry chain with its own GNSS bias and
+  /// session id 0. A session's keyframes form one odometry chain with its own GNSS bias and
   /// odometry scale; sessions are joined by loops and the buildings they share.
   uint32_t session = 0;
   double stamp = 0.0;
