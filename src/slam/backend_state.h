@@ -88,6 +88,9 @@ struct BackendState {
   };
   std::map<uint32_t, Session> sessions;
   std::map<uint32_t, double> session_start_yaw;  ///< known ENU yaw of a session's first keyframe
+  /// Sessions whose map poses are a guess (GraphBackend::setSessionUnplaced) until their first
+  /// loop to a placed session (GraphBackend::placeSession).
+  std::set<uint32_t> unplaced_sessions;
   /// The session of a keyframe in the graph (session id 0 when unknown).
   uint32_t sessionOf(uint64_t keyframe) const;
   std::vector<BuildingEdgeRecord> building_edges;  ///< robot<->building edges still in the graph

@@ -380,11 +380,14 @@ void GraphBackend::anchorSessionStart(const KeyframeInput& in, KeyframeState& kf
   const bool gnss_held = gnssPriors() && in.gnss_position.has_value();
   // Held (deviation 1e3: free) by the fixes that follow; a fix without GNSS priors holds it with
   // its deviation; no fix leaves it free for the loops and buildings to place.
-  const double xy_std = !gnss_held && in.gnss_position
+  // An unplaced session's start is a guess: held by nothing but its height and attitude until
+  // its first loop places it (placeSession).
+  const bool unplaced = s.unplaced_sessions.count(in.session) != 0;
+  const double xy_std = !gnss_held && in.gnss_position && !unplaced
                             ? in.gnss_std.value_or(params_.gnss.anchor_std_xy)
                             : kUnheldStd;
   const double z_std = gnss_held && gnssAltitude() ? kUnheldStd : kSessionStartStdZ;
-  const double yaw_std = start_yaw ? params_.gnss.gnss_first_yaw_std : M_PI;
+  const double yaw_std = start_yaw && !unplaced ? params_.gnss.gnss_first_yaw_std : M_PI;
   Matrix6d info = Matrix6d::Zero();
   info.diagonal() << 1.0 / (xy_std * xy_std), 1.0 / (xy_std * xy_std), 1.0 / (z_std * z_std),
       1.0 / (0.01 * 0.01), 1.0 / (0.01 * 0.01), 1.0 / (yaw_std * yaw_std);
@@ -482,6 +485,33 @@ void GraphBackend::placeAfterRestart(const LoopClosureInput& loop) {
                 std::to_string(loop.to_id) + ": moved " +
                 std::to_string(correction.translation().norm()) + " m");
   s.unplaced.reset();
+  s.dirty = true;
+}
+
+void GraphBackend::placeSession(const LoopClosureInput& loop) {
+  BackendState& s = *state_;
+  if (s.unplaced_sessions.empty()) return;
+  const uint32_t from = s.sessionOf(loop.from_id), to = s.sessionOf(loop.to_id);
+  const bool from_unplaced = s.unplaced_sessions.count(from) != 0;
+  const bool to_unplaced = s.unplaced_sessions.count(to) != 0;
+  if (from == to || from_unplaced == to_unplaced) return;
+  // The loop edge to -> from measures from's pose in to's frame: the unplaced side moves so that
+  // it holds exactly.
+  const uint32_t moving = from_unplaced ? from : to;
+  const Eigen::Isometry3d said = s.keyframes.at(loop.to_id).map_pose * loop.relative_pose;
+  const Eigen::Isometry3d correction =
+      from_unplaced ? said * s.keyframes.at(loop.from_id).map_pose.inverse()
+                    : s.keyframes.at(loop.from_id).map_pose * loop.relative_pose.inverse() *
+                          s.keyframes.at(loop.to_id).map_pose.inverse();
+  for (auto& [id, kf] : s.keyframes) {
+    if (kf.session != moving) continue;
+    kf.map_pose = correction * kf.map_pose;
+    s.graph.setVertexSE3(static_cast<int>(id), kf.map_pose);
+  }
+  s.unplaced_sessions.erase(moving);
+  logger_->info("session " + std::to_string(moving) + " placed in the map by loop " +
+                std::to_string(loop.from_id) + " -> " + std::to_string(loop.to_id) + ": moved " +
+                std::to_string(correction.translation().norm()) + " m");
   s.dirty = true;
 }
 
@@ -623,6 +653,7 @@ void GraphBackend::flushLoops(BackendUpdateReport& report) {
       continue;
     }
     placeAfterRestart(loop);
+    placeSession(loop);
     s.graph.addEdgeSE3(
         static_cast<int>(loop.to_id), static_cast<int>(loop.from_id), loop.relative_pose,
         loop.information,
@@ -953,6 +984,16 @@ void GraphBackend::setInitialHeading(double yaw) {
 void GraphBackend::setSessionHeading(uint32_t session, double yaw) {
   std::lock_guard<std::mutex> lock(state_mutex_);
   state_->session_start_yaw[session] = yaw;
+}
+
+void GraphBackend::setSessionUnplaced(uint32_t session) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  state_->unplaced_sessions.insert(session);
+}
+
+bool GraphBackend::sessionPlaced(uint32_t session) const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return state_->unplaced_sessions.count(session) == 0;
 }
 
 void GraphBackend::updateMapToOdom() {

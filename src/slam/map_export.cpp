@@ -218,6 +218,9 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
                                               scan_context ? *scan_context : ScanContextParams()),
                         write.path("map_package"), &error),
         error);
+  // The graph itself, so that mapping can resume on this map (slam/map_resume.h).
+  const MapExportResult graph = dumpGraph(backend, write.path("graph"));
+  write("graph", graph.success, graph.message);
   const std::string grid_note = writeGridMap(backend, keyframes, grid, write);
 
   result.success = write.finish();

@@ -51,6 +51,8 @@ void OsmAssociation::process(BackendState& s, BackendUpdateReport& report) const
 }
 
 bool OsmAssociation::ready(const BackendState& s, uint64_t id, KeyframeState& kf) const {
+  // Where an unplaced session is in the map is a guess; its keyframes wait until it is placed.
+  if (s.unplaced_sessions.count(kf.session)) return false;
   const bool old = s.latest_stamp - kf.stamp > params_.osm_max_wait;
   if (static_cast<int>(kf.segments.size()) < params_.min_keyframe_segments) {
     // Segments may still be on their way; give up once the keyframe is old.

@@ -53,50 +53,6 @@ void mergeIds(GraphDump& dump, uint32_t session) {
 
 }  // namespace
 
-std::vector<size_t> inconsistentLoops(const std::vector<LoopClosureInput>& loops,
-                                      const std::map<uint64_t, Eigen::Isometry3d>& poses,
-                                      const std::map<uint64_t, double>& stamps,
-                                      const SessionMergeParams& params) {
-  struct Offset {
-    std::pair<uint32_t, uint32_t> sessions;
-    double stamp;
-    Eigen::Vector2d offset;
-  };
-  std::vector<std::optional<Offset>> offsets;
-  for (const auto& l : loops) {
-    const auto from = poses.find(l.from_id), to = poses.find(l.to_id);
-    const auto stamp = stamps.find(l.from_id);
-    if (from == poses.end() || to == poses.end() || stamp == stamps.end()) {
-      offsets.emplace_back();
-      continue;
-    }
-    const Eigen::Vector3d said = (to->second * l.relative_pose).translation();
-    offsets.push_back(Offset{{SessionMerge::sessionOf(l.from_id), SessionMerge::sessionOf(l.to_id)},
-                             stamp->second,
-                             (said - from->second.translation()).head<2>()});
-  }
-  std::vector<size_t> refused;
-  for (size_t i = 0; i < offsets.size(); ++i) {
-    if (!offsets[i]) continue;
-    std::vector<double> dx, dy;
-    for (size_t j = 0; j < offsets.size(); ++j)
-      if (j != i && offsets[j] && offsets[j]->sessions == offsets[i]->sessions &&
-          std::abs(offsets[j]->stamp - offsets[i]->stamp) <= params.loop_consistency_window) {
-        dx.push_back(offsets[j]->offset.x());
-        dy.push_back(offsets[j]->offset.y());
-      }
-    if (static_cast<int>(dx.size()) < params.loop_consistency_min_neighbours) continue;
-    auto median = [](std::vector<double>& v) {
-      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-      return v[v.size() / 2];
-    };
-    const Eigen::Vector2d neighbours(median(dx), median(dy));
-    if ((offsets[i]->offset - neighbours).norm() > params.loop_consistency_distance)
-      refused.push_back(i);
-  }
-  return refused;
-}
-
 SessionMerge::SessionMerge(const GraphBackendParams& backend, const LoopDetectorParams& loops,
                            const SessionMergeParams& params, std::shared_ptr<const Logger> logger)
     : backend_params_(backend),
@@ -194,46 +150,30 @@ SessionMergeReport SessionMerge::merge() {
 }
 
 std::vector<LoopClosureInput> SessionMerge::findInterSessionLoops(SessionMergeReport& report) {
-  // The database holds the earlier sessions at path distance 0, each query comes at
-  // session_gap: every pair of sessions is searched with the radius and tolerances of that gap.
-  LoopDetector detector(
-      loop_params_, [this](LogLevel level, const std::string& msg) { logger_->log(level, msg); });
+  InterSessionLoopSearch search(loop_params_, params_.loop_search, logger_);
   std::map<uint64_t, Eigen::Isometry3d> poses;
   for (const auto& [id, pose] : backend_->keyframeMapPoses()) poses[id] = pose;
-  auto loopKeyframe = [&](const KeyframeInput& kf, double accum) {
-    LoopKeyframe lk;
-    lk.id = kf.id;
-    lk.odom_pose = poses.count(kf.id) ? poses.at(kf.id) : kf.odom_pose;
-    lk.accum_distance = accum;
-    lk.cloud = kf.cloud;
-    return lk;
-  };
   std::vector<LoopClosureInput> loops;
   for (size_t i = 0; i < sessions_.size(); ++i) {
     const auto& keyframes = sessions_[i].dump.keyframes;
     if (i > 0) {
       for (const auto& kf : keyframes) {
-        if (!kf.cloud || !poses.count(kf.id)) continue;
-        ++report.loop_queries;
-        const std::optional<DetectedLoop> loop =
-            detector.detect(loopKeyframe(kf, params_.session_gap));
+        if (!poses.count(kf.id)) continue;
+        std::optional<LoopClosureInput> loop = search.query(kf.id, poses.at(kf.id), kf.cloud);
         if (!loop) continue;
-        LoopClosureInput in;
-        in.from_id = loop->from_id;
-        in.to_id = loop->to_id;
-        in.relative_pose = loop->relative_pose;
-        in.information = loop->information;
-        loops.push_back(in);
+        loops.push_back(*loop);
         ++report.sessions[i].inter_session_loops;
       }
     }
     for (const auto& kf : keyframes)
-      if (kf.cloud && poses.count(kf.id)) detector.addKeyframe(loopKeyframe(kf, 0.0));
+      if (poses.count(kf.id)) search.addToDatabase(kf.id, poses.at(kf.id), kf.cloud);
   }
+  report.loop_queries = search.queries();
   std::map<uint64_t, double> stamps;
   for (const auto& session : sessions_)
     for (const auto& kf : session.dump.keyframes) stamps[kf.id] = kf.stamp;
-  const std::vector<size_t> refused = inconsistentLoops(loops, poses, stamps, params_);
+  const std::vector<size_t> refused =
+      inconsistentLoops(loops, poses, stamps, params_.loop_search, &SessionMerge::sessionOf);
   for (auto it = refused.rbegin(); it != refused.rend(); ++it) {
     --report.sessions[sessionOf(loops[*it].from_id)].inter_session_loops;
     loops.erase(loops.begin() + static_cast<std::ptrdiff_t>(*it));

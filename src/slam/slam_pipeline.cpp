@@ -54,9 +54,7 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
               params.backend.initial_yaw_known ? std::optional<double>(params.backend.initial_yaw)
                                                : std::nullopt,
               /*heading_from_imu=*/false, /*keep_fixes=*/true) {
-  GraphBackendParams backend = params.backend;
-  backend.use_osm = backend.use_osm && osm_source_ != nullptr;
-  backend_ = std::make_unique<GraphBackend>(backend, logger_);
+  backend_ = std::make_unique<GraphBackend>(backendParams(), logger_);
   if (params.loop.search_frame != "odometry" && params.loop.search_frame != "map")
     logger_->warn("loop search_frame '" + params.loop.search_frame +
                   "' unknown (odometry | map): searching around odometry poses");
@@ -69,12 +67,38 @@ SlamPipeline::SlamPipeline(const SlamPipelineParams& params,
 
 SlamPipeline::~SlamPipeline() = default;
 
+GraphBackendParams SlamPipeline::backendParams() const {
+  GraphBackendParams backend = params_.backend;
+  backend.use_osm = backend.use_osm && osm_source_ != nullptr;
+  return backend;
+}
+
 void SlamPipeline::setOrigin(double lat, double lon, double alt) {
   if (backend_->hasOrigin()) return;
   backend_->setOrigin(lat, lon, alt);
+  startOsmBuffer(EnuConverter(lat, lon, alt));
+}
+
+void SlamPipeline::startOsmBuffer(const EnuConverter& origin) {
   if (osm_source_ && backend_->params().use_osm)
-    osm_buffer_ =
-        std::make_unique<OsmBuffer>(osm_source_, EnuConverter(lat, lon, alt), params_.osm, logger_);
+    osm_buffer_ = std::make_unique<OsmBuffer>(osm_source_, origin, params_.osm, logger_);
+}
+
+bool SlamPipeline::resumeOn(const std::string& directory, const MapResumeParams& resume,
+                            const LocalizationParams& localization, std::string* error) {
+  // The saved map's first session keeps the heading it started with; this drive's known one
+  // (initial_yaw) is its own session's start.
+  GraphBackendParams params = backendParams();
+  params.initial_yaw_known = false;
+  auto backend = std::make_unique<GraphBackend>(params, logger_);
+  resume_ =
+      MapResume::load(directory, resume, localization, params_.loop, *backend, logger_, error);
+  if (!resume_) return false;
+  backend_ = std::move(backend);
+  if (params_.backend.initial_yaw_known)
+    backend_->setSessionHeading(resume_->session(), params_.backend.initial_yaw);
+  if (const auto origin = backend_->origin()) startOsmBuffer(*origin);
+  return true;
 }
 
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
@@ -141,7 +165,11 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     const std::string message = floor_health_.update(kf.id, floor);
     if (!message.empty()) logger_->warn(message);
   }
+  if (resume_) resume_->prepare(input, *backend_);  // the live session's ids from here on
+  const uint64_t graph_id = input.id;
   backend_->addKeyframe(input);
+  if (resume_)
+    for (const auto& loop : resume_->process(input, *backend_)) backend_->addLoopClosure(loop);
 
   std::vector<LineSegment2> segments;
   if (backend_->params().use_osm) {
@@ -153,12 +181,12 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     StageTimer t(timings_.segments_ms);
     segments = segments_.extract(*wall_points);
   }
-  backend_->addLineSegments(kf.id, std::move(segments));
+  backend_->addLineSegments(graph_id, std::move(segments));
 
   if (loops_) {
     StageTimer t(timings_.loops_ms);
     LoopKeyframe lk;
-    lk.id = kf.id;
+    lk.id = graph_id;
     // In the map frame the search follows the back-end's corrections of the odometry's drift.
     lk.odom_pose = loop_search_in_map_ ? backend_->mapToOdom() * kf.pose : kf.pose;
     lk.accum_distance = kf.accum_distance;
@@ -174,7 +202,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     }
   }
 
-  if (osm_buffer_ && backend_->numKeyframes() == 0) {
+  if (osm_buffer_ && (resume_ ? timings_.keyframes == 1 : backend_->numKeyframes() == 0)) {
     // map->odom holds the origin and the heading only once the first keyframe is in the graph:
     // until the first update the queries below would be made in the odometry frame.
     StageTimer t(timings_.backend_ms);

@@ -170,7 +170,7 @@ int main(int argc, char** argv) {
       .option("--session-gap", "M",
               "inter-session loop search: the path gap the drives' relative uncertainty "
               "stands for",
-              &merge_params.session_gap)
+              &merge_params.loop_search.session_gap)
       .flag("--no-inter-session-loops", "join the drives by their buildings only",
             &merge_params.inter_session_loops, false)
       .option("--tile-size", "M",

@@ -18,15 +18,18 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <thread>
 
 #include "osm_graph_slam/common/memory_tuning.h"
+#include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/drive_io/drive_source.h"
 #include "osm_graph_slam/io/building_geojson.h"
 #include "osm_graph_slam/io/kitti_bin.h"
@@ -80,6 +83,9 @@ void declareOptions(CommandLine& cli, Switches& sw) {
               "the first keyframe's heading: the first IMU orientation, or global matching "
               "against the prior with unbounded rotation")
       .defaultText("imu")
+      .option("--resume", "DIR",
+              "continue the map an earlier run saved in DIR (its --output): this drive becomes a "
+              "new session of it, placed by the global localiser or its GNSS fixes")
       .option("--dump", "DIR", "also dump the graph for replay_backend")
       .flag("--dump-without-clouds",
             "the dump without keyframes/*.pcd (replay_backend does not read them)", &sw.dump_clouds,
@@ -164,6 +170,36 @@ void noteSimulatedDrive(const std::map<std::string, std::string>& args) {
                  "own; its overrides are --config config/sim.yaml (using config/kitti.yaml)\n";
 }
 
+/// A fix of the drive's own ENU frame in the map's (they differ when resuming on a saved map).
+void moveFixToMap(const EnuConverter& drive, const EnuConverter& map, ScanAiding& aiding) {
+  if (drive.originLat() == map.originLat() && drive.originLon() == map.originLon() &&
+      drive.originAlt() == map.originAlt())
+    return;
+  const Eigen::Vector3d geo = drive.toGeodetic(Eigen::Vector3d(
+      aiding.gnss_position->x(), aiding.gnss_position->y(), aiding.gnss_altitude.value_or(0.0)));
+  const Eigen::Vector3d enu = map.toEnu(geo.x(), geo.y(), geo.z());
+  aiding.gnss_position = enu.head<2>();
+  if (aiding.gnss_altitude) aiding.gnss_altitude = enu.z();
+}
+
+std::string resumeJson(const MapResumeStatus& s) {
+  std::ostringstream o;
+  o << std::setprecision(10) << "{\"session\": " << s.session
+    << ", \"saved_keyframes\": " << s.saved_keyframes
+    << ", \"placed\": " << (s.placed ? "true" : "false")
+    << ", \"placed_by_gnss\": " << (s.placed_by_gnss ? "true" : "false")
+    << ", \"placed_at\": " << (s.placed_at ? std::to_string(*s.placed_at) : "null")
+    << ", \"placement\": [" << s.placement.translation().x() << ", "
+    << s.placement.translation().y() << ", " << s.placement.translation().z() << ", "
+    << planarPose(s.placement).theta << "], \"global_attempts\": " << s.global_attempts
+    << ", \"global_answers\": " << s.global_answers
+    << ", \"answers_disagreeing\": " << s.answers_disagreeing
+    << ", \"inter_session_loops\": " << s.inter_session_loops
+    << ", \"loops_inconsistent\": " << s.loops_inconsistent << ", \"replay_ms\": " << s.replay_ms
+    << ", \"global_ms\": " << s.global_ms << ", \"loops_ms\": " << s.loops_ms << "}";
+  return o.str();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -239,7 +275,14 @@ int main(int argc, char** argv) {
     return usage("--initial-heading takes imu or global_matching");
   }
   SlamPipeline pipeline(params, source);
-  pipeline.setOrigin(drive->lat, drive->lon, drive->alt);
+  if (args.count("resume") &&
+      !pipeline.resumeOn(args["resume"], MapResumeParams(), LocalizationParams(), &error)) {
+    std::cerr << "offline_slam: " << error << "\n";
+    return 1;
+  }
+  pipeline.setOrigin(drive->lat, drive->lon, drive->alt);  // a resumed map keeps its own
+  const EnuConverter drive_origin(drive->lat, drive->lon, drive->alt);
+  const EnuConverter map_origin = pipeline.backend().origin().value_or(drive_origin);
 
   const size_t n = std::min(drive->size(), sw.max_scans);
   std::map<double, Eigen::Isometry3d> truth_by_stamp;
@@ -271,6 +314,7 @@ int main(int argc, char** argv) {
     aiding.gnss_position = scan.gnss;
     aiding.gnss_std = scan.gnss_std;
     aiding.gnss_altitude = scan.gnss_altitude;
+    if (scan.gnss) moveFixToMap(drive_origin, map_origin, aiding);
     pipeline.processFiltered(scan.stamp, *scan.filtered, scan.prepare_ms, aiding);
     printProgress(i + 1, n);
   }
@@ -287,6 +331,10 @@ int main(int argc, char** argv) {
     if (!dumped.success) std::cerr << "offline_slam: dump failed: " << dumped.message << "\n";
   }
   writeRunFiles(pipeline, out, truth_by_stamp);
+  if (const MapResume* resume = pipeline.resume()) {
+    std::cout << "resumed: " << resume->status().text() << "\n";
+    writeFileAtomically(out + "/resume.json", resumeJson(resume->status()) + "\n");
+  }
   warnIfTrackLost(pipeline.timings().tracking);
   if (!json) std::cout << "saved: " << saved.message << "\n";  // files, and the grid's cost
   if (json) {

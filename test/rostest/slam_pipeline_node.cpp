@@ -599,7 +599,7 @@ TEST_F(SlamPipeline, SaveMapWritesFilesThatParse) {
   srv.request.resolution = 0.5;
   ASSERT_TRUE(ros::service::call(saveMapService(), srv));
   ASSERT_TRUE(srv.response.success) << srv.response.message;
-  EXPECT_EQ(srv.response.files.size(), 9u);  // with the localisation map package and map.pgm
+  EXPECT_EQ(srv.response.files.size(), 10u);  // with the map package, graph/ and map.pgm
   for (const auto& f : srv.response.files) EXPECT_TRUE(fs::exists(f)) << f;
   expectSavedGridIsThePublishedOne((out / "map.yaml").string());
 

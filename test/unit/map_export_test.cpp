@@ -111,7 +111,7 @@ TEST_F(ExportFixture, SaveMapWritesFilesThatParse) {
   const std::string dir = tempDir("save_map");
   const MapExportResult r = saveMap(*backend_, dir, 0.2);
   ASSERT_TRUE(r.success) << r.message;
-  EXPECT_EQ(r.files.size(), 9u);  // with map.pgm + map.yaml (grid_enabled)
+  EXPECT_EQ(r.files.size(), 10u);  // with graph/ and map.pgm + map.yaml (grid_enabled)
   for (const auto& f : r.files) EXPECT_TRUE(fs::exists(f)) << f;
   // The map package for localisation loads back with every keyframe.
   MapPackage package;
@@ -209,7 +209,7 @@ TEST_F(ExportFixture, ABadGridResolutionSkipsOnlyTheGridWithTheReason) {
   const std::string dir = tempDir("save_map_bad_grid");
   const MapExportResult r = saveMap(backend, dir, 0.2);
   ASSERT_TRUE(r.success) << r.message;
-  EXPECT_EQ(r.files.size(), 7u);
+  EXPECT_EQ(r.files.size(), 8u);
   EXPECT_FALSE(fs::exists(dir + "/map.pgm"));
   EXPECT_NE(r.message.find("no map.pgm: grid_resolution must be a finite number > 0"),
             std::string::npos)

@@ -311,7 +311,8 @@ TEST(SessionMerge, AnAliasedLoopIsRefusedByItsNeighboursBetweenTheSameDrives) {
   lone.to_id = mergedKeyframeId(2, 0);
   poses[lone.to_id] = poses[loops.front().to_id];
   loops.push_back(lone);
-  const std::vector<size_t> refused = inconsistentLoops(loops, poses, stamps, SessionMergeParams());
+  const std::vector<size_t> refused =
+      inconsistentLoops(loops, poses, stamps, InterSessionLoopParams(), &SessionMerge::sessionOf);
   ASSERT_EQ(refused.size(), 1u);
   EXPECT_EQ(refused.front(), 6u);
 }

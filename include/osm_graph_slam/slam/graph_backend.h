@@ -215,6 +215,13 @@ class GraphBackend {
   /// ENU yaw of the first keyframe of a session other than the first one (a multi-session map):
   /// it starts there, at its first GNSS fix. Call before that session's keyframes arrive.
   void setSessionHeading(uint32_t session, double yaw);
+  /// A session whose start is unknown in the map (resumed mapping before the global localiser
+  /// placed it, no GNSS): its keyframes are mapped on their own where odometry puts them from the
+  /// origin, are not matched with OSM buildings (the match would be a guess), and its first loop
+  /// to a placed session moves it there rigidly (placeSession). Call before its keyframes arrive.
+  void setSessionUnplaced(uint32_t session);
+  /// Whether the session is still waiting for that loop.
+  bool sessionPlaced(uint32_t session) const;
   void addKeyframe(KeyframeInput keyframe);
   void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
   /// The floor plane (a, b, c, d) under a keyframe's base_link (floor_detection).
@@ -323,6 +330,9 @@ class GraphBackend {
   void anchorFirstKeyframe(const KeyframeInput& in, KeyframeState& kf);
   /// The first keyframe of a further session: at its GNSS fix with its start heading, free.
   void anchorSessionStart(const KeyframeInput& in, KeyframeState& kf);
+  /// The first loop between an unplaced session and a placed one moves the unplaced session
+  /// rigidly to where the loop puts it (its odometry chain kept as it is).
+  void placeSession(const LoopClosureInput& loop);
   void linkToPrevious(const KeyframeInput& in, KeyframeState& kf, const KeyframeState& prev);
   void addKeyframePriors(const KeyframeInput& in, KeyframeState& kf);  ///< GNSS, gravity
   void dropOrphanSegments();

@@ -31,7 +31,8 @@ std::string buildingsToOsmXml(const std::vector<Building>& buildings);
 
 /// save_map: map.pcd, buildings_corrected.geojson, buildings_corrected.osm,
 /// trajectory_kitti.txt, trajectory_tum.txt, graph.g2o, map_package/ (localization/
-/// map_package.h: what offline_localization loads), its Scan Context descriptors made with
+/// map_package.h: what offline_localization loads), graph/ (dump_graph's folder: what resumed
+/// mapping replays, slam/map_resume.h), its Scan Context descriptors made with
 /// scan_context (default parameters when null), and with grid_enabled map.pgm + map.yaml
 /// (io/map_server_files.h): `grid` when given (the one the nodelet publishes), else one built from
 /// the keyframes with the back-end's grid parameters.

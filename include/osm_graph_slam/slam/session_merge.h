@@ -15,27 +15,16 @@
 #include "osm_graph_slam/loop/loop_detector.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/graph_dump.h"
+#include "osm_graph_slam/slam/inter_session_loops.h"
 
 namespace osm_graph_slam {
 
 struct SessionMergeParams {
   /// Keyframes between updates while the sessions are added (as the offline pipeline).
   int optimize_every = 10;
-  /// [m] two drives placed by their own fixes are as uncertain relative to each other as two
-  /// keyframes this far apart on one drive: the loop detector's search radius and odometry
-  /// tolerances (LoopDetectorParams *_per_meter) are taken at this path gap. 200 m: a 20 m
-  /// radius and 4 m / 0.09 rad tolerances, twice a consumer receiver's bias.
-  double session_gap = 200.0;
   /// Inter-session loop search (off: the sessions share only buildings and the datum).
   bool inter_session_loops = true;
-  /// [m] an inter-session loop is refused when where it puts its keyframe relative to the joint
-  /// map differs by more than this from what its neighbours (loops between the same two
-  /// sessions within loop_consistency_window seconds) say: the drives' relative placement
-  /// error changes slowly, an aliased match (a facade period along a straight street) jumps.
-  /// Measured: correct loops within 0.3 m of their neighbours, aliased ones 1.5 m (16 drives).
-  double loop_consistency_distance = 0.8;
-  double loop_consistency_window = 20.0;    ///< [s] of the newer session's keyframes
-  int loop_consistency_min_neighbours = 3;  ///< fewer: the loop is kept (nothing to judge by)
+  InterSessionLoopParams loop_search;
   /// The buildings' marginal deviations after the merge (GraphBackend::
   /// estimateBuildingUncertainty): each corrected building says how sure the map is of it.
   bool building_uncertainty = true;
@@ -43,15 +32,6 @@ struct SessionMergeParams {
   /// tile size 0: joint.
   TileSolveParams tiles{0.0};
 };
-
-/// Indices of the loops whose offset from the map (where the loop puts its `from` keyframe
-/// minus where `poses` has it) differs by more than loop_consistency_distance from the median
-/// offset of the other loops between the same sessions within loop_consistency_window seconds
-/// (`stamps` of the `from` keyframes).
-std::vector<size_t> inconsistentLoops(const std::vector<LoopClosureInput>& loops,
-                                      const std::map<uint64_t, Eigen::Isometry3d>& poses,
-                                      const std::map<uint64_t, double>& stamps,
-                                      const SessionMergeParams& params);
 
 /// The merged id of keyframe `id` of session `session` (ids of a session stay below the stride).
 constexpr uint64_t kSessionIdStride = uint64_t{1} << 20;

@@ -16,6 +16,7 @@
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/keyframe_input.h"
+#include "osm_graph_slam/slam/map_resume.h"
 
 namespace osm_graph_slam {
 
@@ -67,6 +68,14 @@ class SlamPipeline {
 
   /// The first valid GPS fix: the map origin. Needed before OSM buildings can be used.
   void setOrigin(double lat, double lon, double alt);
+  /// Continues the map save_map wrote in `directory` (slam/map_resume.h): its graph is replayed
+  /// and this drive becomes a new session of it, in its frame (its origin replaces setOrigin's;
+  /// the drive's start heading, when known, is the session's). Call before the first scan.
+  /// False with the reason; the pipeline then maps on its own as before.
+  bool resumeOn(const std::string& directory, const MapResumeParams& resume,
+                const LocalizationParams& localization, std::string* error);
+  /// Where the resumed session stands (null without resumeOn).
+  const MapResume* resume() const { return resume_.get(); }
   /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter) with what the
   /// other sensors say at its time. Bad scans are reported and skipped; returns true if the scan
   /// produced a pose.
@@ -93,6 +102,8 @@ class SlamPipeline {
   std::string timingJson() const;
 
  private:
+  GraphBackendParams backendParams() const;
+  void startOsmBuffer(const EnuConverter& origin);
   /// "odometry scale: ..." (empty when the scale is not estimated).
   std::string scaleLine() const;
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
@@ -117,6 +128,7 @@ class SlamPipeline {
   std::unique_ptr<LoopDetector> loops_;
   std::unique_ptr<OsmBuffer> osm_buffer_;
   std::unique_ptr<GraphBackend> backend_;
+  std::unique_ptr<MapResume> resume_;
   KeyframeAiding aiding_;
   PipelineTimings timings_;
   size_t keyframes_since_update_ = 0;

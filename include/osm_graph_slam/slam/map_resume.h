@@ -1,0 +1,113 @@
+#pragma once
+// Mapping resumed on a saved map. The saved map's graph (save_map's graph/, a dump_graph folder)
+// is replayed into the back-end as its first sessions; the live drive becomes one more session
+// (slam/session_merge.h's ids and sessions). Without a GNSS fix the live session is unplaced: it
+// maps on its own and is matched with no OSM building until the global localiser (the saved
+// map_package/, localization/localizer.h) has placed two of its keyframes consistently with
+// odometry. Those two answers become loops to the saved keyframes, which move the session into
+// the map (GraphBackend::setSessionUnplaced). From then on every keyframe is searched against
+// the saved keyframes (slam/inter_session_loops.h), as merge_sessions searches drives.
+// doc/resume_mapping.md describes the data flow and the measurements.
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/localization/localizer.h"
+#include "osm_graph_slam/slam/graph_backend.h"
+#include "osm_graph_slam/slam/inter_session_loops.h"
+
+namespace osm_graph_slam {
+
+struct MapResumeParams {
+  /// Global answers that must agree (each pair's relative pose with odometry's) before the
+  /// session is placed: one answer can be an aliased place, two that agree with the motion
+  /// between them are not.
+  int placement_answers = 2;
+  /// [m] how far two answers' relative translation may differ from odometry's: this plus
+  /// placement_tolerance_per_meter of the path between them (odometry drifts with it).
+  double placement_tolerance = 0.5;
+  double placement_tolerance_per_meter = 0.02;
+  double placement_tolerance_yaw = 0.035;  ///< [rad] 2 deg
+  /// How many recent answers a new one is compared with.
+  int placement_memory = 6;
+  /// Deviations of the loops that tie a placed keyframe to the saved one it was registered to.
+  double placement_std_xy = 0.1;    ///< [m]
+  double placement_std_yaw = 0.01;  ///< [rad]
+  InterSessionLoopParams loop_search;
+};
+
+struct MapResumeStatus {
+  uint32_t session = 0;        ///< the live session's id
+  size_t saved_keyframes = 0;  ///< replayed from the saved map
+  size_t saved_sessions = 0;
+  bool placed = false;
+  bool placed_by_gnss = false;        ///< the live session had fixes: GNSS placed it
+  std::optional<uint64_t> placed_at;  ///< the keyframe (graph id) whose answer placed it
+  Eigen::Isometry3d placement = Eigen::Isometry3d::Identity();  ///< its map pose then
+  size_t global_attempts = 0, global_answers = 0;
+  size_t answers_disagreeing = 0;  ///< answers that agreed with no earlier one
+  size_t inter_session_loops = 0, loops_inconsistent = 0;
+  double replay_ms = 0.0, global_ms = 0.0, loops_ms = 0.0;
+  /// One line for logs and reports ("placed at keyframe ... after N attempts" or "not placed").
+  std::string text() const;
+};
+
+class MapResume {
+ public:
+  /// Loads save_map's folder `directory` (map_package/ and graph/) and replays its graph into
+  /// `backend`, which must be empty. Null with the reason (a missing or damaged folder, another
+  /// package version, a backend that already has keyframes); the backend is then untouched.
+  static std::unique_ptr<MapResume> load(const std::string& directory,
+                                         const MapResumeParams& params,
+                                         const LocalizationParams& localization,
+                                         const LoopDetectorParams& loops, GraphBackend& backend,
+                                         std::shared_ptr<const Logger> logger, std::string* error);
+  ~MapResume();
+
+  uint32_t session() const { return status_.session; }
+  /// The graph id of the live session's keyframe `live_id` (the tracker's id).
+  uint64_t graphId(uint64_t live_id) const;
+
+  /// Renumbers a live keyframe into the live session; the first one decides whether the session
+  /// waits for the localiser (no GNSS fix) and tells the back-end so. Call before addKeyframe.
+  void prepare(KeyframeInput& keyframe, GraphBackend& backend);
+  /// After the keyframe went to the back-end: the loops it gives (placement ties, then
+  /// inter-session loops) for backend.addLoopClosure.
+  std::vector<LoopClosureInput> process(const KeyframeInput& keyframe, const GraphBackend& backend);
+
+  const MapResumeStatus& status() const { return status_; }
+
+ private:
+  struct Answer {
+    uint64_t keyframe;
+    Eigen::Isometry3d odom_pose, map_pose;
+    double accum_distance;
+    uint64_t saved_keyframe;
+  };
+  MapResume(const MapResumeParams& params, std::shared_ptr<const Logger> logger);
+  std::vector<LoopClosureInput> tryToPlace(const KeyframeInput& keyframe);
+  bool agree(const Answer& a, const Answer& b) const;
+  LoopClosureInput tie(const Answer& answer) const;
+  std::optional<LoopClosureInput> searchSavedMap(const KeyframeInput& keyframe,
+                                                 const Eigen::Isometry3d& map_pose);
+
+  MapResumeParams params_;
+  std::shared_ptr<const Logger> logger_;
+  std::shared_ptr<const MapPackage> package_;
+  std::unique_ptr<Localizer> localizer_;
+  std::unique_ptr<InterSessionLoopSearch> search_;
+  std::vector<Answer> answers_;
+  /// map -> odom of the live session from its placement, until the back-end has applied it.
+  Eigen::Isometry3d placed_map_to_odom_ = Eigen::Isometry3d::Identity();
+  std::vector<LoopClosureInput> loops_;                ///< inter-session loops kept so far
+  std::map<uint64_t, Eigen::Isometry3d> saved_poses_;  ///< saved keyframes after the replay
+  std::map<uint64_t, Eigen::Isometry3d> loop_poses_;   ///< map poses their keyframes had
+  std::map<uint64_t, double> loop_stamps_;
+  MapResumeStatus status_;
+  bool first_keyframe_ = true;
+};
+
+}  // namespace osm_graph_slam
