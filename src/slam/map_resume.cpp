@@ -50,8 +50,9 @@ std::string MapResumeStatus::text() const {
   else
     std::snprintf(line, sizeof(line),
                   "session %u not placed on the saved map yet (%zu global attempts, %zu answers, "
-                  "%zu disagreeing with odometry): mapped on its own",
-                  session, global_attempts, global_answers, answers_disagreeing);
+                  "%zu disagreeing with odometry, %zu agreeing but unconfirmed): mapped on its own",
+                  session, global_attempts, global_answers, answers_disagreeing,
+                  placements_unconfirmed);
   return line;
 }
 
@@ -144,7 +145,7 @@ void MapResume::prepare(KeyframeInput& keyframe, GraphBackend& backend) {
 std::vector<LoopClosureInput> MapResume::process(const KeyframeInput& keyframe,
                                                  const GraphBackend& backend) {
   if (!keyframe.cloud || keyframe.cloud->empty()) return {};
-  if (!status_.placed) return tryToPlace(keyframe);
+  if (!status_.placed) return candidate_ ? confirmCandidate(keyframe) : tryToPlace(keyframe);
   const Eigen::Isometry3d map_to_odom =
       backend.sessionPlaced(status_.session) ? backend.mapToOdom() : placed_map_to_odom_;
   std::optional<LoopClosureInput> loop = searchSavedMap(keyframe, map_to_odom * keyframe.odom_pose);
@@ -172,25 +173,62 @@ std::vector<LoopClosureInput> MapResume::tryToPlace(const KeyframeInput& keyfram
       answers_.erase(answers_.begin());
     return {};
   }
+  candidate_ = Candidate{{answer}, 0};
+  candidate_->answers.insert(candidate_->answers.end(), agreeing.begin(), agreeing.end());
+  answers_.clear();
+  return {};
+}
+
+std::vector<LoopClosureInput> MapResume::confirmCandidate(const KeyframeInput& keyframe) {
+  const Answer& newest = candidate_->answers.front();
+  const Eigen::Isometry3d map_to_odom = newest.map_pose * newest.odom_pose.inverse();
+  const Eigen::Isometry3d predicted = map_to_odom * keyframe.odom_pose;
+  const auto t0 = Clock::now();
+  std::optional<LoopClosureInput> loop = search_->query(keyframe.id, predicted, keyframe.cloud);
+  status_.loops_ms += msSince(t0);
+  const bool confirmed = loop && saved_poses_.count(loop->to_id) &&
+                         samePlace(saved_poses_.at(loop->to_id) * loop->relative_pose, predicted,
+                                   std::abs(keyframe.accum_distance - newest.accum_distance));
+  if (!confirmed) {
+    if (++candidate_->keyframes_searched >= std::max(1, params_.placement_confirm_within)) {
+      ++status_.placements_unconfirmed;
+      logger_->info("session " + std::to_string(status_.session) +
+                    ": agreeing global answers not confirmed by an inter-session loop within " +
+                    std::to_string(params_.placement_confirm_within) +
+                    " keyframes; searching again");
+      candidate_.reset();
+    }
+    return {};
+  }
   status_.placed = true;
-  status_.placed_at = keyframe.id;
-  status_.placement = answer.map_pose;
-  placed_map_to_odom_ = answer.map_pose * answer.odom_pose.inverse();
-  std::vector<LoopClosureInput> ties{tie(answer)};
-  for (const auto& a : agreeing) ties.push_back(tie(a));
+  status_.placed_at = newest.keyframe;
+  status_.placement = newest.map_pose;
+  placed_map_to_odom_ = map_to_odom;
+  std::vector<LoopClosureInput> loops;
+  for (const auto& a : candidate_->answers) loops.push_back(tie(a));
+  candidate_.reset();
+  loops_.push_back(*loop);
+  loop_poses_[keyframe.id] = predicted;
+  loop_poses_[loop->to_id] = saved_poses_.at(loop->to_id);
+  loop_stamps_[keyframe.id] = keyframe.stamp;
+  ++status_.inter_session_loops;
+  loops.push_back(*loop);
   logger_->info(status_.text());
-  return ties;
+  return loops;
+}
+
+bool MapResume::samePlace(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                          double path) const {
+  const double tolerance =
+      params_.placement_tolerance + params_.placement_tolerance_per_meter * path;
+  return (a.translation() - b.translation()).norm() <= tolerance &&
+         std::abs(planarPose(a.inverse() * b).theta) <= params_.placement_tolerance_yaw;
 }
 
 bool MapResume::agree(const Answer& a, const Answer& b) const {
-  const Eigen::Isometry3d by_map = b.map_pose.inverse() * a.map_pose;
-  const Eigen::Isometry3d by_odometry = b.odom_pose.inverse() * a.odom_pose;
-  const double path = std::abs(a.accum_distance - b.accum_distance);
-  const double tolerance =
-      params_.placement_tolerance + params_.placement_tolerance_per_meter * path;
-  const double yaw = std::abs(planarPose(by_odometry.inverse() * by_map).theta);
-  return (by_map.translation() - by_odometry.translation()).norm() <= tolerance &&
-         yaw <= params_.placement_tolerance_yaw;
+  // b's answer carried to a by odometry against a's own answer.
+  return samePlace(b.map_pose * b.odom_pose.inverse() * a.odom_pose, a.map_pose,
+                   std::abs(a.accum_distance - b.accum_distance));
 }
 
 LoopClosureInput MapResume::tie(const Answer& answer) const {

@@ -194,6 +194,7 @@ std::string resumeJson(const MapResumeStatus& s) {
     << planarPose(s.placement).theta << "], \"global_attempts\": " << s.global_attempts
     << ", \"global_answers\": " << s.global_answers
     << ", \"answers_disagreeing\": " << s.answers_disagreeing
+    << ", \"placements_unconfirmed\": " << s.placements_unconfirmed
     << ", \"inter_session_loops\": " << s.inter_session_loops
     << ", \"loops_inconsistent\": " << s.loops_inconsistent << ", \"replay_ms\": " << s.replay_ms
     << ", \"global_ms\": " << s.global_ms << ", \"loops_ms\": " << s.loops_ms << "}";

@@ -6,13 +6,16 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
+#include <vector>
 
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/building_geojson.h"
@@ -62,6 +65,70 @@ fs::path unpack(const std::string& drive, std::string* why) {
 nlohmann::json readJson(const fs::path& path) {
   std::ifstream in(path);
   return nlohmann::json::parse(in, nullptr, false);
+}
+
+/// The scans of one parity (0: even, 1: odd) from scan `first` on, linked into a folder of their
+/// own.
+fs::path halfOfScans(const fs::path& scans, int parity, int first, const std::string& name) {
+  const fs::path half = kTmp / name;
+  fs::create_directories(half);
+  for (const auto& f : fs::directory_iterator(scans)) {
+    const int index = std::stoi(f.path().stem().string());
+    if (index % 2 == parity && index >= first && !fs::exists(half / f.path().filename()))
+      fs::create_symlink(f.path(), half / f.path().filename());
+  }
+  return half;
+}
+
+/// offline_slam on a folder of drive 0005's scans at 5 Hz, with its prior; `extra`: more flags.
+int mapScans0005(const fs::path& scans, const fs::path& output, const std::string& extra,
+                 std::string* log) {
+  return run("'" + tool("offline_slam") + "' --scans '" + scans.string() +
+                 "' --rate 5 --origin-oxts '" +
+                 test::sharedDataPath("kitti_raw_0005/oxts_frame0.txt") + "' --calib '" +
+                 test::sharedDataPath("kitti_raw_0005/calib_2011_09_26.txt") + "' --osm '" +
+                 test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm") + "' --output '" +
+                 output.string() + "' " + extra,
+             log);
+}
+
+/// TUM rows (stamp x y z qx qy qz qw) of a trajectory file.
+std::vector<std::array<double, 8>> readTum(const fs::path& path) {
+  std::vector<std::array<double, 8>> rows;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ss(line);
+    std::array<double, 8> r{};
+    for (double& v : r) ss >> v;
+    if (ss) rows.push_back(r);
+  }
+  return rows;
+}
+
+/// The pose of a TUM trajectory at `stamp` (linear in position, spherical in rotation).
+std::optional<Eigen::Isometry3d> poseAt(const std::vector<std::array<double, 8>>& rows,
+                                        double stamp) {
+  for (size_t i = 1; i < rows.size(); ++i) {
+    if (rows[i][0] < stamp || rows[i - 1][0] > stamp) continue;
+    const double a = (stamp - rows[i - 1][0]) / std::max(rows[i][0] - rows[i - 1][0], 1e-9);
+    const Eigen::Quaterniond q0(rows[i - 1][7], rows[i - 1][4], rows[i - 1][5], rows[i - 1][6]);
+    const Eigen::Quaterniond q1(rows[i][7], rows[i][4], rows[i][5], rows[i][6]);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = q0.slerp(a, q1).toRotationMatrix();
+    for (int k = 0; k < 3; ++k)
+      pose.translation()[k] = (1 - a) * rows[i - 1][1 + k] + a * rows[i][1 + k];
+    return pose;
+  }
+  return std::nullopt;
+}
+
+Eigen::Isometry3d tumPose(const std::array<double, 8>& r) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::Quaterniond(r[7], r[4], r[5], r[6]).toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(r[1], r[2], r[3]);
+  return pose;
 }
 
 class RealDrive : public ::testing::Test {
@@ -290,19 +357,10 @@ TEST_F(RealDrive, Kitti0005EvenAndOddScansMergeIntoOneMap) {
       "'" + tool("merge_sessions") + "' --output '" + (kTmp / "merged").string() + "'";
   for (int parity : {0, 1}) {
     const std::string name = parity == 0 ? "even" : "odd";
-    const fs::path half = kTmp / ("scans_" + name);
-    fs::create_directories(half);
-    for (const auto& f : fs::directory_iterator(scans))
-      if (std::stoi(f.path().stem().string()) % 2 == parity)
-        fs::create_symlink(f.path(), half / f.path().filename());
-    ASSERT_EQ(run("'" + tool("offline_slam") + "' --scans '" + half.string() +
-                      "' --rate 5 --origin-oxts '" +
-                      test::sharedDataPath("kitti_raw_0005/oxts_frame0.txt") + "' --calib '" +
-                      test::sharedDataPath("kitti_raw_0005/calib_2011_09_26.txt") + "' --osm '" +
-                      osm + "' --output '" + (kTmp / name).string() + "' --dump '" +
-                      (kTmp / name / "dump").string() + "'",
-                  &log),
-              0)
+    const fs::path half = halfOfScans(scans, parity, 0, "scans_" + name);
+    ASSERT_EQ(
+        mapScans0005(half, kTmp / name, "--dump '" + (kTmp / name / "dump").string() + "'", &log),
+        0)
         << log;
     merge += " --session '" + (kTmp / name / "dump").string() + "'";
   }
@@ -331,5 +389,127 @@ TEST_F(RealDrive, Kitti0005EvenAndOddScansMergeIntoOneMap) {
               << walls["observed_buildings"] << " buildings\n";
     EXPECT_LT(walls["corrected_median_m"].get<double>(), 0.24) << "the single run's walls";
     EXPECT_GE(walls["observed_buildings"].get<size_t>(), 15u);
+  }
+}
+
+// Mapping resumed on a saved map, on real scans: the odd scans from scan 41 on (a start 4 s into
+// the drive, with no fix: --gnss origin) continue the map of the even scans. The global localiser
+// must place the session, inter-session loops join it along the street, and every live keyframe
+// ends where the saved session was at the same time (scan 41 + 2j is 4.1 s after the saved
+// scans' clock at the live scan j's stamp: both folders are read at 5 Hz from stamp 1).
+TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
+  std::string why;
+  const fs::path scans = unpack("kitti_raw_0005", &why);
+  if (scans.empty()) GTEST_SKIP() << why;
+  OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
+  std::string log;
+  const fs::path saved = kTmp / "resume_saved";
+  ASSERT_EQ(mapScans0005(halfOfScans(scans, 0, 0, "resume_even"), saved, "", &log), 0) << log;
+  const fs::path resumed = kTmp / "resumed";
+  ASSERT_EQ(mapScans0005(halfOfScans(scans, 1, 41, "resume_odd_late"), resumed,
+                         "--gnss origin --resume '" + saved.string() + "'", &log),
+            0)
+      << log;
+  const nlohmann::json status = readJson(resumed / "resume.json");
+  ASSERT_FALSE(status.is_discarded()) << log;
+  ASSERT_TRUE(status["placed"].get<bool>()) << log;
+  EXPECT_FALSE(status["placed_by_gnss"].get<bool>());
+  const auto merged = readTum(resumed / "trajectory_tum.txt");
+  const size_t saved_count = status["saved_keyframes"].get<size_t>();
+  ASSERT_GT(merged.size(), saved_count + 10);
+  const std::vector<std::array<double, 8>> saved_rows(merged.begin(), merged.begin() + saved_count);
+  const size_t live = merged.size() - saved_count;
+  const size_t placed_at = status["placed_at"].get<size_t>() % (size_t{1} << 20);
+  std::cout << "[real_drive] resumed: " << live << " live keyframes, placed at the "
+            << placed_at + 1 << ". after " << status["global_attempts"] << " attempts, "
+            << status["inter_session_loops"] << " inter-session loops\n";
+  EXPECT_LE(placed_at, 3u);
+  EXPECT_GE(status["inter_session_loops"].get<size_t>(), (live - placed_at - 1) * 8 / 10);
+  EXPECT_EQ(status["loops_inconsistent"].get<size_t>(), 0u);
+
+  constexpr double kClockOffset = 4.1;
+  // Where the localiser put the placing keyframe, against the saved session at its time.
+  const auto placement_row = merged[saved_count + placed_at];
+  const std::vector<double> p = status["placement"].get<std::vector<double>>();
+  const auto there = poseAt(saved_rows, placement_row[0] + kClockOffset);
+  ASSERT_TRUE(there.has_value());
+  const double placement_error =
+      (Eigen::Vector2d(p[0], p[1]) - there->translation().head<2>()).norm();
+  const double placement_yaw = std::abs(
+      std::remainder(p[3] - std::atan2(there->linear()(1, 0), there->linear()(0, 0)), 2.0 * M_PI));
+  std::vector<double> errors, yaws;
+  for (size_t k = saved_count; k < merged.size(); ++k) {
+    const auto at = poseAt(saved_rows, merged[k][0] + kClockOffset);
+    if (!at) continue;
+    const Eigen::Isometry3d d = at->inverse() * tumPose(merged[k]);
+    errors.push_back(d.translation().head<2>().norm());
+    yaws.push_back(std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0))));
+  }
+  ASSERT_GE(errors.size(), live - 2);
+  std::sort(errors.begin(), errors.end());
+  std::cout << "[real_drive] placement " << placement_error << " m, " << placement_yaw * 180 / M_PI
+            << " deg; live keyframes against the saved session: median "
+            << errors[errors.size() / 2] << " m, worst " << errors.back() << " m, yaw worst "
+            << *std::max_element(yaws.begin(), yaws.end()) * 180 / M_PI << " deg\n";
+  EXPECT_LT(placement_error, 0.5);
+  EXPECT_LT(placement_yaw, 2.0 * M_PI / 180.0);
+  EXPECT_LT(errors[errors.size() / 2], 0.10);  // measured 0.024 m
+  EXPECT_LT(errors.back(), 0.30);              // measured 0.083 m
+  EXPECT_LT(*std::max_element(yaws.begin(), yaws.end()), 1.0 * M_PI / 180.0);
+
+  // A drive elsewhere (0048, another street of Karlsruhe) on the same map: never placed, mapped
+  // on its own, no loop to the saved map.
+  const fs::path other = unpack("kitti_raw_0048", &why);
+  if (other.empty()) return;
+  ASSERT_EQ(run("'" + tool("offline_slam") + "' --scans '" + other.string() +
+                    "' --origin 49.0,8.4,110,0 --calib '" +
+                    test::sharedDataPath("kitti_raw_0048/calib_2011_09_26.txt") +
+                    "' --no-osm --gnss origin --resume '" + saved.string() + "' --output '" +
+                    (kTmp / "resumed_elsewhere").string() + "'",
+                &log),
+            0)
+      << log;
+  const nlohmann::json elsewhere = readJson(kTmp / "resumed_elsewhere" / "resume.json");
+  ASSERT_FALSE(elsewhere.is_discarded()) << log;
+  EXPECT_FALSE(elsewhere["placed"].get<bool>()) << log;
+  EXPECT_EQ(elsewhere["inter_session_loops"].get<size_t>(), 0u);
+  EXPECT_GT(elsewhere["global_attempts"].get<size_t>(), 0u);
+  EXPECT_GT(readTum(kTmp / "resumed_elsewhere" / "trajectory_tum.txt").size(),
+            elsewhere["saved_keyframes"].get<size_t>());
+}
+
+// A folder that is not a saved map, a map without its graph or of another package version: one
+// clear error naming what is wrong, and nothing written.
+TEST_F(RealDrive, ResumingOnABadMapIsAClearError) {
+  std::string why;
+  const fs::path scans = unpack("kitti_raw_0005", &why);
+  if (scans.empty()) GTEST_SKIP() << why;
+  std::string log;
+  const fs::path good = kTmp / "small_map";
+  ASSERT_EQ(mapScans0005(scans, good, "--max-scans 12", &log), 0) << log;
+  const fs::path no_graph = kTmp / "map_without_graph", old_version = kTmp / "map_version_0";
+  for (const fs::path& copy : {no_graph, old_version})
+    fs::copy(good, copy, fs::copy_options::recursive);
+  fs::remove_all(no_graph / "graph");
+  {
+    std::ifstream in(old_version / "map_package" / "map.yaml");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string yaml = text.str();
+    const size_t at = yaml.find("version: 1");
+    ASSERT_NE(at, std::string::npos) << yaml;
+    yaml.replace(at, 10, "version: 0");
+    std::ofstream(old_version / "map_package" / "map.yaml") << yaml;
+  }
+  fs::create_directories(kTmp / "not_a_map");
+  const std::vector<std::pair<fs::path, std::string>> cases = {
+      {kTmp / "not_a_map", "map_package"}, {no_graph, "graph"}, {old_version, "version"}};
+  for (const auto& [map, named] : cases) {
+    const fs::path out = kTmp / "bad_resume";
+    EXPECT_EQ(mapScans0005(scans, out, "--max-scans 12 --resume '" + map.string() + "'", &log), 1)
+        << log;
+    EXPECT_NE(log.find("cannot resume on"), std::string::npos) << log;
+    EXPECT_NE(log.find(named), std::string::npos) << log;
+    EXPECT_FALSE(fs::exists(out / "trajectory_tum.txt"));
   }
 }
