@@ -1,7 +1,9 @@
 // GraphBackendNodelet: keyframes, wall segments, OSM buildings and loop closures -> GraphBackend
 // (slam/), optimised on its own thread every optimization_period (or optimize_every_keyframes);
 // publishes the corrected pose, path, buildings, markers, map cloud, the occupancy grid and TF
-// map -> odom; services save_map and dump_graph.
+// map -> odom; services save_map and dump_graph. With ~resume_map the saved map's graph is loaded
+// first and this drive is a new session of it (slam/map_resume.h), placed on the optimisation
+// thread.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/OccupancyGrid.h>
@@ -12,6 +14,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/String.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -46,6 +49,7 @@
 #include "osm_graph_slam/slam/grid_map.h"
 #include "osm_graph_slam/slam/keyframe_input.h"
 #include "osm_graph_slam/slam/map_export.h"
+#include "osm_graph_slam/slam/map_resume.h"
 #include "osm_graph_slam/slam/optimization_schedule.h"
 #include "osm_graph_slam/slam/params_io.h"
 
@@ -79,6 +83,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         /*heading_from_imu=*/true, /*keep_fixes=*/params.gnss.gnss_prior_std > 0.0);
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
+    if (!node_params_.resume_map.empty()) resumeOn(node_params_.resume_map, logger);
 
     pose_pub_ = nh.advertise<geometry_msgs::PoseStamped>("slam/pose", 10);
     path_pub_ = nh.advertise<nav_msgs::Path>("slam/path", 1, true);
@@ -94,6 +99,57 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                  params.use_osm ? "on" : "off", toString(params.mode), scheduleText().c_str(),
                  node_params_.map_frame.c_str(), node_params_.odom_frame.c_str(),
                  node_params_.base_link_frame.c_str());
+  }
+
+  /// The saved map's graph goes in first; its origin is the map's. A map that cannot be loaded is
+  /// an error said once, and this drive is mapped on its own.
+  void resumeOn(const std::string& directory, const std::shared_ptr<const Logger>& logger) {
+    std::string error;
+    resume_ = MapResume::load(directory, MapResumeParams(), LocalizationParams(),
+                              LoopDetectorParams(), *backend_, logger, &error);
+    if (!resume_) {
+      NODELET_ERROR("graph_backend: %s; mapping without it", error.c_str());
+      return;
+    }
+    if (const auto origin = backend_->origin()) {
+      origin_ = *origin;
+      aiding_->sensors().setOrigin(origin->originLat(), origin->originLon(), origin->originAlt());
+    }
+    NODELET_INFO(
+        "graph_backend: resuming on %s (%zu keyframes of %zu session(s)); this drive is "
+        "session %u",
+        directory.c_str(), resume_->status().saved_keyframes, resume_->status().saved_sessions,
+        resume_->session());
+    resume_pub_ = getNodeHandle().advertise<std_msgs::String>("slam/resume_status", 1, true);
+    publishResumeStatus();
+  }
+
+  /// slam/resume_status (latched): the session's state, whenever it changes.
+  void publishResumeStatus() {
+    std_msgs::String msg;
+    msg.data = resume_->status().text();
+    if (msg.data == last_resume_status_) return;
+    last_resume_status_ = msg.data;
+    resume_pub_.publish(msg);
+  }
+
+  /// Live keyframe ids of a resumed map are the live session's in the graph.
+  uint64_t graphId(uint64_t id) const { return resume_ ? resume_->graphId(id) : id; }
+
+  /// Optimisation thread: the queued live keyframes are placed or searched against the saved
+  /// map (global localisation and loop registration take too long for the input thread).
+  void resumeKeyframes() {
+    std::deque<KeyframeInput> queued;
+    {
+      std::lock_guard<std::mutex> guard(resume_mutex_);
+      queued.swap(resume_queue_);
+    }
+    const bool was_placed = resume_->status().placed;
+    for (const auto& kf : queued)
+      for (const auto& loop : resume_->process(kf, *backend_)) backend_->addLoopClosure(loop);
+    if (!was_placed && resume_->status().placed)
+      NODELET_INFO("graph_backend: %s", resume_->status().text().c_str());
+    publishResumeStatus();
   }
 
   /// A grid with bad parameters is an error said once; the rest of the back-end runs without it.
@@ -150,6 +206,12 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
     addSensorInputs(kf);
+    if (resume_) {
+      resume_->renumber(kf);  // the live session's id from here on
+      std::lock_guard<std::mutex> guard(resume_mutex_);
+      resume_queue_.push_back(kf);
+    }
+    const uint64_t graph_id = kf.id;
     backend_->addKeyframe(std::move(kf));
     keyframeReceived();
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
@@ -161,7 +223,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     pose_pub_.publish(pose);
     std::lock_guard<std::mutex> guard(stamp_mutex_);
     last_stamp_ = msg->header.stamp;
-    keyframe_stamps_[msg->id] = msg->header.stamp;
+    keyframe_stamps_[graph_id] = msg->header.stamp;
   }
 
   void onFloor(const FloorCoeffsConstPtr& msg) {
@@ -173,7 +235,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             static_cast<unsigned long>(msg->keyframe_id));
       return;
     }
-    backend_->addFloor(msg->keyframe_id, coeffs);
+    backend_->addFloor(graphId(msg->keyframe_id), coeffs);
   }
 
   /// The keyframe's exact header stamp (the core keeps seconds as a double, which loses the
@@ -197,7 +259,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (!first) return;
     if (!first->warning.empty()) NODELET_WARN("%s", first->warning.c_str());
     if (first->from_imu && first->yaw) {
-      backend_->setInitialHeading(*first->yaw);
+      // A resumed map keeps its own heading: the IMU's is this drive's session start.
+      if (resume_)
+        backend_->setSessionHeading(resume_->session(), *first->yaw);
+      else
+        backend_->setInitialHeading(*first->yaw);
       NODELET_INFO("initial heading %.1f deg from imu/data", *first->yaw * 180.0 / M_PI);
     }
     first_keyframe_seen_ = true;
@@ -238,7 +304,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       segments.emplace_back(Eigen::Vector2d(s.start.x, s.start.y),
                             Eigen::Vector2d(s.end.x, s.end.y), s.support);
     }
-    backend_->addLineSegments(msg->keyframe_id, std::move(segments));
+    backend_->addLineSegments(graphId(msg->keyframe_id), std::move(segments));
   }
 
   void onBuildings(const BuildingArrayConstPtr& msg) {
@@ -258,8 +324,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
 
   void onLoop(const LoopClosureConstPtr& msg) {
     LoopClosureInput loop;
-    loop.from_id = msg->from_id;
-    loop.to_id = msg->to_id;
+    loop.from_id = graphId(msg->from_id);
+    loop.to_id = graphId(msg->to_id);
     loop.relative_pose = fromPoseMsg(msg->relative_pose);
     for (int i = 0; i < 36; ++i) loop.information(i / 6, i % 6) = msg->information[i];
     if (!loop.information.allFinite() || loop.information.diagonal().minCoeff() <= 0.0) {
@@ -317,6 +383,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       keyframes_at_update_ = keyframes_received_;
       lock.unlock();
       std::unique_lock<std::mutex> graph_lock(graph_mutex_);
+      if (resume_) resumeKeyframes();
       const BackendUpdateReport report = backend_->update();
       wait_s = keyframeDriven()
                    ? node_params_.optimization_period
@@ -460,6 +527,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   // --- services ---------------------------------------------------------------------------------
   bool onSaveMap(SaveMap::Request& req, SaveMap::Response& res) {
     std::lock_guard<std::mutex> graph_lock(graph_mutex_);
+    if (resume_) resumeKeyframes();
     backend_->update();  // include everything received so far
     // The saved map.pgm is the grid slam/grid_map shows, both brought up to this update.
     std_msgs::Header header;
@@ -470,9 +538,10 @@ class GraphBackendNodelet : public nodelet::Nodelet {
         saveMap(*backend_, req.destination, req.resolution, nullptr, grid_.get());
     res.success = r.success;
     res.message = r.message;
+    if (resume_) res.message += "; " + resume_->status().text();
     res.files = r.files;
     if (r.success)
-      NODELET_INFO("save_map: %s", r.message.c_str());
+      NODELET_INFO("save_map: %s", res.message.c_str());
     else
       NODELET_WARN("save_map failed: %s", r.message.c_str());
     return true;
@@ -526,6 +595,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   ros::WallTimer tf_timer_;
   std::unique_ptr<ros::AsyncSpinner> input_spinner_;  ///< stopped first (destructor)
   std::optional<EnuConverter> origin_;                ///< the map origin, on the input thread only
+  std::unique_ptr<MapResume> resume_;                 ///< with ~resume_map
+  std::mutex resume_mutex_;                           ///< guards resume_queue_
+  std::deque<KeyframeInput> resume_queue_;            ///< live keyframes not yet placed/searched
+  ros::Publisher resume_pub_;                         ///< slam/resume_status
+  std::string last_resume_status_;
 };
 
 }  // namespace osm_graph_slam

@@ -19,6 +19,7 @@
 #include "osm_graph_slam/ros/nodelet_params.h"
 #include "osm_graph_slam/ros/osm_conversions.h"
 #include "osm_graph_slam/ros/ros_param_reader.h"
+#include "osm_graph_slam/slam/graph_dump.h"
 
 namespace osm_graph_slam {
 
@@ -56,8 +57,24 @@ class OsmBufferNodelet : public nodelet::Nodelet {
     }
   }
 
+  /// Resumed mapping (~resume_map, as graph_backend's): the saved map's origin is the map frame.
+  void originFromSavedMap() {
+    std::string dir;
+    pnh_.param("resume_map", dir, dir);
+    if (dir.empty()) return;
+    GraphDump dump;
+    std::string error;
+    if (!readGraphDump(dir + "/graph", dump, &error) || !dump.origin) {
+      NODELET_ERROR("osm_buffer: no origin from the saved map %s (%s); using ~origin or gps/fix",
+                    dir.c_str(), error.empty() ? "it has none" : error.c_str());
+      return;
+    }
+    origin_param_ = {dump.origin->x(), dump.origin->y(), dump.origin->z()};
+  }
+
   void readParams() {
     pnh_.param("origin", origin_param_, origin_param_);  // a list: not a ParamReader type
+    originFromSavedMap();
     const RosParamReader reader(pnh_);
     OsmBufferNodeletParams np;  // defaults: nodelet_params.h
     osm_graph_slam::readParams(reader, np);

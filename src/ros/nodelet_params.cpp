@@ -49,6 +49,7 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("map_cloud_resolution", p.map_cloud_resolution);
   r.param("warn_throttle_period", p.warn_throttle_period);
   r.param("input_queue_size", p.input_queue_size);
+  r.param("resume_map", p.resume_map);
 }
 
 void readParams(const ParamReader& r, LocalizationNodeletParams& p) {

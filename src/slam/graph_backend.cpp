@@ -996,6 +996,23 @@ bool GraphBackend::sessionPlaced(uint32_t session) const {
   return state_->unplaced_sessions.count(session) == 0;
 }
 
+size_t GraphBackend::holdKeyframesAt(const std::map<uint64_t, Eigen::Isometry3d>& poses) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  BackendState& s = *state_;
+  size_t held = 0;
+  for (const auto& [id, pose] : poses) {
+    const auto kf = s.keyframes.find(id);
+    if (kf == s.keyframes.end()) continue;
+    kf->second.map_pose = pose;
+    s.graph.setVertexSE3(static_cast<int>(id), pose);
+    s.graph.setFixed(static_cast<int>(id), true);
+    ++held;
+  }
+  s.dirty = true;
+  updateMapToOdom();
+  return held;
+}
+
 void GraphBackend::updateMapToOdom() {
   BackendState& s = *state_;
   if (s.keyframes.empty()) return;

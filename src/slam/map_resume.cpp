@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <limits>
 
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/localization/map_package.h"
@@ -106,6 +107,11 @@ std::unique_ptr<MapResume> MapResume::load(const std::string& directory,
       std::make_unique<InterSessionLoopSearch>(loops, params.loop_search, resume->logger_);
   std::map<uint64_t, PointCloudConstPtr> clouds;
   for (const auto& kf : dump.keyframes) clouds[kf.id] = kf.cloud;
+  if (params.hold_saved_map) {
+    std::map<uint64_t, Eigen::Isometry3d> saved;
+    for (const auto& kf : package->keyframes) saved[kf.id] = kf.pose;
+    backend.holdKeyframesAt(saved);
+  }
   for (const auto& [id, pose] : backend.keyframeMapPoses()) {
     resume->saved_poses_[id] = pose;
     resume->search_->addToDatabase(id, pose, clouds[id]);
@@ -124,10 +130,12 @@ uint64_t MapResume::graphId(uint64_t live_id) const {
   return mergedKeyframeId(status_.session, live_id);
 }
 
-void MapResume::prepare(KeyframeInput& keyframe, GraphBackend& backend) {
+void MapResume::renumber(KeyframeInput& keyframe) const {
   keyframe.id = graphId(keyframe.id);
   keyframe.session = status_.session;
-  if (!first_keyframe_) return;
+}
+
+void MapResume::decidePlacement(const KeyframeInput& keyframe, GraphBackend& backend) {
   first_keyframe_ = false;
   // A fix places the session only where the back-end uses fixes (GNSS priors); a GNSS-denied
   // run's first fix is a hint the localiser's answer replaces.
@@ -139,11 +147,12 @@ void MapResume::prepare(KeyframeInput& keyframe, GraphBackend& backend) {
   backend.setSessionUnplaced(status_.session);
   logger_->info("session " + std::to_string(status_.session) +
                 " has no GNSS fix: not placed on the saved map until the global localiser "
-                "places two keyframes consistently; mapped on its own until then");
+                "places it; mapped on its own until then");
 }
 
 std::vector<LoopClosureInput> MapResume::process(const KeyframeInput& keyframe,
-                                                 const GraphBackend& backend) {
+                                                 GraphBackend& backend) {
+  if (first_keyframe_) decidePlacement(keyframe, backend);
   if (!keyframe.cloud || keyframe.cloud->empty()) return {};
   if (!status_.placed) return candidate_ ? confirmCandidate(keyframe) : tryToPlace(keyframe);
   const Eigen::Isometry3d map_to_odom =
@@ -166,55 +175,97 @@ std::vector<LoopClosureInput> MapResume::tryToPlace(const KeyframeInput& keyfram
   std::vector<Answer> agreeing;
   for (const auto& earlier : answers_)
     if (agree(answer, earlier)) agreeing.push_back(earlier);
-  if (static_cast<int>(agreeing.size()) + 1 < std::max(1, params_.placement_answers)) {
-    if (!answers_.empty() && agreeing.empty()) ++status_.answers_disagreeing;
-    answers_.push_back(answer);
-    if (static_cast<int>(answers_.size()) > std::max(1, params_.placement_memory))
-      answers_.erase(answers_.begin());
+  if (!answers_.empty() && agreeing.empty()) ++status_.answers_disagreeing;
+  answers_.push_back(answer);
+  if (static_cast<int>(answers_.size()) > std::max(1, params_.placement_memory))
+    answers_.erase(answers_.begin());
+  // Enough answers agree, and they are most of the recent ones: answers that keep landing on
+  // different places (a self-similar street) are no placement, whichever two of them agree.
+  const size_t votes = agreeing.size() + 1;
+  if (static_cast<int>(votes) < std::max(1, params_.placement_answers) ||
+      2 * votes <= answers_.size())
     return {};
-  }
   candidate_ = Candidate{{answer}, 0};
   candidate_->answers.insert(candidate_->answers.end(), agreeing.begin(), agreeing.end());
-  answers_.clear();
   return {};
 }
 
 std::vector<LoopClosureInput> MapResume::confirmCandidate(const KeyframeInput& keyframe) {
-  const Answer& newest = candidate_->answers.front();
+  Candidate& c = *candidate_;
+  const Answer& newest = c.answers.front();
   const Eigen::Isometry3d map_to_odom = newest.map_pose * newest.odom_pose.inverse();
   const Eigen::Isometry3d predicted = map_to_odom * keyframe.odom_pose;
-  const auto t0 = Clock::now();
-  std::optional<LoopClosureInput> loop = search_->query(keyframe.id, predicted, keyframe.cloud);
-  status_.loops_ms += msSince(t0);
-  const bool confirmed = loop && saved_poses_.count(loop->to_id) &&
-                         samePlace(saved_poses_.at(loop->to_id) * loop->relative_pose, predicted,
-                                   std::abs(keyframe.accum_distance - newest.accum_distance));
-  if (!confirmed) {
-    if (++candidate_->keyframes_searched >= std::max(1, params_.placement_confirm_within)) {
-      ++status_.placements_unconfirmed;
-      logger_->info("session " + std::to_string(status_.session) +
-                    ": agreeing global answers not confirmed by an inter-session loop within " +
-                    std::to_string(params_.placement_confirm_within) +
-                    " keyframes; searching again");
-      candidate_.reset();
+  ++c.keyframes;
+  if (nearestSavedDistance(predicted.translation()) <= params_.placement_check_radius) {
+    ++c.checks;
+    const auto t0 = Clock::now();
+    std::optional<LoopClosureInput> loop = search_->query(keyframe.id, predicted, keyframe.cloud);
+    status_.loops_ms += msSince(t0);
+    if (loop && saved_poses_.count(loop->to_id)) {
+      const Eigen::Isometry3d said = saved_poses_.at(loop->to_id) * loop->relative_pose;
+      if (!samePlace(said, predicted, std::abs(keyframe.accum_distance - newest.accum_distance))) {
+        logger_->info("session " + std::to_string(status_.session) + ": the loop " +
+                      std::to_string(keyframe.id) + " -> " + std::to_string(loop->to_id) +
+                      " puts its keyframe " +
+                      std::to_string((said.translation() - predicted.translation()).norm()) +
+                      " m from where the placement does");
+        c.checks = -1;  // a verified loop elsewhere: the candidate is wrong
+      } else {
+        c.loops.push_back(*loop);
+        c.loop_poses.emplace_back(keyframe.id, predicted);
+        c.loop_stamps.push_back(keyframe.stamp);
+      }
     }
-    return {};
   }
+  const std::optional<bool> verdict = candidateVerdict(c);
+  if (!verdict) return {};
+  if (*verdict) return acceptCandidate();
+  ++status_.placements_unconfirmed;
+  logger_->info("session " + std::to_string(status_.session) + ": a placement at (" +
+                std::to_string(newest.map_pose.translation().x()) + ", " +
+                std::to_string(newest.map_pose.translation().y()) +
+                ") was not confirmed by inter-session loops (" + std::to_string(c.loops.size()) +
+                " of " + std::to_string(std::max(c.checks, 0)) +
+                " keyframes on the map); searching again");
+  candidate_.reset();
+  return {};
+}
+
+std::optional<bool> MapResume::candidateVerdict(const Candidate& c) const {
+  if (c.checks < 0) return false;
+  if (c.checks >= std::max(1, params_.placement_checks))
+    return static_cast<double>(c.loops.size()) >= params_.placement_confirm_fraction * c.checks;
+  if (c.keyframes >= std::max(1, params_.placement_check_patience)) return false;
+  return std::nullopt;
+}
+
+std::vector<LoopClosureInput> MapResume::acceptCandidate() {
+  Candidate& c = *candidate_;
+  const Answer& newest = c.answers.front();
   status_.placed = true;
   status_.placed_at = newest.keyframe;
   status_.placement = newest.map_pose;
-  placed_map_to_odom_ = map_to_odom;
+  placed_map_to_odom_ = newest.map_pose * newest.odom_pose.inverse();
   std::vector<LoopClosureInput> loops;
-  for (const auto& a : candidate_->answers) loops.push_back(tie(a));
+  for (const auto& a : c.answers) loops.push_back(tie(a));
+  for (size_t i = 0; i < c.loops.size(); ++i) {
+    loops_.push_back(c.loops[i]);
+    loop_poses_[c.loop_poses[i].first] = c.loop_poses[i].second;
+    loop_poses_[c.loops[i].to_id] = saved_poses_.at(c.loops[i].to_id);
+    loop_stamps_[c.loop_poses[i].first] = c.loop_stamps[i];
+    loops.push_back(c.loops[i]);
+  }
+  status_.inter_session_loops += c.loops.size();
   candidate_.reset();
-  loops_.push_back(*loop);
-  loop_poses_[keyframe.id] = predicted;
-  loop_poses_[loop->to_id] = saved_poses_.at(loop->to_id);
-  loop_stamps_[keyframe.id] = keyframe.stamp;
-  ++status_.inter_session_loops;
-  loops.push_back(*loop);
   logger_->info(status_.text());
   return loops;
+}
+
+double MapResume::nearestSavedDistance(const Eigen::Vector3d& position) const {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& [id, pose] : saved_poses_)
+    best = std::min(best, (pose.translation() - position).head<2>().norm());
+  return best;
 }
 
 bool MapResume::samePlace(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,

@@ -165,7 +165,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     const std::string message = floor_health_.update(kf.id, floor);
     if (!message.empty()) logger_->warn(message);
   }
-  if (resume_) resume_->prepare(input, *backend_);  // the live session's ids from here on
+  if (resume_) resume_->renumber(input);  // the live session's ids from here on
   const uint64_t graph_id = input.id;
   backend_->addKeyframe(input);
   if (resume_)

@@ -421,18 +421,19 @@ inline size_t expectSaveMapOutputsParse(const fs::path& out, bool with_buildings
   return keyframes;
 }
 
-/// Plays a bag with its clock (`rosbag play --clock -q -d 1 -r rate`) in a child process, its
-/// output in log; calls tick() while it plays. "" when it finished, else why not (a timeout stops
-/// it with SIGINT).
+/// Plays a bag with its clock (`rosbag play --clock -q -d 1 -r rate -s start_s`) in a child
+/// process, its output in log; calls tick() while it plays. "" when it finished, else why not (a
+/// timeout stops it with SIGINT).
 inline std::string playBag(const std::string& bag, double rate, const std::string& log,
-                           const std::function<void()>& tick, double timeout_s) {
+                           const std::function<void()>& tick, double timeout_s,
+                           double start_s = 0.0) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     std::freopen(log.c_str(), "w", stdout);
     std::freopen(log.c_str(), "a", stderr);
-    const std::string r = std::to_string(rate);
-    ::execl("/usr/bin/rosbag", "rosbag", "play", "--clock", "-q", "-d", "1", "-r", r.c_str(),
-            bag.c_str(), static_cast<char*>(nullptr));
+    const std::string r = std::to_string(rate), start = std::to_string(start_s);
+    ::execl("/usr/bin/rosbag", "rosbag", "play", "--clock", "-q", "-d", "1", "-r", r.c_str(), "-s",
+            start.c_str(), bag.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
   if (pid < 0) return "fork failed";

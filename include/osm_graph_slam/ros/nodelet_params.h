@@ -64,6 +64,8 @@ struct GraphBackendNodeletParams {
   double map_cloud_resolution = 0.5;         ///< [m]
   double warn_throttle_period = 5.0;         ///< [s]
   int input_queue_size = 1000;  ///< messages per input topic (keyframes: ~5 min of driving)
+  /// A folder save_map wrote: mapping continues on it as a new session (slam/map_resume.h).
+  std::string resume_map;
 };
 
 struct LocalizationNodeletParams {

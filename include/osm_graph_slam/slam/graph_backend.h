@@ -222,6 +222,10 @@ class GraphBackend {
   void setSessionUnplaced(uint32_t session);
   /// Whether the session is still waiting for that loop.
   bool sessionPlaced(uint32_t session) const;
+  /// Keyframes of a saved map (resumed mapping) set to their saved poses and held there: kept as
+  /// they were saved, not re-estimated; the buildings they observe stay free. Unknown ids are
+  /// skipped; returns how many were held.
+  size_t holdKeyframesAt(const std::map<uint64_t, Eigen::Isometry3d>& poses);
   void addKeyframe(KeyframeInput keyframe);
   void addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments);
   /// The floor plane (a, b, c, d) under a keyframe's base_link (floor_detection).

@@ -22,6 +22,12 @@
 namespace osm_graph_slam {
 
 struct MapResumeParams {
+  /// The saved keyframes stay at their saved poses (GraphBackend::holdKeyframesAt), the frame
+  /// the localiser places the live session in; only the buildings and the live session are
+  /// estimated. false: the replayed sessions are re-estimated with the live run's parameters,
+  /// which need not be theirs (a GNSS-denied run replays a GNSS-aided map without its fixes:
+  /// measured, a simulated drive was then placed 95 m off).
+  bool hold_saved_map = true;
   /// Global answers that must agree (each pair's relative pose with odometry's) before the
   /// session is placed: one answer can be an aliased place, two that agree with the motion
   /// between them are not.
@@ -31,13 +37,24 @@ struct MapResumeParams {
   double placement_tolerance = 0.5;
   double placement_tolerance_per_meter = 0.02;
   double placement_tolerance_yaw = 0.035;  ///< [rad] 2 deg
-  /// How many recent answers a new one is compared with.
+  /// How many recent answers a new one is compared with; the agreeing ones must also be more
+  /// than half of them (measured: a simulated drive on a long straight street had six answers
+  /// at four places, two of them agreeing 130 m from the truth).
   int placement_memory = 6;
-  /// Answers that agree can still share one offset (an aliased street seen twice): the placement
-  /// holds only once an inter-session loop (the loop detector's own verification) within this
-  /// many keyframes after it puts its keyframe where the placement does (within the placement
-  /// tolerances). Measured on drive 0048 resumed on 0005's map: two agreeing answers 40 m off.
-  int placement_confirm_within = 4;
+  /// Answers that agree can still share one offset (a self-similar junction or street seen
+  /// twice): the placement holds only once the keyframes after it that it puts on the saved map
+  /// (a saved keyframe within placement_check_radius) have inter-session loops (the loop
+  /// detector's own verification) that put them where it does: placement_checks such keyframes,
+  /// at least placement_confirm_fraction of them with an agreeing loop, none disagreeing.
+  /// Measured: drive 0048 resumed on 0005's map had two agreeing answers 40 m off and no loop;
+  /// simulated drives on a procedural city were placed 130 m off at a look-alike junction with
+  /// loops at 3 of the next 12 keyframes, while correct placements had loops at nearly every one.
+  int placement_checks = 6;
+  double placement_confirm_fraction = 0.75;
+  double placement_check_radius = 10.0;  ///< [m]
+  /// Keyframes a candidate may wait for its checks (it may leave the saved map) before it is
+  /// dropped.
+  int placement_check_patience = 20;
   /// Deviations of the loops that tie a placed keyframe to the saved one it was registered to.
   double placement_std_xy = 0.1;    ///< [m]
   double placement_std_yaw = 0.01;  ///< [rad]
@@ -54,7 +71,7 @@ struct MapResumeStatus {
   Eigen::Isometry3d placement = Eigen::Isometry3d::Identity();  ///< its map pose then
   size_t global_attempts = 0, global_answers = 0;
   size_t answers_disagreeing = 0;     ///< answers that agreed with no earlier one
-  size_t placements_unconfirmed = 0;  ///< agreeing answers no inter-session loop confirmed
+  size_t placements_unconfirmed = 0;  ///< agreeing answers the inter-session loops did not confirm
   size_t inter_session_loops = 0, loops_inconsistent = 0;
   double replay_ms = 0.0, global_ms = 0.0, loops_ms = 0.0;
   /// One line for logs and reports ("placed at keyframe ... after N attempts" or "not placed").
@@ -77,12 +94,13 @@ class MapResume {
   /// The graph id of the live session's keyframe `live_id` (the tracker's id).
   uint64_t graphId(uint64_t live_id) const;
 
-  /// Renumbers a live keyframe into the live session; the first one decides whether the session
-  /// waits for the localiser (no GNSS fix) and tells the back-end so. Call before addKeyframe.
-  void prepare(KeyframeInput& keyframe, GraphBackend& backend);
-  /// After the keyframe went to the back-end: the loops it gives (placement ties, then
-  /// inter-session loops) for backend.addLoopClosure.
-  std::vector<LoopClosureInput> process(const KeyframeInput& keyframe, const GraphBackend& backend);
+  /// Renumbers a live keyframe into the live session (graphId). Call before addKeyframe.
+  void renumber(KeyframeInput& keyframe) const;
+  /// After the keyframe went to the back-end, before the update that takes it in: the loops it
+  /// gives (placement ties, then inter-session loops) for backend.addLoopClosure. The first
+  /// keyframe decides whether the session waits for the localiser (no fix the back-end uses)
+  /// and tells the back-end so.
+  std::vector<LoopClosureInput> process(const KeyframeInput& keyframe, GraphBackend& backend);
 
   const MapResumeStatus& status() const { return status_; }
 
@@ -96,9 +114,19 @@ class MapResume {
   MapResume(const MapResumeParams& params, std::shared_ptr<const Logger> logger);
   /// Agreeing answers waiting for an inter-session loop to confirm them.
   struct Candidate {
-    std::vector<Answer> answers;  ///< the newest first
-    int keyframes_searched = 0;
+    std::vector<Answer> answers;          ///< the newest first
+    int keyframes = 0;                    ///< keyframes since it was made
+    int checks = 0;                       ///< of those, put on the saved map by it
+    std::vector<LoopClosureInput> loops;  ///< agreeing inter-session loops found meanwhile
+    std::vector<std::pair<uint64_t, Eigen::Isometry3d>> loop_poses;  ///< their keyframes' poses
+    std::vector<double> loop_stamps;
   };
+  /// What the candidate's checks conclude (nullopt: not yet).
+  std::optional<bool> candidateVerdict(const Candidate& c) const;
+  std::vector<LoopClosureInput> acceptCandidate();
+  /// [m] 2-D distance from position to the nearest saved keyframe.
+  double nearestSavedDistance(const Eigen::Vector3d& position) const;
+  void decidePlacement(const KeyframeInput& keyframe, GraphBackend& backend);
   std::vector<LoopClosureInput> tryToPlace(const KeyframeInput& keyframe);
   std::vector<LoopClosureInput> confirmCandidate(const KeyframeInput& keyframe);
   /// Where two map poses of one keyframe agree within the placement tolerances (path: metres of

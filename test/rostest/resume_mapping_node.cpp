@@ -1,0 +1,144 @@
+// Rostest node for resume_mapping.test (issue 58): a saved map of the shared simulated drive's
+// first scans (offline_slam), graph_backend reloaded with ~resume_map on it, the drive replayed
+// from start_s on through the nodelets without GNSS priors. The session must be placed by the
+// global localiser near where the saved map has the same stamp (both runs see the same bag, so
+// the saved trajectory at a stamp is where the new one belongs), joined by inter-session loops,
+// and mapped on after the saved map ends; save_map writes both sessions.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <ros/topic.h>
+#include <std_msgs/String.h>
+
+#include <array>
+
+#include "osm_graph_slam/SaveMap.h"
+#include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/io/trajectory_io.h"
+#include "slam_regression_common.h"
+
+namespace osm_graph_slam {
+namespace {
+
+using namespace regression;
+
+struct ResumeRun {
+  Drive drive;
+  fs::path dir, saved, out;
+  std::string error;  ///< set-up failure
+};
+ResumeRun* R = nullptr;
+
+std::string managerName() {
+  std::string manager = "/osm_graph_slam_manager";
+  ros::NodeHandle("~").param("manager", manager, manager);
+  return manager;
+}
+
+/// The pose of a trajectory at `stamp` (nearest keyframes, linear in position and yaw).
+std::optional<Eigen::Isometry3d> poseAt(const Trajectory& t, double stamp) {
+  for (size_t i = 1; i < t.size(); ++i) {
+    if (t[i].stamp < stamp || t[i - 1].stamp > stamp) continue;
+    const double a = (stamp - t[i - 1].stamp) / std::max(t[i].stamp - t[i - 1].stamp, 1e-9);
+    const Pose2 p0 = planarPose(t[i - 1].pose), p1 = planarPose(t[i].pose);
+    const Eigen::Vector2d xy = (1 - a) * p0.translation() + a * p1.translation();
+    return isometryFromPlanar(Pose2(xy.x(), xy.y(), p0.theta + a * wrapAngle(p1.theta - p0.theta)));
+  }
+  return std::nullopt;
+}
+
+std::string setUp() {
+  const ros::NodeHandle pnh("~");
+  const DriveOptions o = driveOptionsFromParams(pnh);
+  R->drive = prepareDrive(o);
+  if (!R->drive.error.empty()) return R->drive.error;
+  R->dir = fs::temp_directory_path() / ("ogs_resume_" + std::to_string(::getpid()));
+  R->saved = R->dir / "saved";
+  R->out = R->dir / "resumed";
+  const int saved_scans = pnh.param("saved_scans", 350);
+  if (runOfflineSlam(R->drive, R->saved, "--no-osm --max-scans " + std::to_string(saved_scans)) !=
+      0)
+    return "offline_slam (the saved map) failed:\n" + readText(R->saved.string() + ".log");
+  const std::string swap =
+      swapNodelet(managerName(), "/graph_backend", "osm_graph_slam/GraphBackendNodelet",
+                  "resume_map", R->saved.string());
+  if (!swap.empty()) return swap;
+  if (!waitFor([] { return ros::service::exists("/graph_backend_test/save_map", false); }, 120.0))
+    return "graph_backend_test/save_map never came up (replaying the saved map?)";
+  const double rate = pnh.param("play_rate", 0.5), start = pnh.param("start_s", 12.0);
+  const double duration = o.scans * 0.1 - start;
+  return playBag(
+      R->drive.bag, rate, (R->dir / "rosbag.log").string(), [] {}, 60.0 + 3.0 * duration / rate,
+      start);
+}
+
+TEST(ResumeMapping, TheNewSessionIsPlacedOnTheSavedMapAndJoinedByLoops) {
+  ASSERT_TRUE(R->error.empty()) << R->error;
+  SaveMap srv;
+  srv.request.destination = R->out.string();
+  srv.request.resolution = 0.2;
+  ASSERT_TRUE(ros::service::call("/graph_backend_test/save_map", srv));
+  ASSERT_TRUE(srv.response.success) << srv.response.message;
+  // save_map's message ends with the session's state; slam/resume_status says the same.
+  const std::string& message = srv.response.message;
+  std::cout << "[resume_mapping] save_map: " << message << std::endl;
+  ASSERT_NE(message.find("placed at keyframe"), std::string::npos) << message;
+  const std_msgs::StringConstPtr latched =
+      ros::topic::waitForMessage<std_msgs::String>("slam/resume_status", ros::Duration(10.0));
+  ASSERT_TRUE(latched != nullptr) << "no slam/resume_status";
+  EXPECT_NE(latched->data.find("placed at keyframe"), std::string::npos) << latched->data;
+
+  const TrajectoryReadResult saved_read =
+      readTumTrajectory((R->saved / "trajectory_tum.txt").string());
+  const TrajectoryReadResult merged_read =
+      readTumTrajectory((R->out / "trajectory_tum.txt").string());
+  ASSERT_TRUE(saved_read.ok) << saved_read.error;
+  ASSERT_TRUE(merged_read.ok) << merged_read.error;
+  const Trajectory& saved = saved_read.trajectory;
+  const Trajectory& merged = merged_read.trajectory;
+  ASSERT_GT(merged.size(), saved.size() + 10);
+  // Both sessions are in the map: the saved keyframes first (held where they were saved).
+  const Trajectory live(merged.begin() + static_cast<std::ptrdiff_t>(saved.size()), merged.end());
+  std::vector<double> errors, yaws;
+  size_t beyond = 0;
+  for (const auto& kf : live) {
+    const auto at = poseAt(saved, kf.stamp);
+    if (!at) {
+      beyond += kf.stamp > saved.back().stamp ? 1 : 0;
+      continue;
+    }
+    const Pose2 d = planarPose(at->inverse() * kf.pose);
+    errors.push_back(d.translation().norm());
+    yaws.push_back(std::abs(d.theta));
+  }
+  ASSERT_GE(errors.size(), 10u);
+  std::sort(errors.begin(), errors.end());
+  std::cout << "[resume_mapping] " << live.size() << " live keyframes, " << errors.size()
+            << " on the saved map: median " << errors[errors.size() / 2] << " m, worst "
+            << errors.back() << " m, yaw worst "
+            << *std::max_element(yaws.begin(), yaws.end()) * 180.0 / M_PI << " deg; " << beyond
+            << " beyond its end" << std::endl;
+  EXPECT_LT(errors[errors.size() / 2], 0.2);
+  EXPECT_LT(errors.back(), 0.5);
+  EXPECT_LT(*std::max_element(yaws.begin(), yaws.end()), 2.0 * M_PI / 180.0);
+  EXPECT_GE(beyond, 5u) << "mapped on after the saved map ends";
+}
+
+}  // namespace
+}  // namespace osm_graph_slam
+
+int main(int argc, char** argv) {
+  using namespace osm_graph_slam;
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "resume_mapping_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  ResumeRun run;
+  R = &run;
+  R->error = setUp();
+  const int rc = RUN_ALL_TESTS();
+  std::error_code ec;
+  if (rc == 0) fs::remove_all(R->dir, ec);
+  spinner.stop();
+  ros::shutdown();
+  return rc;
+}
