@@ -1,0 +1,170 @@
+#include "osm_graph_slam/multi_cue/multi_cue_image.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace osm_graph_slam {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+MultiCueImage emptyImage(const SphericalProjectionParams& projection) {
+  MultiCueImage image;
+  image.projection = projection;
+  const size_t n = projection.size();
+  image.range.assign(n, 0.0f);
+  image.intensity.assign(n, 0.0f);
+  image.point.assign(n, Eigen::Vector3f::Zero());
+  image.normal.assign(n, Eigen::Vector3f::Zero());
+  image.subpixel.assign(n, Eigen::Vector2f::Zero());
+  image.mask.assign(n, 0);
+  return image;
+}
+
+/// Writes the return into its pixel unless a nearer one is there already (the depth buffer).
+void splat(MultiCueImage& image, const Eigen::Vector3f& p, float intensity) {
+  float u = 0.0f, v = 0.0f, r = 0.0f;
+  if (!image.projection.project(p, &u, &v, &r)) return;
+  const int i = image.index(static_cast<int>(v), static_cast<int>(u));
+  if (image.hasPoint(i) && image.range[i] <= r) return;
+  image.range[i] = r;
+  image.intensity[i] = intensity;
+  image.point[i] = p;
+  image.subpixel[i] = Eigen::Vector2f(u, v);
+  image.mask[i] = MultiCueImage::kPoint;
+}
+
+bool onOneSurface(float range_a, float range_b, double max_jump_ratio) {
+  return std::abs(range_a - range_b) < max_jump_ratio * std::min(range_a, range_b);
+}
+
+/// Of the two neighbours of pixel i along one axis (-1 and +1 steps), the one on the same surface
+/// with the closer range; returns the step (-1 or +1) and sets *neighbour, or 0 when neither is.
+int sameSurfaceNeighbour(const MultiCueImage& image, int i, int neighbour_minus, int neighbour_plus,
+                         double max_jump_ratio, int* neighbour) {
+  int best_step = 0;
+  float best_jump = std::numeric_limits<float>::infinity();
+  const int candidates[2] = {neighbour_minus, neighbour_plus};
+  for (int k = 0; k < 2; ++k) {
+    const int j = candidates[k];
+    if (j < 0 || !image.hasPoint(j)) continue;
+    if (!onOneSurface(image.range[i], image.range[j], max_jump_ratio)) continue;
+    const float jump = std::abs(image.range[i] - image.range[j]);
+    if (jump < best_jump) {
+      best_jump = jump;
+      best_step = k == 0 ? -1 : 1;
+      *neighbour = j;
+    }
+  }
+  return best_step;
+}
+
+}  // namespace
+
+size_t MultiCueImage::pointCount() const {
+  return std::count_if(mask.begin(), mask.end(), [](uint8_t m) { return m & kPoint; });
+}
+
+size_t MultiCueImage::normalCount() const {
+  return std::count_if(mask.begin(), mask.end(), [](uint8_t m) { return m & kNormal; });
+}
+
+bool cloudHasIntensity(const PointCloud& cloud) {
+  return std::any_of(cloud.points.begin(), cloud.points.end(), [](const PointT& p) {
+    return std::isfinite(p.intensity) && p.intensity != 0.0f;
+  });
+}
+
+MultiCueImage projectCloud(const PointCloud& cloud, const SphericalProjectionParams& projection) {
+  MultiCueImage image = emptyImage(projection);
+  image.has_intensity = cloudHasIntensity(cloud);
+  for (const PointT& p : cloud.points) {
+    const float intensity = image.has_intensity && std::isfinite(p.intensity) ? p.intensity : 0.0f;
+    splat(image, p.getVector3fMap(), intensity);
+  }
+  return image;
+}
+
+MultiCueImage projectPoints(const std::vector<Eigen::Vector3f>& points,
+                            const std::vector<float>& intensity, bool has_intensity,
+                            const SphericalProjectionParams& projection) {
+  MultiCueImage image = emptyImage(projection);
+  image.has_intensity = has_intensity;
+  for (size_t k = 0; k < points.size(); ++k) {
+    splat(image, points[k], has_intensity ? intensity[k] : 0.0f);
+  }
+  return image;
+}
+
+void computeNormals(MultiCueImage& image, const SurfaceContinuityParams& continuity) {
+  const int rows = image.rows(), cols = image.cols();
+  const bool wraps = image.projection.fullCircle();
+  const double ratio = continuity.max_range_jump_ratio;
+  for (int row = 0; row < rows; ++row) {
+    for (int col = 0; col < cols; ++col) {
+      const int i = image.index(row, col);
+      image.mask[i] &= ~MultiCueImage::kNormal;
+      image.normal[i].setZero();
+      if (!image.hasPoint(i)) continue;
+      const int left = col > 0 ? i - 1 : (wraps ? image.index(row, cols - 1) : -1);
+      const int right = col + 1 < cols ? i + 1 : (wraps ? image.index(row, 0) : -1);
+      const int up = row > 0 ? i - cols : -1;
+      const int down = row + 1 < rows ? i + cols : -1;
+      int h = -1, v = -1;
+      const int h_step = sameSurfaceNeighbour(image, i, left, right, ratio, &h);
+      const int v_step = sameSurfaceNeighbour(image, i, up, down, ratio, &v);
+      if (h_step == 0 || v_step == 0) continue;
+      // Both tangents point along +u and +v, so the cross product's sign is fixed before the
+      // normal is turned to face the sensor.
+      const Eigen::Vector3f along_u = float(h_step) * (image.point[h] - image.point[i]);
+      const Eigen::Vector3f along_v = float(v_step) * (image.point[v] - image.point[i]);
+      Eigen::Vector3f n = along_u.cross(along_v);
+      const float norm = n.norm();
+      if (!(norm > 1e-9f * along_u.norm() * along_v.norm()) || norm == 0.0f) continue;
+      n /= norm;
+      if (n.dot(image.point[i]) > 0.0f) n = -n;
+      image.normal[i] = n;
+      image.mask[i] |= MultiCueImage::kNormal;
+    }
+  }
+}
+
+MultiCuePyramid buildPyramid(const PointCloud& cloud, const SphericalProjectionParams& projection,
+                             int levels, const SurfaceContinuityParams& continuity,
+                             MultiCueBuildTimes* times) {
+  MultiCuePyramid pyramid;
+  MultiCueBuildTimes t;
+  auto start = Clock::now();
+  pyramid.levels.push_back(projectCloud(cloud, projection));
+  t.projection_ms += msSince(start);
+  for (int level = 1; level < levels; ++level) {
+    start = Clock::now();
+    const MultiCueImage& finer = pyramid.levels.back();
+    std::vector<Eigen::Vector3f> points;
+    std::vector<float> intensity;
+    points.reserve(finer.range.size());
+    intensity.reserve(finer.range.size());
+    for (int i = 0; i < finer.projection.size(); ++i) {
+      if (!finer.hasPoint(i)) continue;
+      points.push_back(finer.point[i]);
+      intensity.push_back(finer.intensity[i]);
+    }
+    pyramid.levels.push_back(
+        projectPoints(points, intensity, finer.has_intensity, finer.projection.coarser()));
+    t.projection_ms += msSince(start);
+  }
+  start = Clock::now();
+  for (MultiCueImage& image : pyramid.levels) computeNormals(image, continuity);
+  t.normals_ms += msSince(start);
+  if (times) *times = t;
+  return pyramid;
+}
+
+}  // namespace osm_graph_slam

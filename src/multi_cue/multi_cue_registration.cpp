@@ -1,0 +1,335 @@
+#include "osm_graph_slam/multi_cue/multi_cue_registration.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace osm_graph_slam {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+/// The increment X <- exp(delta) X: rotate by the rotation vector, then translate.
+Eigen::Isometry3d applyIncrement(const Vector6d& delta, const Eigen::Isometry3d& X) {
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d omega = delta.tail<3>();
+  const double angle = omega.norm();
+  if (angle > 0.0) step.linear() = Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
+  step.translation() = delta.head<3>();
+  return step * X;
+}
+
+/// Continuous pixel coordinates of q in double precision (the float projection's formula), for
+/// the residual whose derivatives must stay smooth at small increments.
+Eigen::Vector2d pixelOf(const SphericalProjectionParams& projection, const Eigen::Vector3d& q) {
+  double azimuth = std::atan2(q.y(), q.x()) - projection.azimuth_start;
+  if (azimuth < 0.0) azimuth += 2.0 * M_PI;
+  if (azimuth >= 2.0 * M_PI) azimuth -= 2.0 * M_PI;
+  const double elevation = std::atan2(q.z(), std::hypot(q.x(), q.y()));
+  return {azimuth * projection.colsPerRadian(),
+          (projection.elevation_max - elevation) * projection.rowsPerRadian()};
+}
+
+/// The sub-pixel offset of `at` from the measured return's own position, with the azimuth wrapped
+/// on a full circle.
+Eigen::Vector2d offsetFrom(const SphericalProjectionParams& projection, const Eigen::Vector2d& at,
+                           const Eigen::Vector2f& measured) {
+  Eigen::Vector2d d = at - measured.cast<double>();
+  if (projection.fullCircle()) {
+    if (d.x() > 0.5 * projection.cols) d.x() -= projection.cols;
+    if (d.x() < -0.5 * projection.cols) d.x() += projection.cols;
+  }
+  return d;
+}
+
+Eigen::Matrix<float, 5, 1> cuesAt(const MultiCueImage& image, int i) {
+  Eigen::Matrix<float, 5, 1> c;
+  c << image.range[i], image.intensity[i], image.normal[i];
+  return c;
+}
+
+bool onOneSurface(float range_a, float range_b, double max_jump_ratio) {
+  return std::abs(range_a - range_b) < max_jump_ratio * std::min(range_a, range_b);
+}
+
+/// Least-squares gradient of the 5 cues at pixel i from its same-surface 4-neighbours; false
+/// unless they span both image directions.
+bool gradientAt(const MultiCueImage& image, int i, double max_jump_ratio,
+                Eigen::Matrix<float, 5, 2>* gradient) {
+  const int rows = image.rows(), cols = image.cols();
+  const int row = i / cols, col = i % cols;
+  const bool wraps = image.projection.fullCircle();
+  int neighbours[4] = {col > 0 ? i - 1 : (wraps ? image.index(row, cols - 1) : -1),
+                       col + 1 < cols ? i + 1 : (wraps ? image.index(row, 0) : -1),
+                       row > 0 ? i - cols : -1, row + 1 < rows ? i + cols : -1};
+  Eigen::Matrix2f DDt = Eigen::Matrix2f::Zero();
+  Eigen::Matrix<float, 5, 2> CDt = Eigen::Matrix<float, 5, 2>::Zero();
+  bool normals_everywhere = image.hasNormal(i);
+  bool horizontal = false, vertical = false;
+  const Eigen::Matrix<float, 5, 1> centre = cuesAt(image, i);
+  for (int k = 0; k < 4; ++k) {
+    const int j = neighbours[k];
+    if (j < 0 || !image.hasPoint(j)) continue;
+    if (!onOneSurface(image.range[i], image.range[j], max_jump_ratio)) continue;
+    const Eigen::Vector2d d =
+        offsetFrom(image.projection, image.subpixel[j].cast<double>(), image.subpixel[i]);
+    const Eigen::Vector2f df = d.cast<float>();
+    DDt += df * df.transpose();
+    CDt += (cuesAt(image, j) - centre) * df.transpose();
+    normals_everywhere = normals_everywhere && image.hasNormal(j);
+    (k < 2 ? horizontal : vertical) = true;
+  }
+  if (!horizontal || !vertical) return false;
+  const float det = DDt.determinant();
+  if (!(det > 1e-3f)) return false;
+  *gradient = CDt * DDt.inverse();
+  if (!normals_everywhere) gradient->bottomRows<3>().setZero();
+  return true;
+}
+
+double robustWeight(const std::string& kernel, double width, double chi2) {
+  const double width2 = width * width;
+  if (kernel == "cauchy") return 1.0 / (1.0 + chi2 / width2);
+  return chi2 <= width2 ? 1.0 : width / std::sqrt(chi2);  // huber
+}
+
+/// The adjoint that carries a perturbation applied on the right of T to one applied on its left,
+/// ordered (translation, rotation).
+Matrix6d adjoint(const Eigen::Isometry3d& T) {
+  Matrix6d ad = Matrix6d::Zero();
+  ad.topLeftCorner<3, 3>() = T.linear();
+  ad.topRightCorner<3, 3>() = skew(T.translation()) * T.linear();
+  ad.bottomRightCorner<3, 3>() = T.linear();
+  return ad;
+}
+
+/// One level's scratch: where every model point lands in the measured image.
+struct Rendering {
+  std::vector<float> depth;  ///< per measured pixel, the nearest rendered range
+  std::vector<int> owner;    ///< per measured pixel, the model pixel rendered there
+  std::vector<int> touched;  ///< measured pixels written this iteration
+};
+
+/// Renders the model moved by X into the measured image's pixels through a depth buffer.
+void render(const MultiCueImage& model, const Eigen::Isometry3d& X,
+            const SphericalProjectionParams& measured, Rendering& out) {
+  out.depth.assign(measured.size(), std::numeric_limits<float>::infinity());
+  out.owner.assign(measured.size(), -1);
+  out.touched.clear();
+  const Eigen::Matrix3f R = X.linear().cast<float>();
+  const Eigen::Vector3f t = X.translation().cast<float>();
+  for (int j = 0; j < model.projection.size(); ++j) {
+    if (!model.hasPoint(j)) continue;
+    const Eigen::Vector3f q = R * model.point[j] + t;
+    float u = 0.0f, v = 0.0f, r = 0.0f;
+    if (!measured.project(q, &u, &v, &r)) continue;
+    const int i = static_cast<int>(v) * measured.cols + static_cast<int>(u);
+    if (r >= out.depth[i]) continue;
+    if (out.owner[i] < 0) out.touched.push_back(i);
+    out.depth[i] = r;
+    out.owner[i] = j;
+  }
+}
+
+struct NormalEquations {
+  Matrix6d H = Matrix6d::Zero();
+  Vector6d b = Vector6d::Zero();
+  double chi2 = 0.0;
+  int inliers = 0;
+};
+
+}  // namespace
+
+std::string MultiCueParams::validate() const {
+  std::ostringstream why;
+  if (pyramid_levels < 1)
+    why << "pyramid_levels must be >= 1";
+  else if (max_iterations_per_level < 1)
+    why << "max_iterations_per_level must be >= 1";
+  else if (!(range_weight >= 0.0) || !(intensity_weight >= 0.0) || !(normal_weight >= 0.0))
+    why << "the cue weights must be >= 0";
+  else if (range_weight + intensity_weight + normal_weight <= 0.0)
+    why << "at least one cue weight must be positive";
+  else if (kernel != "huber" && kernel != "cauchy")
+    why << "kernel must be huber or cauchy, not '" << kernel << "'";
+  else if (!(kernel_width > 0.0))
+    why << "kernel_width must be > 0";
+  else if (!(range_gate > 0.0))
+    why << "range_gate must be > 0";
+  else if (!(translation_epsilon > 0.0) || !(rotation_epsilon > 0.0))
+    why << "the convergence thresholds must be > 0";
+  return why.str();
+}
+
+CueGradients computeCueGradients(const MultiCueImage& measured,
+                                 const SurfaceContinuityParams& continuity) {
+  CueGradients g;
+  const int n = measured.projection.size();
+  g.gradient.assign(n, Eigen::Matrix<float, 5, 2>::Zero());
+  g.valid.assign(n, 0);
+  for (int i = 0; i < n; ++i) {
+    if (measured.hasPoint(i))
+      g.valid[i] = gradientAt(measured, i, continuity.max_range_jump_ratio, &g.gradient[i]);
+  }
+  return g;
+}
+
+bool cueResidual(const Eigen::Vector3f& model_point, const Eigen::Vector3f& model_normal,
+                 float model_intensity, const Eigen::Isometry3d& X, const MultiCueImage& measured,
+                 const CueGradients& gradients, int pixel, CueResidual* out) {
+  if (pixel < 0 || pixel >= measured.projection.size()) return false;
+  if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
+  const Eigen::Vector3d q = X * model_point.cast<double>();
+  const double range = q.norm();
+  if (!(range > 0.0) || q.head<2>().squaredNorm() <= 0.0) return false;
+  const SphericalProjectionParams& projection = measured.projection;
+  const Eigen::Vector2d offset =
+      offsetFrom(projection, pixelOf(projection, q), measured.subpixel[pixel]);
+  const Eigen::Matrix<double, 5, 2> G = gradients.gradient[pixel].cast<double>();
+  const Eigen::Matrix<double, 5, 1> measured_cues =
+      cuesAt(measured, pixel).cast<double>() + G * offset;
+
+  // d q / d delta for q <- exp(delta) q, and its projection into the image.
+  Eigen::Matrix<double, 3, 6> dq;
+  dq << Eigen::Matrix3d::Identity(), -skew(q);
+  const Eigen::Matrix<double, 2, 6> dpixel = projection.projectionJacobian(q) * dq;
+
+  CueResidual r;
+  r.error(0) = range - measured_cues(0);
+  r.jacobian.row(0) = (q / range).transpose() * dq - G.row(0) * dpixel;
+  r.intensity_valid = measured.has_intensity;
+  if (r.intensity_valid) {
+    r.error(1) = model_intensity - measured_cues(1);
+    r.jacobian.row(1) = -G.row(1) * dpixel;
+  }
+  r.normal_valid = measured.hasNormal(pixel) && model_normal.squaredNorm() > 0.0f;
+  if (r.normal_valid) {
+    const Eigen::Vector3d rotated = X.linear() * model_normal.cast<double>();
+    r.error.tail<3>() = rotated - measured_cues.tail<3>();
+    r.jacobian.bottomLeftCorner<3, 3>().setZero();
+    r.jacobian.bottomRightCorner<3, 3>() = -skew(rotated);
+    r.jacobian.bottomRows<3>() -= G.bottomRows<3>() * dpixel;
+  }
+  *out = r;
+  return true;
+}
+
+MultiCueRegistration::MultiCueRegistration(const MultiCueParams& params,
+                                           const SurfaceContinuityParams& continuity)
+    : params_(params), continuity_(continuity) {}
+
+MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
+                                           const MultiCuePyramid& current,
+                                           const Eigen::Isometry3d& guess) const {
+  const auto start = Clock::now();
+  MultiCueResult result;
+  result.transform = guess;
+  if (const std::string why = params_.validate(); !why.empty()) {
+    result.message = "multi-cue parameters: " + why;
+    return result;
+  }
+  const int levels =
+      std::min<int>({params_.pyramid_levels, int(model.levels.size()), int(current.levels.size())});
+  if (levels < 1) {
+    result.message = "empty pyramid";
+    return result;
+  }
+  const bool use_intensity =
+      model.has_intensity() && current.has_intensity() && params_.intensity_weight > 0.0;
+  result.intensity_used = use_intensity;
+  Eigen::Matrix<double, 5, 1> weights;
+  weights << params_.range_weight, use_intensity ? params_.intensity_weight : 0.0,
+      params_.normal_weight, params_.normal_weight, params_.normal_weight;
+
+  Eigen::Isometry3d X = guess.inverse();  // model -> current sensor frame
+  Rendering rendering;
+  NormalEquations last;
+  bool finest_converged = false;
+  for (int level = levels - 1; level >= 0; --level) {
+    const MultiCueImage& model_image = model.levels[level];
+    const MultiCueImage& measured = current.levels[level];
+    if (model_image.rows() != measured.rows() || model_image.cols() != measured.cols()) {
+      result.message = "the model and the current scan come from different projections";
+      result.time_ms = msSince(start);
+      return result;
+    }
+    const auto gradients_start = Clock::now();
+    const CueGradients gradients = computeCueGradients(measured, continuity_);
+    result.gradients_ms += msSince(gradients_start);
+    bool level_converged = false;
+    for (int iteration = 0; iteration < params_.max_iterations_per_level; ++iteration) {
+      render(model_image, X, measured.projection, rendering);
+      NormalEquations eq;
+      CueResidual r;
+      for (const int pixel : rendering.touched) {
+        const int j = rendering.owner[pixel];
+        if (!cueResidual(model_image.point[j], model_image.normal[j], model_image.intensity[j], X,
+                         measured, gradients, pixel, &r))
+          continue;
+        if (std::abs(r.error(0)) > params_.range_gate) continue;
+        Eigen::Matrix<double, 5, 1> w = weights;
+        if (!r.intensity_valid) w(1) = 0.0;
+        if (!r.normal_valid) w.tail<3>().setZero();
+        const double chi2 = r.error.dot(w.cwiseProduct(r.error));
+        const double k = robustWeight(params_.kernel, params_.kernel_width, chi2);
+        const Eigen::Matrix<double, 6, 5> JtW = r.jacobian.transpose() * (k * w).asDiagonal();
+        eq.H.noalias() += JtW * r.jacobian;
+        eq.b.noalias() += JtW * r.error;
+        eq.chi2 += chi2;
+        ++eq.inliers;
+      }
+      ++result.iterations;
+      last = eq;
+      if (eq.inliers < 6) break;
+      const Eigen::LDLT<Matrix6d> solver(eq.H);
+      if (solver.info() != Eigen::Success) break;
+      const Vector6d delta = -solver.solve(eq.b);
+      if (!delta.allFinite()) break;
+      X = applyIncrement(delta, X);
+      if (delta.head<3>().norm() < params_.translation_epsilon &&
+          delta.tail<3>().norm() < params_.rotation_epsilon) {
+        level_converged = true;
+        break;
+      }
+    }
+    if (level == 0) finest_converged = level_converged;
+  }
+
+  result.transform = X.inverse();
+  result.inliers = last.inliers;
+  result.chi2 = last.chi2;
+  // The last normal equations were built for X <- exp(delta) X, i.e. transform <- transform *
+  // exp(-delta); carry them to a perturbation on the left of transform.
+  const Matrix6d ad_inverse = adjoint(result.transform).inverse();
+  result.information = ad_inverse.transpose() * last.H * ad_inverse;
+  result.converged = finest_converged && last.inliers >= params_.min_inliers;
+  if (!result.converged) {
+    std::ostringstream why;
+    if (last.inliers < params_.min_inliers)
+      why << last.inliers << " inlier pixels, below min_inliers " << params_.min_inliers;
+    else
+      why << "no convergence within " << params_.max_iterations_per_level
+          << " iterations at the finest level";
+    result.message = why.str();
+  }
+  result.time_ms = msSince(start);
+  return result;
+}
+
+}  // namespace osm_graph_slam
