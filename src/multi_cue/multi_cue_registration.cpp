@@ -19,9 +19,10 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+template <typename Scalar = double>
+Eigen::Matrix<Scalar, 3, 3> skew(const Eigen::Matrix<Scalar, 3, 1>& v) {
+  Eigen::Matrix<Scalar, 3, 3> m;
+  m << Scalar(0), -v.z(), v.y(), v.z(), Scalar(0), -v.x(), -v.y(), v.x(), Scalar(0);
   return m;
 }
 
@@ -48,12 +49,15 @@ Eigen::Vector2d pixelOf(const SphericalProjectionParams& projection, const Eigen
 
 /// The sub-pixel offset of `at` from the measured return's own position, with the azimuth wrapped
 /// on a full circle.
-Eigen::Vector2d offsetFrom(const SphericalProjectionParams& projection, const Eigen::Vector2d& at,
-                           const Eigen::Vector2f& measured) {
-  Eigen::Vector2d d = at - measured.cast<double>();
+template <typename Scalar>
+Eigen::Matrix<Scalar, 2, 1> offsetFrom(const SphericalProjectionParams& projection,
+                                       const Eigen::Matrix<Scalar, 2, 1>& at,
+                                       const Eigen::Vector2f& measured) {
+  Eigen::Matrix<Scalar, 2, 1> d = at - measured.cast<Scalar>();
   if (projection.fullCircle()) {
-    if (d.x() > 0.5 * projection.cols) d.x() -= projection.cols;
-    if (d.x() < -0.5 * projection.cols) d.x() += projection.cols;
+    const Scalar cols = static_cast<Scalar>(projection.cols);
+    if (d.x() > Scalar(0.5) * cols) d.x() -= cols;
+    if (d.x() < Scalar(-0.5) * cols) d.x() += cols;
   }
   return d;
 }
@@ -87,9 +91,8 @@ bool gradientAt(const MultiCueImage& image, int i, double max_jump_ratio,
     const int j = neighbours[k];
     if (j < 0 || !image.hasPoint(j)) continue;
     if (!onOneSurface(image.range[i], image.range[j], max_jump_ratio)) continue;
-    const Eigen::Vector2d d =
-        offsetFrom(image.projection, image.subpixel[j].cast<double>(), image.subpixel[i]);
-    const Eigen::Vector2f df = d.cast<float>();
+    const Eigen::Vector2f df =
+        offsetFrom<float>(image.projection, image.subpixel[j], image.subpixel[i]);
     DDt += df * df.transpose();
     CDt += (cuesAt(image, j) - centre) * df.transpose();
     normals_everywhere = normals_everywhere && image.hasNormal(j);
@@ -103,10 +106,11 @@ bool gradientAt(const MultiCueImage& image, int i, double max_jump_ratio,
   return true;
 }
 
-double robustWeight(const std::string& kernel, double width, double chi2) {
-  const double width2 = width * width;
-  if (kernel == "cauchy") return 1.0 / (1.0 + chi2 / width2);
-  return chi2 <= width2 ? 1.0 : width / std::sqrt(chi2);  // huber
+/// The kernel's weight of a pixel with weighted squared error chi2 (IRLS).
+float robustWeight(bool cauchy, float width, float chi2) {
+  const float width2 = width * width;
+  if (cauchy) return 1.0f / (1.0f + chi2 / width2);
+  return chi2 <= width2 ? 1.0f : width / std::sqrt(chi2);  // Huber
 }
 
 /// The adjoint that carries a perturbation applied on the right of T to one applied on its left,
@@ -114,16 +118,18 @@ double robustWeight(const std::string& kernel, double width, double chi2) {
 Matrix6d adjoint(const Eigen::Isometry3d& T) {
   Matrix6d ad = Matrix6d::Zero();
   ad.topLeftCorner<3, 3>() = T.linear();
-  ad.topRightCorner<3, 3>() = skew(T.translation()) * T.linear();
+  ad.topRightCorner<3, 3>() = skew<double>(T.translation()) * T.linear();
   ad.bottomRightCorner<3, 3>() = T.linear();
   return ad;
 }
 
 /// One level's scratch: where every model point lands in the measured image.
 struct Rendering {
-  std::vector<float> depth;  ///< per measured pixel, the nearest rendered range
-  std::vector<int> owner;    ///< per measured pixel, the model pixel rendered there
-  std::vector<int> touched;  ///< measured pixels written this iteration
+  std::vector<float> depth;            ///< per measured pixel, the nearest rendered range
+  std::vector<int> owner;              ///< per measured pixel, the model pixel rendered there
+  std::vector<int> touched;            ///< measured pixels written this iteration
+  std::vector<Eigen::Vector3f> moved;  ///< per model pixel, its point moved by X
+  std::vector<Eigen::Vector2f> at;     ///< per model pixel, its continuous (u, v)
 };
 
 /// Renders the model moved by X into the measured image's pixels through a depth buffer.
@@ -132,6 +138,8 @@ void render(const MultiCueImage& model, const Eigen::Isometry3d& X,
   out.depth.assign(measured.size(), std::numeric_limits<float>::infinity());
   out.owner.assign(measured.size(), -1);
   out.touched.clear();
+  out.moved.resize(model.projection.size());
+  out.at.resize(model.projection.size());
   const Eigen::Matrix3f R = X.linear().cast<float>();
   const Eigen::Vector3f t = X.translation().cast<float>();
   for (int j = 0; j < model.projection.size(); ++j) {
@@ -144,7 +152,58 @@ void render(const MultiCueImage& model, const Eigen::Isometry3d& X,
     if (out.owner[i] < 0) out.touched.push_back(i);
     out.depth[i] = r;
     out.owner[i] = j;
+    out.moved[j] = q;
+    out.at[j] = Eigen::Vector2f(u, v);
   }
+}
+
+template <typename Scalar>
+struct PixelResidual {
+  Eigen::Matrix<Scalar, 5, 1> error = Eigen::Matrix<Scalar, 5, 1>::Zero();
+  Eigen::Matrix<Scalar, 5, 6> jacobian = Eigen::Matrix<Scalar, 5, 6>::Zero();
+  bool intensity_valid = false;
+  bool normal_valid = false;
+};
+
+/// The residual of a model point already moved to q (its normal rotated, zero when it has none)
+/// and projected to the continuous pixel `at`, against measured pixel `pixel`; double for the
+/// Jacobian test, float in the Gauss-Newton loop.
+template <typename Scalar>
+bool residualAt(const Eigen::Matrix<Scalar, 3, 1>& q, const Eigen::Matrix<Scalar, 2, 1>& at,
+                const Eigen::Matrix<Scalar, 3, 1>& rotated_normal, float model_intensity,
+                const MultiCueImage& measured, const CueGradients& gradients, int pixel,
+                PixelResidual<Scalar>* r) {
+  if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
+  const Scalar range = q.norm();
+  const SphericalProjectionParams& projection = measured.projection;
+  const Eigen::Matrix<Scalar, 2, 1> offset =
+      offsetFrom<Scalar>(projection, at, measured.subpixel[pixel]);
+  const Eigen::Matrix<Scalar, 5, 2> G = gradients.gradient[pixel].cast<Scalar>();
+  const Eigen::Matrix<Scalar, 5, 1> measured_cues =
+      cuesAt(measured, pixel).cast<Scalar>() + G * offset;
+
+  // q <- exp(delta) q moves q by (I, -[q]x) delta; the projection turns that into a pixel shift.
+  const Eigen::Matrix<Scalar, 2, 3> dpixel_dq = projection.projectionJacobian<Scalar>(q);
+  Eigen::Matrix<Scalar, 2, 6> dpixel;
+  dpixel << dpixel_dq, -dpixel_dq * skew<Scalar>(q);
+
+  // The range does not change when q turns about the sensor: its rotation block is zero.
+  r->error(0) = range - measured_cues(0);
+  r->jacobian.row(0) << q.transpose() / range, Scalar(0), Scalar(0), Scalar(0);
+  r->jacobian.row(0) -= G.row(0) * dpixel;
+  r->intensity_valid = measured.has_intensity;
+  if (r->intensity_valid) {
+    r->error(1) = Scalar(model_intensity) - measured_cues(1);
+    r->jacobian.row(1) = -G.row(1) * dpixel;
+  }
+  r->normal_valid = measured.hasNormal(pixel) && rotated_normal.squaredNorm() > Scalar(0);
+  if (r->normal_valid) {
+    r->error.template tail<3>() = rotated_normal - measured_cues.template tail<3>();
+    r->jacobian.template bottomLeftCorner<3, 3>().setZero();
+    r->jacobian.template bottomRightCorner<3, 3>() = -skew<Scalar>(rotated_normal);
+    r->jacobian.template bottomRows<3>() -= G.template bottomRows<3>() * dpixel;
+  }
+  return true;
 }
 
 struct NormalEquations {
@@ -153,6 +212,49 @@ struct NormalEquations {
   double chi2 = 0.0;
   int inliers = 0;
 };
+
+/// Accumulates J' W J, J' W e and chi2 over the rendered pixels: float per pixel (the points are
+/// float), summed into double in blocks so that tens of thousands of pixels lose no precision.
+NormalEquations linearise(const MultiCueImage& model, const Eigen::Isometry3d& X,
+                          const MultiCueImage& measured, const CueGradients& gradients,
+                          const Rendering& rendering, const Eigen::Matrix<float, 5, 1>& weights,
+                          bool cauchy, float kernel_width, float range_gate) {
+  NormalEquations eq;
+  const Eigen::Matrix3f R = X.linear().cast<float>();
+  Eigen::Matrix<float, 6, 6> H_block = Eigen::Matrix<float, 6, 6>::Zero();
+  Eigen::Matrix<float, 6, 1> b_block = Eigen::Matrix<float, 6, 1>::Zero();
+  PixelResidual<float> r;
+  int in_block = 0;
+  for (const int pixel : rendering.touched) {
+    const int j = rendering.owner[pixel];
+    if (!residualAt<float>(rendering.moved[j], rendering.at[j], R * model.normal[j],
+                           model.intensity[j], measured, gradients, pixel, &r))
+      continue;
+    if (!(std::abs(r.error(0)) <= range_gate)) continue;
+    Eigen::Matrix<float, 5, 1> w = weights;
+    if (!r.intensity_valid) w(1) = 0.0f;
+    if (!r.normal_valid) w.tail<3>().setZero();
+    const float chi2 = r.error.dot(w.cwiseProduct(r.error));
+    w *= robustWeight(cauchy, kernel_width, chi2);
+    const Eigen::Matrix<float, 6, 5> JtW = r.jacobian.transpose() * w.asDiagonal();
+    H_block.noalias() += JtW * r.jacobian;
+    b_block.noalias() += JtW * r.error;
+    eq.chi2 += chi2;
+    ++eq.inliers;
+    if (++in_block == 256) {
+      eq.H += H_block.cast<double>();
+      eq.b += b_block.cast<double>();
+      H_block.setZero();
+      b_block.setZero();
+      in_block = 0;
+    }
+  }
+  eq.H += H_block.cast<double>();
+  eq.b += b_block.cast<double>();
+  // J' W J summed in float is symmetric only up to rounding.
+  eq.H = 0.5 * (eq.H + eq.H.transpose()).eval();
+  return eq;
+}
 
 }  // namespace
 
@@ -194,39 +296,17 @@ bool cueResidual(const Eigen::Vector3f& model_point, const Eigen::Vector3f& mode
                  float model_intensity, const Eigen::Isometry3d& X, const MultiCueImage& measured,
                  const CueGradients& gradients, int pixel, CueResidual* out) {
   if (pixel < 0 || pixel >= measured.projection.size()) return false;
-  if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
   const Eigen::Vector3d q = X * model_point.cast<double>();
-  const double range = q.norm();
-  if (!(range > 0.0) || q.head<2>().squaredNorm() <= 0.0) return false;
-  const SphericalProjectionParams& projection = measured.projection;
-  const Eigen::Vector2d offset =
-      offsetFrom(projection, pixelOf(projection, q), measured.subpixel[pixel]);
-  const Eigen::Matrix<double, 5, 2> G = gradients.gradient[pixel].cast<double>();
-  const Eigen::Matrix<double, 5, 1> measured_cues =
-      cuesAt(measured, pixel).cast<double>() + G * offset;
-
-  // d q / d delta for q <- exp(delta) q, and its projection into the image.
-  Eigen::Matrix<double, 3, 6> dq;
-  dq << Eigen::Matrix3d::Identity(), -skew(q);
-  const Eigen::Matrix<double, 2, 6> dpixel = projection.projectionJacobian(q) * dq;
-
-  CueResidual r;
-  r.error(0) = range - measured_cues(0);
-  r.jacobian.row(0) = (q / range).transpose() * dq - G.row(0) * dpixel;
-  r.intensity_valid = measured.has_intensity;
-  if (r.intensity_valid) {
-    r.error(1) = model_intensity - measured_cues(1);
-    r.jacobian.row(1) = -G.row(1) * dpixel;
-  }
-  r.normal_valid = measured.hasNormal(pixel) && model_normal.squaredNorm() > 0.0f;
-  if (r.normal_valid) {
-    const Eigen::Vector3d rotated = X.linear() * model_normal.cast<double>();
-    r.error.tail<3>() = rotated - measured_cues.tail<3>();
-    r.jacobian.bottomLeftCorner<3, 3>().setZero();
-    r.jacobian.bottomRightCorner<3, 3>() = -skew(rotated);
-    r.jacobian.bottomRows<3>() -= G.bottomRows<3>() * dpixel;
-  }
-  *out = r;
+  if (q.head<2>().squaredNorm() <= 0.0) return false;
+  const Eigen::Vector3d rotated_normal = X.linear() * model_normal.cast<double>();
+  PixelResidual<double> r;
+  if (!residualAt<double>(q, pixelOf(measured.projection, q), rotated_normal, model_intensity,
+                          measured, gradients, pixel, &r))
+    return false;
+  out->error = r.error;
+  out->jacobian = r.jacobian;
+  out->intensity_valid = r.intensity_valid;
+  out->normal_valid = r.normal_valid;
   return true;
 }
 
@@ -253,7 +333,7 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
   const bool use_intensity =
       model.has_intensity() && current.has_intensity() && params_.intensity_weight > 0.0;
   result.intensity_used = use_intensity;
-  Eigen::Matrix<double, 5, 1> weights;
+  Eigen::Matrix<float, 5, 1> weights;
   weights << params_.range_weight, use_intensity ? params_.intensity_weight : 0.0,
       params_.normal_weight, params_.normal_weight, params_.normal_weight;
 
@@ -275,25 +355,9 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
     bool level_converged = false;
     for (int iteration = 0; iteration < params_.max_iterations_per_level; ++iteration) {
       render(model_image, X, measured.projection, rendering);
-      NormalEquations eq;
-      CueResidual r;
-      for (const int pixel : rendering.touched) {
-        const int j = rendering.owner[pixel];
-        if (!cueResidual(model_image.point[j], model_image.normal[j], model_image.intensity[j], X,
-                         measured, gradients, pixel, &r))
-          continue;
-        if (std::abs(r.error(0)) > params_.range_gate) continue;
-        Eigen::Matrix<double, 5, 1> w = weights;
-        if (!r.intensity_valid) w(1) = 0.0;
-        if (!r.normal_valid) w.tail<3>().setZero();
-        const double chi2 = r.error.dot(w.cwiseProduct(r.error));
-        const double k = robustWeight(params_.kernel, params_.kernel_width, chi2);
-        const Eigen::Matrix<double, 6, 5> JtW = r.jacobian.transpose() * (k * w).asDiagonal();
-        eq.H.noalias() += JtW * r.jacobian;
-        eq.b.noalias() += JtW * r.error;
-        eq.chi2 += chi2;
-        ++eq.inliers;
-      }
+      const NormalEquations eq =
+          linearise(model_image, X, measured, gradients, rendering, weights,
+                    params_.kernel == "cauchy", params_.kernel_width, params_.range_gate);
       ++result.iterations;
       last = eq;
       if (eq.inliers < 6) break;

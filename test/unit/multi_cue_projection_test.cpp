@@ -97,11 +97,25 @@ TEST(MultiCueProjection, ReturnsOutsideTheFieldOfViewOrRangeAreDropped) {
   const SphericalProjectionParams front = SphericalProjectionParams::halfScan(params, -M_PI_2);
   EXPECT_EQ(front.cols, 18);
   PointCloud two;
-  two.push_back(pointInDirection(10.0 * kDeg, 0.0, 10.0));
+  two.push_back(pointInDirection(15.0 * kDeg, 0.0, 10.0));
   two.push_back(pointInDirection(170.0 * kDeg, 0.0, 10.0));
   const MultiCueImage half = projectCloud(two, front);
   EXPECT_EQ(half.pointCount(), 1u);
-  EXPECT_TRUE(half.hasPoint(half.index(4, 10)));  // (10 + 90) / 10
+  EXPECT_TRUE(half.hasPoint(half.index(4, 10)));  // (15 + 90) / 10
+}
+
+TEST(MultiCueProjection, TheFastArcTangentIsWithinItsBound) {
+  double worst = 0.0;
+  for (double a = -M_PI; a <= M_PI; a += 1e-4) {
+    for (double r : {0.01, 1.0, 80.0}) {
+      const float y = r * std::sin(a), x = r * std::cos(a);
+      worst = std::max(
+          worst, std::abs(std::remainder(
+                     SphericalProjectionParams::fastAtan2(y, x) - std::atan2(y, x), 2.0 * M_PI)));
+    }
+  }
+  EXPECT_LT(worst, 1.2e-5);
+  EXPECT_EQ(SphericalProjectionParams::fastAtan2(0.0f, 0.0f), 0.0f);
 }
 
 TEST(MultiCueProjection, PresetsAreValidAndBadParametersAreExplained) {

@@ -4,6 +4,7 @@
 // the azimuth from the image's left edge and v growing downwards from the highest elevation.
 // Pixel (row, col) covers u in [col, col + 1) and v in [row, row + 1).
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -51,11 +52,11 @@ struct SphericalProjectionParams {
     const float rho2 = p.x() * p.x() + p.y() * p.y();
     const float r = std::sqrt(rho2 + p.z() * p.z());
     if (!(r >= min_range && r <= max_range)) return false;  // also rejects NaN
-    float azimuth = std::atan2(p.y(), p.x()) - static_cast<float>(azimuth_start);
+    float azimuth = fastAtan2(p.y(), p.x()) - static_cast<float>(azimuth_start);
     if (azimuth < 0.0f) azimuth += static_cast<float>(2.0 * M_PI);
     if (azimuth >= static_cast<float>(2.0 * M_PI)) azimuth -= static_cast<float>(2.0 * M_PI);
     const float col = azimuth * static_cast<float>(colsPerRadian());
-    const float row = (static_cast<float>(elevation_max) - std::atan2(p.z(), std::sqrt(rho2))) *
+    const float row = (static_cast<float>(elevation_max) - fastAtan2(p.z(), std::sqrt(rho2))) *
                       static_cast<float>(rowsPerRadian());
     if (!(col >= 0.0f && col < cols && row >= 0.0f && row < rows)) return false;
     *u = col;
@@ -65,15 +66,35 @@ struct SphericalProjectionParams {
   }
 
   /// d(u, v) / dp at p (p off the z axis): the chain rule's projection step.
-  Eigen::Matrix<double, 2, 3> projectionJacobian(const Eigen::Vector3d& p) const {
-    const double rho2 = p.x() * p.x() + p.y() * p.y();
-    const double rho = std::sqrt(rho2);
-    const double r2 = rho2 + p.z() * p.z();
-    const double fu = colsPerRadian(), fv = rowsPerRadian();
-    Eigen::Matrix<double, 2, 3> j;
-    j << -fu * p.y() / rho2, fu * p.x() / rho2, 0.0,  // d azimuth
-        fv * p.x() * p.z() / (r2 * rho), fv * p.y() * p.z() / (r2 * rho), -fv * rho / r2;
+  template <typename Scalar>
+  Eigen::Matrix<Scalar, 2, 3> projectionJacobian(const Eigen::Matrix<Scalar, 3, 1>& p) const {
+    const Scalar rho2 = p.x() * p.x() + p.y() * p.y();
+    const Scalar rho = std::sqrt(rho2);
+    const Scalar r2 = rho2 + p.z() * p.z();
+    const Scalar fu = static_cast<Scalar>(colsPerRadian());
+    const Scalar fv = static_cast<Scalar>(rowsPerRadian());
+    const Scalar fv_rho_r2 = fv / (r2 * rho);
+    Eigen::Matrix<Scalar, 2, 3> j;
+    j << -fu * p.y() / rho2, fu * p.x() / rho2, Scalar(0),  // d azimuth
+        p.x() * p.z() * fv_rho_r2, p.y() * p.z() * fv_rho_r2, -fv * rho / r2;
     return j;
+  }
+
+  /// atan2 to within 1.2e-5 rad (a column of a 1024-column image is 6e-3 rad) at a fraction of
+  /// std::atan2's cost: the projection runs for every return of a scan and for every model point
+  /// in every Gauss-Newton iteration. Abramowitz & Stegun 4.4.48 (atan on [0, 1]), then the
+  /// octant.
+  static float fastAtan2(float y, float x) {
+    const float ax = std::abs(x), ay = std::abs(y);
+    const float big = std::max(ax, ay);
+    if (big == 0.0f) return 0.0f;
+    const float a = std::min(ax, ay) / big;
+    const float s = a * a;
+    float r = a * (0.9998660f +
+                   s * (-0.3302995f + s * (0.1801410f + s * (-0.0851330f + s * 0.0208351f))));
+    if (ay > ax) r = static_cast<float>(M_PI_2) - r;
+    if (x < 0.0f) r = static_cast<float>(M_PI) - r;
+    return y < 0.0f ? -r : r;
   }
 };
 

@@ -1,0 +1,207 @@
+// multi_cue_benchmark: multi-cue photometric registration (multi_cue/, issue 55) against the GICP
+// registration of the keyframe tracker on the same consecutive pairs of real scans, in the same
+// run: scan k+1 registered to scan k by both, each from its own constant-velocity guess.
+// Prints milliseconds per scan per stage (multi-cue: projection, normals, gradients,
+// Gauss-Newton; GICP: prefilter, registration), their ratio, and how far the two relative
+// motions are apart (translation cm, rotation deg: median, 90th percentile, worst).
+//
+//   (the options: multi_cue_benchmark --help)
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "osm_graph_slam/cloud/cloud_prefilter.h"
+#include "osm_graph_slam/common/memory_tuning.h"
+#include "osm_graph_slam/io/kitti_bin.h"
+#include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/multi_cue/multi_cue_registration.h"
+#include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/registration/registration.h"
+#include "support/command_line.h"
+
+using namespace osm_graph_slam;
+using osm_graph_slam::tools::CommandLine;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// Per-scan milliseconds of each stage, summed over the scans.
+struct MultiCueTimes {
+  double projection = 0.0, normals = 0.0, gradients = 0.0, gauss_newton = 0.0;
+  double total() const { return projection + normals + gradients + gauss_newton; }
+};
+
+struct GicpTimes {
+  double prefilter = 0.0, registration = 0.0;
+  double total() const { return prefilter + registration; }
+};
+
+struct PairResult {
+  Eigen::Isometry3d multi_cue = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d gicp = Eigen::Isometry3d::Identity();
+  bool multi_cue_converged = false, gicp_converged = false;
+  int iterations = 0, inliers = 0;
+};
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, size_t(q * (v.size() - 1) + 0.5))];
+}
+
+/// Registers every scan to the one before with the multi-cue registration; each scan's pyramid
+/// is built once and serves as the next pair's model.
+void runMultiCue(const std::vector<PointCloud>& scans, const SphericalProjectionParams& projection,
+                 const MultiCueParams& params, MultiCueTimes& times,
+                 std::vector<PairResult>& pairs) {
+  const SurfaceContinuityParams continuity;
+  const MultiCueRegistration registration(params, continuity);
+  MultiCueBuildTimes build;
+  MultiCuePyramid model =
+      buildPyramid(scans.front(), projection, params.pyramid_levels, continuity, &build);
+  times.projection += build.projection_ms;
+  times.normals += build.normals_ms;
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  for (size_t k = 1; k < scans.size(); ++k) {
+    MultiCuePyramid current =
+        buildPyramid(scans[k], projection, params.pyramid_levels, continuity, &build);
+    times.projection += build.projection_ms;
+    times.normals += build.normals_ms;
+    const MultiCueResult r = registration.align(model, current, guess);
+    times.gradients += r.gradients_ms;
+    times.gauss_newton += r.time_ms - r.gradients_ms;
+    PairResult& pair = pairs[k - 1];
+    pair.multi_cue = r.transform;
+    pair.multi_cue_converged = r.converged;
+    pair.iterations = r.iterations;
+    pair.inliers = r.inliers;
+    guess = r.transform;  // constant velocity
+    model = std::move(current);
+  }
+}
+
+/// The same pairs with the keyframe tracker's GICP on prefiltered scans (the tracker's input).
+void runGicp(const std::vector<PointCloud>& scans, const RegistrationParams& params,
+             GicpTimes& times, std::vector<PairResult>& pairs) {
+  const CloudPrefilter prefilter;
+  auto registration = createRegistration(params);
+  auto start = Clock::now();
+  PointCloudConstPtr target = prefilter.filter(scans.front()).cloud;
+  times.prefilter += msSince(start);
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  for (size_t k = 1; k < scans.size(); ++k) {
+    start = Clock::now();
+    PointCloudConstPtr source = prefilter.filter(scans[k]).cloud;
+    times.prefilter += msSince(start);
+    start = Clock::now();
+    registration->setTarget(target);
+    const RegistrationResult r = registration->align(source, guess);
+    times.registration += msSince(start);
+    pairs[k - 1].gicp = r.transform;
+    pairs[k - 1].gicp_converged = r.converged;
+    guess = r.transform;
+    target = source;
+  }
+}
+
+void printStage(const char* name, double total_ms, size_t scans) {
+  std::printf("  %-28s %7.2f ms/scan\n", name, total_ms / scans);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
+  std::string dir, sensor = "hdl64e";
+  size_t max_scans = 0;
+  int gicp_threads = 1, cols = 0;
+  MultiCueParams params;
+  CommandLine cli("multi_cue_benchmark",
+                  "Multi-cue photometric registration against the tracker's GICP on the same "
+                  "consecutive pairs of real scans, in the same run: ms per scan per stage, the "
+                  "ratio, and the relative motions' agreement.");
+  cli.option("--scans", "DIR", "a folder of KITTI .bin scans", &dir)
+      .required()
+      .option("--max-scans", "N", "use at most N scans (0: all)", &max_scans)
+      .option("--sensor", "NAME", "projection preset: hdl64e | os1_64", &sensor)
+      .option("--cols", "N", "image columns (0: the preset's)", &cols)
+      .option("--levels", "L", "pyramid levels", &params.pyramid_levels)
+      .option("--iterations", "N", "Gauss-Newton iterations per level",
+              &params.max_iterations_per_level)
+      .option("--range-weight", "W", "range cue weight [1/m^2]", &params.range_weight)
+      .option("--intensity-weight", "W", "intensity cue weight", &params.intensity_weight)
+      .option("--normal-weight", "W", "normal cue weight", &params.normal_weight)
+      .option("--kernel", "NAME", "huber | cauchy", &params.kernel)
+      .option("--kernel-width", "W", "robust kernel width", &params.kernel_width)
+      .option("--range-gate", "M", "outlier gate on the range difference [m]", &params.range_gate)
+      .option("--gicp-threads", "N", "GICP threads (0: all; multi-cue runs on one)", &gicp_threads);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  SphericalProjectionParams projection = sensor == "os1_64" ? SphericalProjectionParams::os1_64()
+                                                            : SphericalProjectionParams::hdl64e();
+  if (cols > 0) projection.cols = cols;
+  if (const std::string why = projection.validate(); !why.empty()) return cli.fail(why);
+  if (const std::string why = params.validate(); !why.empty()) return cli.fail(why);
+
+  const std::vector<std::string> files = listFiles(dir, ".bin");
+  std::vector<PointCloud> scans;
+  for (const auto& file : files) {
+    if (max_scans > 0 && scans.size() >= max_scans) break;
+    PointCloud cloud;
+    std::string error;
+    if (!readKittiBin(file, cloud, &error)) return cli.fail(error);
+    scans.push_back(std::move(cloud));
+  }
+  if (scans.size() < 2) return cli.fail("fewer than 2 .bin scans in '" + dir + "'");
+
+  std::vector<PairResult> pairs(scans.size() - 1);
+  MultiCueTimes mc;
+  GicpTimes gicp;
+  runMultiCue(scans, projection, params, mc, pairs);
+  RegistrationParams gicp_params = KeyframeTrackerParams().registration;
+  gicp_params.num_threads = gicp_threads;
+  runGicp(scans, gicp_params, gicp, pairs);
+
+  std::vector<double> dt_cm, dr_deg, iterations, inliers;
+  int mc_converged = 0, gicp_converged = 0;
+  for (const PairResult& p : pairs) {
+    const Eigen::Isometry3d d = p.gicp.inverse() * p.multi_cue;
+    dt_cm.push_back(100.0 * d.translation().norm());
+    dr_deg.push_back(Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI);
+    iterations.push_back(p.iterations);
+    inliers.push_back(p.inliers);
+    mc_converged += p.multi_cue_converged;
+    gicp_converged += p.gicp_converged;
+  }
+  const size_t n = scans.size() - 1;  // registered scans
+  std::printf("%zu scans, %zu pairs; projection %dx%d, %d levels\n", scans.size(), n,
+              projection.rows, projection.cols, params.pyramid_levels);
+  std::printf("multi-cue (1 thread):\n");
+  printStage("projection", mc.projection, n);
+  printStage("normals", mc.normals, n);
+  printStage("gradients", mc.gradients, n);
+  printStage("Gauss-Newton", mc.gauss_newton, n);
+  printStage("total", mc.total(), n);
+  std::printf("  converged %d/%zu, iterations median %.0f, inliers median %.0f\n", mc_converged, n,
+              quantile(iterations, 0.5), quantile(inliers, 0.5));
+  std::printf("GICP (fast_gicp, the tracker's parameters, %d thread(s)):\n", gicp_threads);
+  printStage("prefilter", gicp.prefilter, n);
+  printStage("registration", gicp.registration, n);
+  printStage("total", gicp.total(), n);
+  std::printf("  converged %d/%zu\n", gicp_converged, n);
+  std::printf("ratio multi-cue / GICP: %.2f (registration alone: %.2f)\n",
+              mc.total() / gicp.total(), mc.total() / gicp.registration);
+  std::printf(
+      "motion agreement with GICP: translation median %.2f cm, p90 %.2f, worst %.2f; "
+      "rotation median %.3f deg, p90 %.3f, worst %.3f\n",
+      quantile(dt_cm, 0.5), quantile(dt_cm, 0.9), quantile(dt_cm, 1.0), quantile(dr_deg, 0.5),
+      quantile(dr_deg, 0.9), quantile(dr_deg, 1.0));
+  return 0;
+}
