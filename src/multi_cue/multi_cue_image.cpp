@@ -66,6 +66,47 @@ int sameSurfaceNeighbour(const MultiCueImage& image, int i, int neighbour_minus,
   return best_step;
 }
 
+/// The next pyramid level when rows and columns are even: a coarse pixel covers exactly 2 x 2
+/// fine ones, so the nearest of their returns is what re-projecting them through the depth buffer
+/// gives, without projecting again.
+MultiCueImage decimate(const MultiCueImage& finer) {
+  MultiCueImage coarse = emptyImage(finer.projection.coarser());
+  coarse.has_intensity = finer.has_intensity;
+  for (int row = 0; row < coarse.rows(); ++row) {
+    for (int col = 0; col < coarse.cols(); ++col) {
+      int nearest = -1;
+      for (int i : {finer.index(2 * row, 2 * col), finer.index(2 * row, 2 * col + 1),
+                    finer.index(2 * row + 1, 2 * col), finer.index(2 * row + 1, 2 * col + 1)}) {
+        if (finer.hasPoint(i) && (nearest < 0 || finer.range[i] < finer.range[nearest]))
+          nearest = i;
+      }
+      if (nearest < 0) continue;
+      const int i = coarse.index(row, col);
+      coarse.range[i] = finer.range[nearest];
+      coarse.intensity[i] = finer.intensity[nearest];
+      coarse.point[i] = finer.point[nearest];
+      coarse.subpixel[i] = 0.5f * finer.subpixel[nearest];
+      coarse.mask[i] = MultiCueImage::kPoint;
+    }
+  }
+  return coarse;
+}
+
+/// The next pyramid level: the returns of `finer` re-projected at half the resolution.
+MultiCueImage coarserLevel(const MultiCueImage& finer) {
+  if (finer.rows() % 2 == 0 && finer.cols() % 2 == 0) return decimate(finer);
+  std::vector<Eigen::Vector3f> points;
+  std::vector<float> intensity;
+  points.reserve(finer.range.size());
+  intensity.reserve(finer.range.size());
+  for (int i = 0; i < finer.projection.size(); ++i) {
+    if (!finer.hasPoint(i)) continue;
+    points.push_back(finer.point[i]);
+    intensity.push_back(finer.intensity[i]);
+  }
+  return projectPoints(points, intensity, finer.has_intensity, finer.projection.coarser());
+}
+
 }  // namespace
 
 size_t MultiCueImage::pointCount() const {
@@ -146,18 +187,7 @@ MultiCuePyramid buildPyramid(const PointCloud& cloud, const SphericalProjectionP
   t.projection_ms += msSince(start);
   for (int level = 1; level < levels; ++level) {
     start = Clock::now();
-    const MultiCueImage& finer = pyramid.levels.back();
-    std::vector<Eigen::Vector3f> points;
-    std::vector<float> intensity;
-    points.reserve(finer.range.size());
-    intensity.reserve(finer.range.size());
-    for (int i = 0; i < finer.projection.size(); ++i) {
-      if (!finer.hasPoint(i)) continue;
-      points.push_back(finer.point[i]);
-      intensity.push_back(finer.intensity[i]);
-    }
-    pyramid.levels.push_back(
-        projectPoints(points, intensity, finer.has_intensity, finer.projection.coarser()));
+    pyramid.levels.push_back(coarserLevel(pyramid.levels.back()));
     t.projection_ms += msSince(start);
   }
   start = Clock::now();

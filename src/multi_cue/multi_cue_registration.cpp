@@ -169,42 +169,72 @@ struct PixelResidual {
 /// and projected to the continuous pixel `at`, against measured pixel `pixel`; double for the
 /// Jacobian test, float in the Gauss-Newton loop.
 template <typename Scalar>
-bool residualAt(const Eigen::Matrix<Scalar, 3, 1>& q, const Eigen::Matrix<Scalar, 2, 1>& at,
+void residualAt(const Eigen::Matrix<Scalar, 3, 1>& q, const Eigen::Matrix<Scalar, 2, 1>& at,
                 const Eigen::Matrix<Scalar, 3, 1>& rotated_normal, float model_intensity,
-                const MultiCueImage& measured, const CueGradients& gradients, int pixel,
-                PixelResidual<Scalar>* r) {
-  if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
+                const MultiCueImage& measured, const Eigen::Matrix<float, 5, 2>& gradient,
+                int pixel, bool use_intensity, bool use_normal, PixelResidual<Scalar>* r) {
   const Scalar range = q.norm();
   const SphericalProjectionParams& projection = measured.projection;
   const Eigen::Matrix<Scalar, 2, 1> offset =
       offsetFrom<Scalar>(projection, at, measured.subpixel[pixel]);
-  const Eigen::Matrix<Scalar, 5, 2> G = gradients.gradient[pixel].cast<Scalar>();
+  const Eigen::Matrix<Scalar, 5, 2> G = gradient.cast<Scalar>();
   const Eigen::Matrix<Scalar, 5, 1> measured_cues =
       cuesAt(measured, pixel).cast<Scalar>() + G * offset;
 
   // q <- exp(delta) q moves q by (I, -[q]x) delta; the projection turns that into a pixel shift.
   const Eigen::Matrix<Scalar, 2, 3> dpixel_dq = projection.projectionJacobian<Scalar>(q);
+  // Row a of the rotation block: -a' [q]x = (q x a)'.
   Eigen::Matrix<Scalar, 2, 6> dpixel;
-  dpixel << dpixel_dq, -dpixel_dq * skew<Scalar>(q);
+  dpixel.template leftCols<3>() = dpixel_dq;
+  dpixel.row(0).template tail<3>() = q.cross(dpixel_dq.row(0).transpose()).transpose();
+  dpixel.row(1).template tail<3>() = q.cross(dpixel_dq.row(1).transpose()).transpose();
 
   // The range does not change when q turns about the sensor: its rotation block is zero.
   r->error(0) = range - measured_cues(0);
   r->jacobian.row(0) << q.transpose() / range, Scalar(0), Scalar(0), Scalar(0);
   r->jacobian.row(0) -= G.row(0) * dpixel;
-  r->intensity_valid = measured.has_intensity;
+  r->intensity_valid = use_intensity && measured.has_intensity;
   if (r->intensity_valid) {
     r->error(1) = Scalar(model_intensity) - measured_cues(1);
     r->jacobian.row(1) = -G.row(1) * dpixel;
   }
-  r->normal_valid = measured.hasNormal(pixel) && rotated_normal.squaredNorm() > Scalar(0);
+  r->normal_valid =
+      use_normal && measured.hasNormal(pixel) && rotated_normal.squaredNorm() > Scalar(0);
   if (r->normal_valid) {
     r->error.template tail<3>() = rotated_normal - measured_cues.template tail<3>();
     r->jacobian.template bottomLeftCorner<3, 3>().setZero();
     r->jacobian.template bottomRightCorner<3, 3>() = -skew<Scalar>(rotated_normal);
     r->jacobian.template bottomRows<3>() -= G.template bottomRows<3>() * dpixel;
   }
-  return true;
 }
+
+/// The measured image's cue gradients, computed the first time a pixel is asked for: the
+/// rendered model reaches about half of the image's pixels.
+class LazyGradients {
+ public:
+  LazyGradients(const MultiCueImage& image, double max_range_jump_ratio)
+      : image_(image),
+        max_range_jump_ratio_(max_range_jump_ratio),
+        gradient_(image.projection.size()),
+        state_(image.projection.size(), kUnknown) {}
+
+  /// The gradient at pixel i, or nullptr where the image has none.
+  const Eigen::Matrix<float, 5, 2>* at(int i) {
+    if (state_[i] == kUnknown) {
+      const bool ok =
+          image_.hasPoint(i) && gradientAt(image_, i, max_range_jump_ratio_, &gradient_[i]);
+      state_[i] = ok ? kValid : kInvalid;
+    }
+    return state_[i] == kValid ? &gradient_[i] : nullptr;
+  }
+
+ private:
+  enum : uint8_t { kUnknown, kValid, kInvalid };
+  const MultiCueImage& image_;
+  double max_range_jump_ratio_;
+  std::vector<Eigen::Matrix<float, 5, 2>> gradient_;
+  std::vector<uint8_t> state_;
+};
 
 struct NormalEquations {
   Matrix6d H = Matrix6d::Zero();
@@ -216,7 +246,7 @@ struct NormalEquations {
 /// Accumulates J' W J, J' W e and chi2 over the rendered pixels: float per pixel (the points are
 /// float), summed into double in blocks so that tens of thousands of pixels lose no precision.
 NormalEquations linearise(const MultiCueImage& model, const Eigen::Isometry3d& X,
-                          const MultiCueImage& measured, const CueGradients& gradients,
+                          const MultiCueImage& measured, LazyGradients& gradients,
                           const Rendering& rendering, const Eigen::Matrix<float, 5, 1>& weights,
                           bool cauchy, float kernel_width, float range_gate) {
   NormalEquations eq;
@@ -227,9 +257,10 @@ NormalEquations linearise(const MultiCueImage& model, const Eigen::Isometry3d& X
   int in_block = 0;
   for (const int pixel : rendering.touched) {
     const int j = rendering.owner[pixel];
-    if (!residualAt<float>(rendering.moved[j], rendering.at[j], R * model.normal[j],
-                           model.intensity[j], measured, gradients, pixel, &r))
-      continue;
+    const Eigen::Matrix<float, 5, 2>* gradient = gradients.at(pixel);
+    if (!gradient) continue;
+    residualAt<float>(rendering.moved[j], rendering.at[j], R * model.normal[j], model.intensity[j],
+                      measured, *gradient, pixel, weights(1) > 0.0f, weights(2) > 0.0f, &r);
     if (!(std::abs(r.error(0)) <= range_gate)) continue;
     Eigen::Matrix<float, 5, 1> w = weights;
     if (!r.intensity_valid) w(1) = 0.0f;
@@ -299,10 +330,10 @@ bool cueResidual(const Eigen::Vector3f& model_point, const Eigen::Vector3f& mode
   const Eigen::Vector3d q = X * model_point.cast<double>();
   if (q.head<2>().squaredNorm() <= 0.0) return false;
   const Eigen::Vector3d rotated_normal = X.linear() * model_normal.cast<double>();
+  if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
   PixelResidual<double> r;
-  if (!residualAt<double>(q, pixelOf(measured.projection, q), rotated_normal, model_intensity,
-                          measured, gradients, pixel, &r))
-    return false;
+  residualAt<double>(q, pixelOf(measured.projection, q), rotated_normal, model_intensity, measured,
+                     gradients.gradient[pixel], pixel, true, true, &r);
   out->error = r.error;
   out->jacobian = r.jacobian;
   out->intensity_valid = r.intensity_valid;
@@ -349,12 +380,15 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
       result.time_ms = msSince(start);
       return result;
     }
-    const auto gradients_start = Clock::now();
-    const CueGradients gradients = computeCueGradients(measured, continuity_);
-    result.gradients_ms += msSince(gradients_start);
+    LazyGradients gradients(measured, continuity_.max_range_jump_ratio);
     bool level_converged = false;
     for (int iteration = 0; iteration < params_.max_iterations_per_level; ++iteration) {
       render(model_image, X, measured.projection, rendering);
+      if (iteration == 0) {  // later iterations reach few new pixels
+        const auto gradients_start = Clock::now();
+        for (const int pixel : rendering.touched) gradients.at(pixel);
+        result.gradients_ms += msSince(gradients_start);
+      }
       const NormalEquations eq =
           linearise(model_image, X, measured, gradients, rendering, weights,
                     params_.kernel == "cauchy", params_.kernel_width, params_.range_gate);
@@ -366,8 +400,11 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
       const Vector6d delta = -solver.solve(eq.b);
       if (!delta.allFinite()) break;
       X = applyIncrement(delta, X);
-      if (delta.head<3>().norm() < params_.translation_epsilon &&
-          delta.tail<3>().norm() < params_.rotation_epsilon) {
+      // A coarse level only has to bring the next one into its basin: its pixels are 2^level
+      // times larger, and so are its thresholds.
+      const double scale = double(1 << level);
+      if (delta.head<3>().norm() < scale * params_.translation_epsilon &&
+          delta.tail<3>().norm() < scale * params_.rotation_epsilon) {
         level_converged = true;
         break;
       }

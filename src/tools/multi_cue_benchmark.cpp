@@ -123,6 +123,7 @@ int main(int argc, char** argv) {
   std::string dir, sensor = "hdl64e";
   size_t max_scans = 0;
   int gicp_threads = 1, cols = 0;
+  bool skip_gicp = false;
   MultiCueParams params;
   CommandLine cli("multi_cue_benchmark",
                   "Multi-cue photometric registration against the tracker's GICP on the same "
@@ -142,7 +143,12 @@ int main(int argc, char** argv) {
       .option("--kernel", "NAME", "huber | cauchy", &params.kernel)
       .option("--kernel-width", "W", "robust kernel width", &params.kernel_width)
       .option("--range-gate", "M", "outlier gate on the range difference [m]", &params.range_gate)
-      .option("--gicp-threads", "N", "GICP threads (0: all; multi-cue runs on one)", &gicp_threads);
+      .option("--translation-epsilon", "M", "convergence on the step [m]",
+              &params.translation_epsilon)
+      .option("--rotation-epsilon", "RAD", "convergence on the step [rad]",
+              &params.rotation_epsilon)
+      .option("--gicp-threads", "N", "GICP threads (0: all; multi-cue runs on one)", &gicp_threads)
+      .flag("--no-gicp", "multi-cue only (tuning; no ratio, no agreement)", &skip_gicp);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   SphericalProjectionParams projection = sensor == "os1_64" ? SphericalProjectionParams::os1_64()
                                                             : SphericalProjectionParams::hdl64e();
@@ -167,7 +173,7 @@ int main(int argc, char** argv) {
   runMultiCue(scans, projection, params, mc, pairs);
   RegistrationParams gicp_params = KeyframeTrackerParams().registration;
   gicp_params.num_threads = gicp_threads;
-  runGicp(scans, gicp_params, gicp, pairs);
+  if (!skip_gicp) runGicp(scans, gicp_params, gicp, pairs);
 
   std::vector<double> dt_cm, dr_deg, iterations, inliers;
   int mc_converged = 0, gicp_converged = 0;

@@ -31,9 +31,10 @@ struct MultiCueParams {
   /// A pixel whose range difference exceeds this is an outlier (occlusion, moving object, a
   /// model point rendered onto another surface) and is left out [m].
   double range_gate = 1.0;
-  /// A level stops when the Gauss-Newton step is below both [m], [rad].
-  double translation_epsilon = 1e-4;
-  double rotation_epsilon = 1e-5;
+  /// The finest level stops when the Gauss-Newton step is below both [m], [rad]; level l
+  /// (pixels 2^l times larger) when it is below 2^l times these.
+  double translation_epsilon = 1e-3;
+  double rotation_epsilon = 1e-4;
   /// Fewer inlier pixels than this at the finest level fails the match.
   int min_inliers = 500;
 
