@@ -1,5 +1,9 @@
 #include "osm_graph_slam/multi_cue/multi_cue_registration.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
@@ -133,7 +137,9 @@ struct Rendering {
 };
 
 /// Renders the model moved by X into the measured image's pixels through a depth buffer.
-void render(const MultiCueImage& model, const Eigen::Isometry3d& X,
+/// Renders the model's points of `pixels` moved by X into the measured image's pixels through a
+/// depth buffer.
+void render(const MultiCueImage& model, const std::vector<int>& pixels, const Eigen::Isometry3d& X,
             const SphericalProjectionParams& measured, Rendering& out) {
   out.depth.assign(measured.size(), std::numeric_limits<float>::infinity());
   out.owner.assign(measured.size(), -1);
@@ -142,8 +148,7 @@ void render(const MultiCueImage& model, const Eigen::Isometry3d& X,
   out.at.resize(model.projection.size());
   const Eigen::Matrix3f R = X.linear().cast<float>();
   const Eigen::Vector3f t = X.translation().cast<float>();
-  for (int j = 0; j < model.projection.size(); ++j) {
-    if (!model.hasPoint(j)) continue;
+  for (const int j : pixels) {
     const Eigen::Vector3f q = R * model.point[j] + t;
     float u = 0.0f, v = 0.0f, r = 0.0f;
     if (!measured.project(q, &u, &v, &r)) continue;
@@ -236,6 +241,20 @@ class LazyGradients {
   std::vector<uint8_t> state_;
 };
 
+/// The model pixels with a return; with stride 2 only those with an even row + column (a
+/// checkerboard: every row and column keeps half of its returns).
+std::vector<int> modelPixels(const MultiCueImage& model, int stride) {
+  std::vector<int> pixels;
+  pixels.reserve(model.projection.size() / std::max(1, stride));
+  for (int row = 0; row < model.rows(); ++row) {
+    for (int col = 0; col < model.cols(); ++col) {
+      const int i = model.index(row, col);
+      if (model.hasPoint(i) && (stride <= 1 || (row + col) % stride == 0)) pixels.push_back(i);
+    }
+  }
+  return pixels;
+}
+
 struct NormalEquations {
   Matrix6d H = Matrix6d::Zero();
   Vector6d b = Vector6d::Zero();
@@ -243,19 +262,32 @@ struct NormalEquations {
   int inliers = 0;
 };
 
-/// Accumulates J' W J, J' W e and chi2 over the rendered pixels: float per pixel (the points are
-/// float), summed into double in blocks so that tens of thousands of pixels lose no precision.
-NormalEquations linearise(const MultiCueImage& model, const Eigen::Isometry3d& X,
-                          const MultiCueImage& measured, LazyGradients& gradients,
-                          const Rendering& rendering, const Eigen::Matrix<float, 5, 1>& weights,
-                          bool cauchy, float kernel_width, float range_gate) {
+/// What the Gauss-Newton loop needs of the parameters, in the types it uses per pixel.
+struct PixelWeighting {
+  Eigen::Matrix<float, 5, 1> weights;  ///< range, intensity, normal x3 (zero: cue off)
+  bool cauchy = false;
+  float kernel_width = 0.0f;
+  float range_gate = 0.0f;
+};
+
+/// Accumulates J' W J, J' W e and chi2 over rendered pixels [begin, end): float per pixel (the
+/// points are float), summed into double in blocks so that tens of thousands of pixels lose no
+/// precision.
+NormalEquations lineariseRange(const MultiCueImage& model, const Eigen::Isometry3d& X,
+                               const MultiCueImage& measured, LazyGradients& gradients,
+                               const Rendering& rendering, const PixelWeighting& weighting,
+                               size_t begin, size_t end) {
+  const Eigen::Matrix<float, 5, 1>& weights = weighting.weights;
+  const bool cauchy = weighting.cauchy;
+  const float kernel_width = weighting.kernel_width, range_gate = weighting.range_gate;
   NormalEquations eq;
   const Eigen::Matrix3f R = X.linear().cast<float>();
   Eigen::Matrix<float, 6, 6> H_block = Eigen::Matrix<float, 6, 6>::Zero();
   Eigen::Matrix<float, 6, 1> b_block = Eigen::Matrix<float, 6, 1>::Zero();
   PixelResidual<float> r;
   int in_block = 0;
-  for (const int pixel : rendering.touched) {
+  for (size_t k = begin; k < end; ++k) {
+    const int pixel = rendering.touched[k];
     const int j = rendering.owner[pixel];
     const Eigen::Matrix<float, 5, 2>* gradient = gradients.at(pixel);
     if (!gradient) continue;
@@ -287,12 +319,58 @@ NormalEquations linearise(const MultiCueImage& model, const Eigen::Isometry3d& X
   return eq;
 }
 
+/// Rendered pixels per task: the chunks are fixed, and summed in their order, so the result
+/// does not depend on the number of threads or on the scheduling.
+constexpr size_t kPixelsPerChunk = 2048;
+
+/// lineariseRange over every rendered pixel, in parallel chunks. Each pixel appears once in
+/// `touched`, so the chunks' on-demand gradients never touch the same entry.
+NormalEquations linearise(tbb::task_arena& arena, const MultiCueImage& model,
+                          const Eigen::Isometry3d& X, const MultiCueImage& measured,
+                          LazyGradients& gradients, const Rendering& rendering,
+                          const PixelWeighting& weighting) {
+  const size_t n = rendering.touched.size();
+  std::vector<NormalEquations> partial((n + kPixelsPerChunk - 1) / kPixelsPerChunk);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, partial.size(), 1),
+                      [&](const tbb::blocked_range<size_t>& chunks) {
+                        for (size_t c = chunks.begin(); c < chunks.end(); ++c) {
+                          partial[c] = lineariseRange(model, X, measured, gradients, rendering,
+                                                      weighting, c * kPixelsPerChunk,
+                                                      std::min(n, (c + 1) * kPixelsPerChunk));
+                        }
+                      });
+  });
+  NormalEquations eq;
+  for (const NormalEquations& p : partial) {
+    eq.H += p.H;
+    eq.b += p.b;
+    eq.chi2 += p.chi2;
+    eq.inliers += p.inliers;
+  }
+  return eq;
+}
+
+/// The gradients of every rendered pixel, in parallel (each pixel once).
+void computeGradientsOf(tbb::task_arena& arena, const Rendering& rendering,
+                        LazyGradients& gradients) {
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rendering.touched.size(), kPixelsPerChunk),
+                      [&](const tbb::blocked_range<size_t>& r) {
+                        for (size_t k = r.begin(); k < r.end(); ++k)
+                          gradients.at(rendering.touched[k]);
+                      });
+  });
+}
+
 }  // namespace
 
 std::string MultiCueParams::validate() const {
   std::ostringstream why;
   if (pyramid_levels < 1)
     why << "pyramid_levels must be >= 1";
+  else if (finest_model_stride < 1)
+    why << "finest_model_stride must be >= 1";
   else if (max_iterations_per_level < 1)
     why << "max_iterations_per_level must be >= 1";
   else if (!(range_weight >= 0.0) || !(intensity_weight >= 0.0) || !(normal_weight >= 0.0))
@@ -364,9 +442,13 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
   const bool use_intensity =
       model.has_intensity() && current.has_intensity() && params_.intensity_weight > 0.0;
   result.intensity_used = use_intensity;
-  Eigen::Matrix<float, 5, 1> weights;
-  weights << params_.range_weight, use_intensity ? params_.intensity_weight : 0.0,
+  PixelWeighting weighting;
+  weighting.weights << params_.range_weight, use_intensity ? params_.intensity_weight : 0.0,
       params_.normal_weight, params_.normal_weight, params_.normal_weight;
+  weighting.cauchy = params_.kernel == "cauchy";
+  weighting.kernel_width = params_.kernel_width;
+  weighting.range_gate = params_.range_gate;
+  tbb::task_arena arena(params_.num_threads > 0 ? params_.num_threads : tbb::task_arena::automatic);
 
   Eigen::Isometry3d X = guess.inverse();  // model -> current sensor frame
   Rendering rendering;
@@ -380,18 +462,19 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
       result.time_ms = msSince(start);
       return result;
     }
+    const std::vector<int> model_pixels =
+        modelPixels(model_image, level == 0 ? params_.finest_model_stride : 1);
     LazyGradients gradients(measured, continuity_.max_range_jump_ratio);
     bool level_converged = false;
     for (int iteration = 0; iteration < params_.max_iterations_per_level; ++iteration) {
-      render(model_image, X, measured.projection, rendering);
+      render(model_image, model_pixels, X, measured.projection, rendering);
       if (iteration == 0) {  // later iterations reach few new pixels
         const auto gradients_start = Clock::now();
-        for (const int pixel : rendering.touched) gradients.at(pixel);
+        computeGradientsOf(arena, rendering, gradients);
         result.gradients_ms += msSince(gradients_start);
       }
       const NormalEquations eq =
-          linearise(model_image, X, measured, gradients, rendering, weights,
-                    params_.kernel == "cauchy", params_.kernel_width, params_.range_gate);
+          linearise(arena, model_image, X, measured, gradients, rendering, weighting);
       ++result.iterations;
       last = eq;
       if (eq.inliers < 6) break;

@@ -122,7 +122,7 @@ int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
   std::string dir, sensor = "hdl64e";
   size_t max_scans = 0;
-  int gicp_threads = 1, cols = 0;
+  int threads = 1, cols = 0;
   bool skip_gicp = false;
   MultiCueParams params;
   CommandLine cli("multi_cue_benchmark",
@@ -135,6 +135,8 @@ int main(int argc, char** argv) {
       .option("--sensor", "NAME", "projection preset: hdl64e | os1_64", &sensor)
       .option("--cols", "N", "image columns (0: the preset's)", &cols)
       .option("--levels", "L", "pyramid levels", &params.pyramid_levels)
+      .option("--model-stride", "S", "finest level: every model pixel (1) or a checkerboard (2)",
+              &params.finest_model_stride)
       .option("--iterations", "N", "Gauss-Newton iterations per level",
               &params.max_iterations_per_level)
       .option("--range-weight", "W", "range cue weight [1/m^2]", &params.range_weight)
@@ -147,7 +149,7 @@ int main(int argc, char** argv) {
               &params.translation_epsilon)
       .option("--rotation-epsilon", "RAD", "convergence on the step [rad]",
               &params.rotation_epsilon)
-      .option("--gicp-threads", "N", "GICP threads (0: all; multi-cue runs on one)", &gicp_threads)
+      .option("--threads", "N", "threads of both registrations (0: all hardware threads)", &threads)
       .flag("--no-gicp", "multi-cue only (tuning; no ratio, no agreement)", &skip_gicp);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   SphericalProjectionParams projection = sensor == "os1_64" ? SphericalProjectionParams::os1_64()
@@ -155,6 +157,7 @@ int main(int argc, char** argv) {
   if (cols > 0) projection.cols = cols;
   if (const std::string why = projection.validate(); !why.empty()) return cli.fail(why);
   if (const std::string why = params.validate(); !why.empty()) return cli.fail(why);
+  params.num_threads = threads;
 
   const std::vector<std::string> files = listFiles(dir, ".bin");
   std::vector<PointCloud> scans;
@@ -172,7 +175,7 @@ int main(int argc, char** argv) {
   GicpTimes gicp;
   runMultiCue(scans, projection, params, mc, pairs);
   RegistrationParams gicp_params = KeyframeTrackerParams().registration;
-  gicp_params.num_threads = gicp_threads;
+  gicp_params.num_threads = threads;
   if (!skip_gicp) runGicp(scans, gicp_params, gicp, pairs);
 
   std::vector<double> dt_cm, dr_deg, iterations, inliers;
@@ -189,7 +192,7 @@ int main(int argc, char** argv) {
   const size_t n = scans.size() - 1;  // registered scans
   std::printf("%zu scans, %zu pairs; projection %dx%d, %d levels\n", scans.size(), n,
               projection.rows, projection.cols, params.pyramid_levels);
-  std::printf("multi-cue (1 thread):\n");
+  std::printf("multi-cue (%d thread(s); projection and normals on one):\n", threads);
   printStage("projection", mc.projection, n);
   printStage("normals", mc.normals, n);
   printStage("gradients", mc.gradients, n);
@@ -197,7 +200,7 @@ int main(int argc, char** argv) {
   printStage("total", mc.total(), n);
   std::printf("  converged %d/%zu, iterations median %.0f, inliers median %.0f\n", mc_converged, n,
               quantile(iterations, 0.5), quantile(inliers, 0.5));
-  std::printf("GICP (fast_gicp, the tracker's parameters, %d thread(s)):\n", gicp_threads);
+  std::printf("GICP (fast_gicp, the tracker's parameters, %d thread(s)):\n", threads);
   printStage("prefilter", gicp.prefilter, n);
   printStage("registration", gicp.registration, n);
   printStage("total", gicp.total(), n);

@@ -17,6 +17,10 @@ struct MultiCueParams {
   /// Levels of the image pyramid, coarsest first in the optimisation; 3 on a 64 x 1024 image
   /// ends at 16 x 256 (1.4 deg a column), which still catches a 2 deg turn from identity.
   int pyramid_levels = 3;
+  /// At the finest level, render every model pixel (1) or a checkerboard half of them (2): the
+  /// measured image keeps its full resolution, so each rendered point still meets its exact
+  /// neighbourhood; the level's cost halves.
+  int finest_model_stride = 2;
   /// Gauss-Newton iterations at most on each level.
   int max_iterations_per_level = 10;
   /// Diagonal information of the cues: range [1/m^2], intensity [1/unit^2] (KITTI reflectance
@@ -37,6 +41,9 @@ struct MultiCueParams {
   double rotation_epsilon = 1e-4;
   /// Fewer inlier pixels than this at the finest level fails the match.
   int min_inliers = 500;
+  /// Threads of the per-pixel work (gradients, linearisation); 0 = all hardware threads, as
+  /// RegistrationParams::num_threads. The result does not depend on it.
+  int num_threads = 0;
 
   /// "" when usable, else what is wrong.
   std::string validate() const;
