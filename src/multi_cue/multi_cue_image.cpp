@@ -1,5 +1,9 @@
 #include "osm_graph_slam/multi_cue/multi_cue_image.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -28,11 +32,28 @@ MultiCueImage emptyImage(const SphericalProjectionParams& projection) {
   return image;
 }
 
+/// Where a return falls: its continuous pixel and range; pixel -1 when outside the image.
+struct Projected {
+  int pixel = -1;
+  float u = 0.0f, v = 0.0f, range = 0.0f;
+};
+
+Projected projectOne(const SphericalProjectionParams& projection, const Eigen::Vector3f& p) {
+  Projected out;
+  if (projection.project(p, &out.u, &out.v, &out.range))
+    out.pixel = static_cast<int>(out.v) * projection.cols + static_cast<int>(out.u);
+  return out;
+}
+
+int threadsOf(int num_threads) {
+  return num_threads > 0 ? num_threads : tbb::task_arena::automatic;
+}
+
 /// Writes the return into its pixel unless a nearer one is there already (the depth buffer).
-void splat(MultiCueImage& image, const Eigen::Vector3f& p, float intensity) {
-  float u = 0.0f, v = 0.0f, r = 0.0f;
-  if (!image.projection.project(p, &u, &v, &r)) return;
-  const int i = image.index(static_cast<int>(v), static_cast<int>(u));
+void splat(MultiCueImage& image, const Projected& at, const Eigen::Vector3f& p, float intensity) {
+  if (at.pixel < 0) return;
+  const int i = at.pixel;
+  const float u = at.u, v = at.v, r = at.range;
   if (image.hasPoint(i) && image.range[i] <= r) return;
   image.range[i] = r;
   image.intensity[i] = intensity;
@@ -123,12 +144,24 @@ bool cloudHasIntensity(const PointCloud& cloud) {
   });
 }
 
-MultiCueImage projectCloud(const PointCloud& cloud, const SphericalProjectionParams& projection) {
+MultiCueImage projectCloud(const PointCloud& cloud, const SphericalProjectionParams& projection,
+                           int num_threads) {
   MultiCueImage image = emptyImage(projection);
   image.has_intensity = cloudHasIntensity(cloud);
-  for (const PointT& p : cloud.points) {
+  // The trigonometry in parallel, the depth buffer in the cloud's order.
+  std::vector<Projected> projected(cloud.size());
+  tbb::task_arena arena(threadsOf(num_threads));
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, cloud.size(), 4096),
+                      [&](const tbb::blocked_range<size_t>& r) {
+                        for (size_t k = r.begin(); k < r.end(); ++k)
+                          projected[k] = projectOne(projection, cloud[k].getVector3fMap());
+                      });
+  });
+  for (size_t k = 0; k < cloud.size(); ++k) {
+    const PointT& p = cloud[k];
     const float intensity = image.has_intensity && std::isfinite(p.intensity) ? p.intensity : 0.0f;
-    splat(image, p.getVector3fMap(), intensity);
+    splat(image, projected[k], p.getVector3fMap(), intensity);
   }
   return image;
 }
@@ -139,51 +172,65 @@ MultiCueImage projectPoints(const std::vector<Eigen::Vector3f>& points,
   MultiCueImage image = emptyImage(projection);
   image.has_intensity = has_intensity;
   for (size_t k = 0; k < points.size(); ++k) {
-    splat(image, points[k], has_intensity ? intensity[k] : 0.0f);
+    splat(image, projectOne(projection, points[k]), points[k], has_intensity ? intensity[k] : 0.0f);
   }
   return image;
 }
 
-void computeNormals(MultiCueImage& image, const SurfaceContinuityParams& continuity) {
+namespace {
+
+/// computeNormals for one image row (each pixel writes only its own normal).
+void computeRowNormals(MultiCueImage& image, int row, double ratio) {
   const int rows = image.rows(), cols = image.cols();
   const bool wraps = image.projection.fullCircle();
-  const double ratio = continuity.max_range_jump_ratio;
-  for (int row = 0; row < rows; ++row) {
-    for (int col = 0; col < cols; ++col) {
-      const int i = image.index(row, col);
-      image.mask[i] &= ~MultiCueImage::kNormal;
-      image.normal[i].setZero();
-      if (!image.hasPoint(i)) continue;
-      const int left = col > 0 ? i - 1 : (wraps ? image.index(row, cols - 1) : -1);
-      const int right = col + 1 < cols ? i + 1 : (wraps ? image.index(row, 0) : -1);
-      const int up = row > 0 ? i - cols : -1;
-      const int down = row + 1 < rows ? i + cols : -1;
-      int h = -1, v = -1;
-      const int h_step = sameSurfaceNeighbour(image, i, left, right, ratio, &h);
-      const int v_step = sameSurfaceNeighbour(image, i, up, down, ratio, &v);
-      if (h_step == 0 || v_step == 0) continue;
-      // Both tangents point along +u and +v, so the cross product's sign is fixed before the
-      // normal is turned to face the sensor.
-      const Eigen::Vector3f along_u = float(h_step) * (image.point[h] - image.point[i]);
-      const Eigen::Vector3f along_v = float(v_step) * (image.point[v] - image.point[i]);
-      Eigen::Vector3f n = along_u.cross(along_v);
-      const float norm = n.norm();
-      if (!(norm > 1e-9f * along_u.norm() * along_v.norm()) || norm == 0.0f) continue;
-      n /= norm;
-      if (n.dot(image.point[i]) > 0.0f) n = -n;
-      image.normal[i] = n;
-      image.mask[i] |= MultiCueImage::kNormal;
-    }
+  for (int col = 0; col < cols; ++col) {
+    const int i = image.index(row, col);
+    image.mask[i] &= ~MultiCueImage::kNormal;
+    image.normal[i].setZero();
+    if (!image.hasPoint(i)) continue;
+    const int left = col > 0 ? i - 1 : (wraps ? image.index(row, cols - 1) : -1);
+    const int right = col + 1 < cols ? i + 1 : (wraps ? image.index(row, 0) : -1);
+    const int up = row > 0 ? i - cols : -1;
+    const int down = row + 1 < rows ? i + cols : -1;
+    int h = -1, v = -1;
+    const int h_step = sameSurfaceNeighbour(image, i, left, right, ratio, &h);
+    const int v_step = sameSurfaceNeighbour(image, i, up, down, ratio, &v);
+    if (h_step == 0 || v_step == 0) continue;
+    // Both tangents point along +u and +v, so the cross product's sign is fixed before the
+    // normal is turned to face the sensor.
+    const Eigen::Vector3f along_u = float(h_step) * (image.point[h] - image.point[i]);
+    const Eigen::Vector3f along_v = float(v_step) * (image.point[v] - image.point[i]);
+    Eigen::Vector3f n = along_u.cross(along_v);
+    const float norm = n.norm();
+    if (!(norm > 1e-9f * along_u.norm() * along_v.norm()) || norm == 0.0f) continue;
+    n /= norm;
+    if (n.dot(image.point[i]) > 0.0f) n = -n;
+    image.normal[i] = n;
+    image.mask[i] |= MultiCueImage::kNormal;
   }
+}
+
+}  // namespace
+
+void computeNormals(MultiCueImage& image, const SurfaceContinuityParams& continuity,
+                    int num_threads) {
+  tbb::task_arena arena(threadsOf(num_threads));
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<int>(0, image.rows(), 4),
+                      [&](const tbb::blocked_range<int>& r) {
+                        for (int row = r.begin(); row < r.end(); ++row)
+                          computeRowNormals(image, row, continuity.max_range_jump_ratio);
+                      });
+  });
 }
 
 MultiCuePyramid buildPyramid(const PointCloud& cloud, const SphericalProjectionParams& projection,
                              int levels, const SurfaceContinuityParams& continuity,
-                             MultiCueBuildTimes* times) {
+                             MultiCueBuildTimes* times, int num_threads) {
   MultiCuePyramid pyramid;
   MultiCueBuildTimes t;
   auto start = Clock::now();
-  pyramid.levels.push_back(projectCloud(cloud, projection));
+  pyramid.levels.push_back(projectCloud(cloud, projection, num_threads));
   t.projection_ms += msSince(start);
   for (int level = 1; level < levels; ++level) {
     start = Clock::now();
@@ -191,7 +238,7 @@ MultiCuePyramid buildPyramid(const PointCloud& cloud, const SphericalProjectionP
     t.projection_ms += msSince(start);
   }
   start = Clock::now();
-  for (MultiCueImage& image : pyramid.levels) computeNormals(image, continuity);
+  for (MultiCueImage& image : pyramid.levels) computeNormals(image, continuity, num_threads);
   t.normals_ms += msSince(start);
   if (times) *times = t;
   return pyramid;

@@ -49,7 +49,10 @@ struct SurfaceContinuityParams {
 bool cloudHasIntensity(const PointCloud& cloud);
 
 /// Projects the cloud; where several points fall into one pixel the nearest wins (depth buffer).
-MultiCueImage projectCloud(const PointCloud& cloud, const SphericalProjectionParams& projection);
+/// The projections are computed on `num_threads` threads (0: all), the depth buffer filled in
+/// the cloud's order, so the image does not depend on the thread count.
+MultiCueImage projectCloud(const PointCloud& cloud, const SphericalProjectionParams& projection,
+                           int num_threads = 1);
 /// The same for bare points (the pyramid re-projects a finer level's returns so).
 MultiCueImage projectPoints(const std::vector<Eigen::Vector3f>& points,
                             const std::vector<float>& intensity, bool has_intensity,
@@ -58,7 +61,8 @@ MultiCueImage projectPoints(const std::vector<Eigen::Vector3f>& points,
 /// The normal of every pixel with a return, from the cross product of the vectors to its
 /// horizontal and vertical neighbours on the same surface (the nearer in range of the two on each
 /// side); pixels without such neighbours (depth discontinuities, isolated returns) keep no normal.
-void computeNormals(MultiCueImage& image, const SurfaceContinuityParams& continuity);
+void computeNormals(MultiCueImage& image, const SurfaceContinuityParams& continuity,
+                    int num_threads = 1);
 
 /// Milliseconds spent per stage while building a pyramid.
 struct MultiCueBuildTimes {
@@ -77,6 +81,6 @@ struct MultiCuePyramid {
 
 MultiCuePyramid buildPyramid(const PointCloud& cloud, const SphericalProjectionParams& projection,
                              int levels, const SurfaceContinuityParams& continuity,
-                             MultiCueBuildTimes* times = nullptr);
+                             MultiCueBuildTimes* times = nullptr, int num_threads = 1);
 
 }  // namespace osm_graph_slam
