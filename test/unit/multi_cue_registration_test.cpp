@@ -175,6 +175,47 @@ TEST(MultiCueRegistration, AScanWithoutIntensityIsAlignedWithTheIntensityCueOff)
   EXPECT_LT(rotationErrorDeg(knownMotion(), r.transform), 0.15);
 }
 
+TEST(MultiCueRegistration, TheResultDoesNotDependOnTheThreadCount) {
+  MultiCueParams one, two;
+  one.num_threads = 1;
+  two.num_threads = 2;
+  const PointCloud model_cloud = scanAt(200, Eigen::Isometry3d::Identity(), 11);
+  const PointCloud current_cloud = scanAt(200, knownMotion(), 12);
+  const SphericalProjectionParams hdl = SphericalProjectionParams::hdl64e();
+  const MultiCuePyramid model_1 = buildPyramid(model_cloud, hdl, 3, {}, nullptr, 1);
+  const MultiCuePyramid model_2 = buildPyramid(model_cloud, hdl, 3, {}, nullptr, 2);
+  const MultiCuePyramid current_1 = buildPyramid(current_cloud, hdl, 3, {}, nullptr, 1);
+  const MultiCuePyramid current_2 = buildPyramid(current_cloud, hdl, 3, {}, nullptr, 2);
+  const MultiCueResult a =
+      MultiCueRegistration(one).align(model_1, current_1, Eigen::Isometry3d::Identity());
+  const MultiCueResult b =
+      MultiCueRegistration(two).align(model_2, current_2, Eigen::Isometry3d::Identity());
+  EXPECT_EQ(a.transform.matrix(), b.transform.matrix());
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.inliers, b.inliers);
+  EXPECT_EQ(a.information, b.information);
+}
+
+TEST(MultiCueRegistration, AHalfScanSensorRecoversTheMotionToo) {
+  // The front half (-90 ... +90 deg) of the same scans: the image does not wrap around.
+  const SphericalProjectionParams front =
+      SphericalProjectionParams::halfScan(SphericalProjectionParams::hdl64e(), -M_PI_2);
+  const MultiCueParams params;
+  const MultiCuePyramid model = buildPyramid(scanAt(200, Eigen::Isometry3d::Identity(), 11), front,
+                                             params.pyramid_levels, SurfaceContinuityParams());
+  const MultiCuePyramid current = buildPyramid(scanAt(200, knownMotion(), 12), front,
+                                               params.pyramid_levels, SurfaceContinuityParams());
+  ASSERT_EQ(model.levels.front().cols(), 512);
+  const MultiCueResult r =
+      MultiCueRegistration(params).align(model, current, Eigen::Isometry3d::Identity());
+  std::cout << "front half: " << 100.0 * translationError(knownMotion(), r.transform) << " cm, "
+            << rotationErrorDeg(knownMotion(), r.transform) << " deg, " << r.inliers
+            << " inliers\n";
+  EXPECT_TRUE(r.converged) << r.message;
+  EXPECT_LT(translationError(knownMotion(), r.transform), 0.03);
+  EXPECT_LT(rotationErrorDeg(knownMotion(), r.transform), 0.15);
+}
+
 TEST(MultiCueRegistration, BadParametersAndInputsFailWithAMessage) {
   MultiCueParams params;
   params.kernel = "tukey";
