@@ -69,9 +69,8 @@ double quantile(std::vector<double> v, double q) {
 /// Registers every scan to the one before with the multi-cue registration; each scan's pyramid
 /// is built once and serves as the next pair's model.
 void runMultiCue(const std::vector<PointCloud>& scans, const SphericalProjectionParams& projection,
-                 const MultiCueParams& params, MultiCueTimes& times,
-                 std::vector<PairResult>& pairs) {
-  const SurfaceContinuityParams continuity;
+                 const MultiCueParams& params, const SurfaceContinuityParams& continuity,
+                 MultiCueTimes& times, std::vector<PairResult>& pairs) {
   const MultiCueRegistration registration(params, continuity);
   MultiCueBuildTimes build;
   MultiCuePyramid model = buildPyramid(scans.front(), projection, params.pyramid_levels, continuity,
@@ -134,6 +133,7 @@ int main(int argc, char** argv) {
   int threads = 1, cols = 0;
   bool skip_gicp = false;
   MultiCueParams params;
+  SurfaceContinuityParams continuity;
   CommandLine cli("multi_cue_benchmark",
                   "Multi-cue photometric registration against the tracker's GICP on the same "
                   "consecutive pairs of real scans, in the same run: ms per scan per stage, the "
@@ -153,6 +153,8 @@ int main(int argc, char** argv) {
       .option("--normal-weight", "W", "normal cue weight", &params.normal_weight)
       .option("--kernel", "NAME", "huber | cauchy", &params.kernel)
       .option("--kernel-width", "W", "robust kernel width", &params.kernel_width)
+      .option("--max-range-jump", "RATIO", "neighbours on one surface differ by less than this",
+              &continuity.max_range_jump_ratio)
       .option("--range-gate", "M", "outlier gate on the range difference [m]", &params.range_gate)
       .option("--translation-epsilon", "M", "convergence on the step [m]",
               &params.translation_epsilon)
@@ -183,7 +185,7 @@ int main(int argc, char** argv) {
   MultiCueTimes mc;
   GicpTimes gicp;
   const double mc_cpu_start = cpuMs();
-  runMultiCue(scans, projection, params, mc, pairs);
+  runMultiCue(scans, projection, params, continuity, mc, pairs);
   const double mc_cpu = cpuMs() - mc_cpu_start;
   RegistrationParams gicp_params = KeyframeTrackerParams().registration;
   gicp_params.num_threads = threads;

@@ -26,12 +26,12 @@ struct MultiCueParams {
   /// Diagonal information of the cues: range [1/m^2], intensity [1/unit^2] (KITTI reflectance
   /// is in [0, 1]), normal difference (each of its 3 components).
   double range_weight = 1.0;
-  double intensity_weight = 1.0;
-  double normal_weight = 0.1;
+  double intensity_weight = 0.1;
+  double normal_weight = 0.003;
   /// Robust kernel on the pixel's weighted error sqrt(e' W e): "huber" or "cauchy", and its
   /// width.
   std::string kernel = "huber";
-  double kernel_width = 0.1;
+  double kernel_width = 0.05;
   /// A pixel whose range difference exceeds this is an outlier (occlusion, moving object, a
   /// model point rendered onto another surface) and is left out [m].
   double range_gate = 1.0;
