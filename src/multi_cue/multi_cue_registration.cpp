@@ -369,8 +369,8 @@ std::string MultiCueParams::validate() const {
   std::ostringstream why;
   if (pyramid_levels < 1)
     why << "pyramid_levels must be >= 1";
-  else if (finest_model_stride < 1)
-    why << "finest_model_stride must be >= 1";
+  else if (model_stride < 1)
+    why << "model_stride must be >= 1";
   else if (max_iterations_per_level < 1)
     why << "max_iterations_per_level must be >= 1";
   else if (!(range_weight >= 0.0) || !(intensity_weight >= 0.0) || !(normal_weight >= 0.0))
@@ -462,8 +462,7 @@ MultiCueResult MultiCueRegistration::align(const MultiCuePyramid& model,
       result.time_ms = msSince(start);
       return result;
     }
-    const std::vector<int> model_pixels =
-        modelPixels(model_image, level == 0 ? params_.finest_model_stride : 1);
+    const std::vector<int> model_pixels = modelPixels(model_image, params_.model_stride);
     LazyGradients gradients(measured, continuity_.max_range_jump_ratio);
     bool level_converged = false;
     for (int iteration = 0; iteration < params_.max_iterations_per_level; ++iteration) {

@@ -144,8 +144,8 @@ int main(int argc, char** argv) {
       .option("--sensor", "NAME", "projection preset: hdl64e | os1_64", &sensor)
       .option("--cols", "N", "image columns (0: the preset's)", &cols)
       .option("--levels", "L", "pyramid levels", &params.pyramid_levels)
-      .option("--model-stride", "S", "finest level: every model pixel (1) or a checkerboard (2)",
-              &params.finest_model_stride)
+      .option("--model-stride", "S", "render every model pixel (1) or a checkerboard half (2)",
+              &params.model_stride)
       .option("--iterations", "N", "Gauss-Newton iterations per level",
               &params.max_iterations_per_level)
       .option("--range-weight", "W", "range cue weight [1/m^2]", &params.range_weight)
