@@ -167,11 +167,12 @@ int runSimulated(size_t pair_count, const SphericalProjectionParams& projection,
   double mean_t = 0.0, mean_r = 0.0;
   for (size_t i = 0; i < t_cm.size(); ++i) mean_t += t_cm[i] / n, mean_r += r_deg[i] / n;
   std::printf(
-      "%zu simulated pairs (from identity, ~1 m apart): error to the truth: translation "
+      "%zu simulated pairs (from identity, %.2f m apart on average): error to the truth: "
+      "translation "
       "mean %.2f cm, median %.2f, worst %.2f; rotation mean %.4f deg, worst %.4f; "
       "converged %d/%zu; Gauss-Newton %.2f ms per pair\n",
-      t_cm.size(), mean_t, quantile(t_cm, 0.5), quantile(t_cm, 1.0), mean_r, quantile(r_deg, 1.0),
-      converged, t_cm.size(), ms / n);
+      t_cm.size(), motion_m / n, mean_t, quantile(t_cm, 0.5), quantile(t_cm, 1.0), mean_r,
+      quantile(r_deg, 1.0), converged, t_cm.size(), ms / n);
   return 0;
 }
 
