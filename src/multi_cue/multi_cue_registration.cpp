@@ -162,6 +162,26 @@ void render(const MultiCueImage& model, const std::vector<int>& pixels, const Ei
   }
 }
 
+/// What the residual reads of one measured pixel, in one place (72 bytes): the Gauss-Newton
+/// loop visits tens of thousands of pixels per iteration and was bound by fetching them from six
+/// image arrays.
+struct MeasuredPixel {
+  Eigen::Matrix<float, 5, 2> gradient;  ///< d cues / d (u, v)
+  Eigen::Matrix<float, 5, 1> cues;      ///< range, intensity, normal x y z
+  Eigen::Vector2f subpixel;             ///< the return's (u, v)
+  bool has_normal = false;
+};
+
+MeasuredPixel measuredPixel(const MultiCueImage& image, int i,
+                            const Eigen::Matrix<float, 5, 2>& gradient) {
+  MeasuredPixel m;
+  m.gradient = gradient;
+  m.cues = cuesAt(image, i);
+  m.subpixel = image.subpixel[i];
+  m.has_normal = image.hasNormal(i);
+  return m;
+}
+
 template <typename Scalar>
 struct PixelResidual {
   Eigen::Matrix<Scalar, 5, 1> error = Eigen::Matrix<Scalar, 5, 1>::Zero();
@@ -171,20 +191,18 @@ struct PixelResidual {
 };
 
 /// The residual of a model point already moved to q (its normal rotated, zero when it has none)
-/// and projected to the continuous pixel `at`, against measured pixel `pixel`; double for the
-/// Jacobian test, float in the Gauss-Newton loop.
+/// and projected to the continuous pixel `at`, against a measured pixel; double for the Jacobian
+/// test, float in the Gauss-Newton loop. use_intensity: both images carry intensity and its
+/// weight is not zero.
 template <typename Scalar>
 void residualAt(const Eigen::Matrix<Scalar, 3, 1>& q, const Eigen::Matrix<Scalar, 2, 1>& at,
                 const Eigen::Matrix<Scalar, 3, 1>& rotated_normal, float model_intensity,
-                const MultiCueImage& measured, const Eigen::Matrix<float, 5, 2>& gradient,
-                int pixel, bool use_intensity, bool use_normal, PixelResidual<Scalar>* r) {
+                const SphericalProjectionParams& projection, const MeasuredPixel& measured,
+                bool use_intensity, bool use_normal, PixelResidual<Scalar>* r) {
   const Scalar range = q.norm();
-  const SphericalProjectionParams& projection = measured.projection;
-  const Eigen::Matrix<Scalar, 2, 1> offset =
-      offsetFrom<Scalar>(projection, at, measured.subpixel[pixel]);
-  const Eigen::Matrix<Scalar, 5, 2> G = gradient.cast<Scalar>();
-  const Eigen::Matrix<Scalar, 5, 1> measured_cues =
-      cuesAt(measured, pixel).cast<Scalar>() + G * offset;
+  const Eigen::Matrix<Scalar, 2, 1> offset = offsetFrom<Scalar>(projection, at, measured.subpixel);
+  const Eigen::Matrix<Scalar, 5, 2> G = measured.gradient.cast<Scalar>();
+  const Eigen::Matrix<Scalar, 5, 1> measured_cues = measured.cues.cast<Scalar>() + G * offset;
 
   // q <- exp(delta) q moves q by (I, -[q]x) delta; the projection turns that into a pixel shift.
   const Eigen::Matrix<Scalar, 2, 3> dpixel_dq = projection.projectionJacobian<Scalar>(q);
@@ -198,13 +216,12 @@ void residualAt(const Eigen::Matrix<Scalar, 3, 1>& q, const Eigen::Matrix<Scalar
   r->error(0) = range - measured_cues(0);
   r->jacobian.row(0) << q.transpose() / range, Scalar(0), Scalar(0), Scalar(0);
   r->jacobian.row(0) -= G.row(0) * dpixel;
-  r->intensity_valid = use_intensity && measured.has_intensity;
+  r->intensity_valid = use_intensity;
   if (r->intensity_valid) {
     r->error(1) = Scalar(model_intensity) - measured_cues(1);
     r->jacobian.row(1) = -G.row(1) * dpixel;
   }
-  r->normal_valid =
-      use_normal && measured.hasNormal(pixel) && rotated_normal.squaredNorm() > Scalar(0);
+  r->normal_valid = use_normal && measured.has_normal && rotated_normal.squaredNorm() > Scalar(0);
   if (r->normal_valid) {
     r->error.template tail<3>() = rotated_normal - measured_cues.template tail<3>();
     r->jacobian.template bottomLeftCorner<3, 3>().setZero();
@@ -220,24 +237,25 @@ class LazyGradients {
   LazyGradients(const MultiCueImage& image, double max_range_jump_ratio)
       : image_(image),
         max_range_jump_ratio_(max_range_jump_ratio),
-        gradient_(image.projection.size()),
+        pixel_(image.projection.size()),
         state_(image.projection.size(), kUnknown) {}
 
-  /// The gradient at pixel i, or nullptr where the image has none.
-  const Eigen::Matrix<float, 5, 2>* at(int i) {
+  /// Pixel i with its gradient, or nullptr where the image has no return or no gradient.
+  const MeasuredPixel* at(int i) {
     if (state_[i] == kUnknown) {
-      const bool ok =
-          image_.hasPoint(i) && gradientAt(image_, i, max_range_jump_ratio_, &gradient_[i]);
+      Eigen::Matrix<float, 5, 2> gradient;
+      const bool ok = image_.hasPoint(i) && gradientAt(image_, i, max_range_jump_ratio_, &gradient);
+      if (ok) pixel_[i] = measuredPixel(image_, i, gradient);
       state_[i] = ok ? kValid : kInvalid;
     }
-    return state_[i] == kValid ? &gradient_[i] : nullptr;
+    return state_[i] == kValid ? &pixel_[i] : nullptr;
   }
 
  private:
   enum : uint8_t { kUnknown, kValid, kInvalid };
   const MultiCueImage& image_;
   double max_range_jump_ratio_;
-  std::vector<Eigen::Matrix<float, 5, 2>> gradient_;
+  std::vector<MeasuredPixel> pixel_;
   std::vector<uint8_t> state_;
 };
 
@@ -289,10 +307,10 @@ NormalEquations lineariseRange(const MultiCueImage& model, const Eigen::Isometry
   for (size_t k = begin; k < end; ++k) {
     const int pixel = rendering.touched[k];
     const int j = rendering.owner[pixel];
-    const Eigen::Matrix<float, 5, 2>* gradient = gradients.at(pixel);
-    if (!gradient) continue;
+    const MeasuredPixel* m = gradients.at(pixel);
+    if (!m) continue;
     residualAt<float>(rendering.moved[j], rendering.at[j], R * model.normal[j], model.intensity[j],
-                      measured, *gradient, pixel, weights(1) > 0.0f, weights(2) > 0.0f, &r);
+                      measured.projection, *m, weights(1) > 0.0f, weights(2) > 0.0f, &r);
     if (!(std::abs(r.error(0)) <= range_gate)) continue;
     Eigen::Matrix<float, 5, 1> w = weights;
     if (!r.intensity_valid) w(1) = 0.0f;
@@ -410,8 +428,9 @@ bool cueResidual(const Eigen::Vector3f& model_point, const Eigen::Vector3f& mode
   const Eigen::Vector3d rotated_normal = X.linear() * model_normal.cast<double>();
   if (!measured.hasPoint(pixel) || !gradients.valid[pixel]) return false;
   PixelResidual<double> r;
-  residualAt<double>(q, pixelOf(measured.projection, q), rotated_normal, model_intensity, measured,
-                     gradients.gradient[pixel], pixel, true, true, &r);
+  residualAt<double>(q, pixelOf(measured.projection, q), rotated_normal, model_intensity,
+                     measured.projection, measuredPixel(measured, pixel, gradients.gradient[pixel]),
+                     measured.has_intensity, true, &r);
   out->error = r.error;
   out->jacobian = r.jacobian;
   out->intensity_valid = r.intensity_valid;
