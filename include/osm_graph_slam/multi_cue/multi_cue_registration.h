@@ -37,9 +37,11 @@ struct MultiCueParams {
   /// model point rendered onto another surface) and is left out [m].
   double range_gate = 1.0;
   /// The finest level stops when the Gauss-Newton step is below both [m], [rad]; level l
-  /// (pixels 2^l times larger) when it is below 2^l times these.
-  double translation_epsilon = 1e-3;
-  double rotation_epsilon = 1e-4;
+  /// (pixels 2^l times larger) when it is below 2^l times these. Against 1 mm / 1e-4 rad: KITTI
+  /// 0005 Gauss-Newton 13.2 -> 7.5 ms per scan, agreement with GICP 0.53 -> 0.54 cm median;
+  /// simulated error 0.19 -> 0.22 cm mean (doc/multi_cue.md).
+  double translation_epsilon = 2e-3;
+  double rotation_epsilon = 2e-4;
   /// Fewer inlier pixels than this at the finest level fails the match.
   int min_inliers = 500;
   /// Threads of the per-pixel work (gradients, linearisation); 0 = all hardware threads, as
