@@ -136,7 +136,6 @@ struct Rendering {
   std::vector<Eigen::Vector2f> at;     ///< per model pixel, its continuous (u, v)
 };
 
-/// Renders the model moved by X into the measured image's pixels through a depth buffer.
 /// Renders the model's points of `pixels` moved by X into the measured image's pixels through a
 /// depth buffer.
 void render(const MultiCueImage& model, const std::vector<int>& pixels, const Eigen::Isometry3d& X,
