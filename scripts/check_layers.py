@@ -13,7 +13,7 @@ import re
 import sys
 
 CORE_STAGES = ["common", "cloud", "registration", "graph", "lines", "osm", "io", "landmarks",
-               "loop", "odometry", "radar", "localization"]
+               "loop", "odometry", "radar", "localization", "multi_cue"]
 
 # folder -> the folders it may include (besides itself)
 ALLOWED = {
@@ -27,6 +27,7 @@ ALLOWED = {
     "landmarks": ["common", "cloud"],
     "loop": ["common", "cloud", "registration", "landmarks"],
     "odometry": ["common", "cloud", "registration"],
+    "multi_cue": ["common", "cloud", "registration"],
     "radar": ["common", "graph", "io", "loop", "osm"],
     "localization": ["common", "cloud", "graph", "io", "landmarks", "lines", "loop", "osm",
                      "registration"],
