@@ -9,15 +9,13 @@
 #include <cmath>
 #include <limits>
 
+#include "osm_graph_slam/common/timing.h"
+
 namespace osm_graph_slam {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 MultiCueImage emptyImage(const SphericalProjectionParams& projection) {
   MultiCueImage image;

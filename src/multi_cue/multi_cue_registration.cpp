@@ -11,6 +11,8 @@
 #include <limits>
 #include <sstream>
 
+#include "osm_graph_slam/common/timing.h"
+
 namespace osm_graph_slam {
 
 namespace {
@@ -18,10 +20,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 template <typename Scalar = double>
 Eigen::Matrix<Scalar, 3, 3> skew(const Eigen::Matrix<Scalar, 3, 1>& v) {

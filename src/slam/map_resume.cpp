@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "osm_graph_slam/common/planar_pose.h"
+#include "osm_graph_slam/common/timing.h"
 #include "osm_graph_slam/localization/map_package.h"
 #include "osm_graph_slam/slam/graph_dump.h"
 #include "osm_graph_slam/slam/session_merge.h"
@@ -14,9 +15,6 @@ namespace osm_graph_slam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 /// The saved keyframe nearest to `position` (2-D): the one a placement is tied to.
 const MapKeyframe* nearestKeyframe(const MapPackage& package, const Eigen::Vector3d& position) {

@@ -5,15 +5,13 @@
 #include <optional>
 #include <set>
 
+#include "osm_graph_slam/common/timing.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 
 namespace osm_graph_slam {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 /// A point of the `from` frame (ENU of one origin) in the `to` frame (ENU of another).
 Eigen::Vector3d reproject(const EnuConverter& from, const EnuConverter& to,
