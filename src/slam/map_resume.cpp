@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <limits>
 
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/common/timing.h"
@@ -194,7 +193,7 @@ std::vector<LoopClosureInput> MapResume::confirmCandidate(const KeyframeInput& k
   const Eigen::Isometry3d map_to_odom = newest.map_pose * newest.odom_pose.inverse();
   const Eigen::Isometry3d predicted = map_to_odom * keyframe.odom_pose;
   ++c.keyframes;
-  if (nearestSavedDistance(predicted.translation()) <= params_.placement_check_radius) {
+  if (localizer_->distanceToMap(predicted.translation()) <= params_.placement_check_radius) {
     ++c.checks;
     const auto t0 = Clock::now();
     std::optional<LoopClosureInput> loop = search_->query(keyframe.id, predicted, keyframe.cloud);
@@ -257,13 +256,6 @@ std::vector<LoopClosureInput> MapResume::acceptCandidate() {
   candidate_.reset();
   logger_->info(status_.text());
   return loops;
-}
-
-double MapResume::nearestSavedDistance(const Eigen::Vector3d& position) const {
-  double best = std::numeric_limits<double>::infinity();
-  for (const auto& [id, pose] : saved_poses_)
-    best = std::min(best, (pose.translation() - position).head<2>().norm());
-  return best;
 }
 
 bool MapResume::samePlace(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,

@@ -9,8 +9,6 @@
 #include <ros/topic.h>
 #include <std_msgs/String.h>
 
-#include <array>
-
 #include "osm_graph_slam/SaveMap.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/trajectory_io.h"
@@ -34,16 +32,13 @@ std::string managerName() {
   return manager;
 }
 
-/// The pose of a trajectory at `stamp` (nearest keyframes, linear in position and yaw).
+/// The pose of a trajectory at `stamp`, strictly within its stamps (interpolatePose).
 std::optional<Eigen::Isometry3d> poseAt(const Trajectory& t, double stamp) {
-  for (size_t i = 1; i < t.size(); ++i) {
-    if (t[i].stamp < stamp || t[i - 1].stamp > stamp) continue;
-    const double a = (stamp - t[i - 1].stamp) / std::max(t[i].stamp - t[i - 1].stamp, 1e-9);
-    const Pose2 p0 = planarPose(t[i - 1].pose), p1 = planarPose(t[i].pose);
-    const Eigen::Vector2d xy = (1 - a) * p0.translation() + a * p1.translation();
-    return isometryFromPlanar(Pose2(xy.x(), xy.y(), p0.theta + a * wrapAngle(p1.theta - p0.theta)));
-  }
-  return std::nullopt;
+  Eigen::Isometry3d pose;
+  if (t.empty() || stamp < t.front().stamp || stamp > t.back().stamp ||
+      !interpolatePose(t, stamp, 1e9, pose))
+    return std::nullopt;
+  return pose;
 }
 
 std::string setUp() {

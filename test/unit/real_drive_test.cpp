@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -92,42 +91,12 @@ int mapScans0005(const fs::path& scans, const fs::path& output, const std::strin
              log);
 }
 
-/// TUM rows (stamp x y z qx qy qz qw) of a trajectory file.
-std::vector<std::array<double, 8>> readTum(const fs::path& path) {
-  std::vector<std::array<double, 8>> rows;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream ss(line);
-    std::array<double, 8> r{};
-    for (double& v : r) ss >> v;
-    if (ss) rows.push_back(r);
-  }
-  return rows;
-}
-
-/// The pose of a TUM trajectory at `stamp` (linear in position, spherical in rotation).
-std::optional<Eigen::Isometry3d> poseAt(const std::vector<std::array<double, 8>>& rows,
-                                        double stamp) {
-  for (size_t i = 1; i < rows.size(); ++i) {
-    if (rows[i][0] < stamp || rows[i - 1][0] > stamp) continue;
-    const double a = (stamp - rows[i - 1][0]) / std::max(rows[i][0] - rows[i - 1][0], 1e-9);
-    const Eigen::Quaterniond q0(rows[i - 1][7], rows[i - 1][4], rows[i - 1][5], rows[i - 1][6]);
-    const Eigen::Quaterniond q1(rows[i][7], rows[i][4], rows[i][5], rows[i][6]);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = q0.slerp(a, q1).toRotationMatrix();
-    for (int k = 0; k < 3; ++k)
-      pose.translation()[k] = (1 - a) * rows[i - 1][1 + k] + a * rows[i][1 + k];
-    return pose;
-  }
-  return std::nullopt;
-}
-
-Eigen::Isometry3d tumPose(const std::array<double, 8>& r) {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::Quaterniond(r[7], r[4], r[5], r[6]).toRotationMatrix();
-  pose.translation() = Eigen::Vector3d(r[1], r[2], r[3]);
+/// The pose of a trajectory at `stamp`, strictly within its stamps (interpolatePose).
+std::optional<Eigen::Isometry3d> poseAt(const Trajectory& t, double stamp) {
+  Eigen::Isometry3d pose;
+  if (t.empty() || stamp < t.front().stamp || stamp > t.back().stamp ||
+      !interpolatePose(t, stamp, 1e9, pose))
+    return std::nullopt;
   return pose;
 }
 
@@ -414,10 +383,13 @@ TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
   ASSERT_FALSE(status.is_discarded()) << log;
   ASSERT_TRUE(status["placed"].get<bool>()) << log;
   EXPECT_FALSE(status["placed_by_gnss"].get<bool>());
-  const auto merged = readTum(resumed / "trajectory_tum.txt");
+  const TrajectoryReadResult read = readTumTrajectory((resumed / "trajectory_tum.txt").string());
+  ASSERT_TRUE(read.ok) << read.error;
+  const Trajectory& merged = read.trajectory;
   const size_t saved_count = status["saved_keyframes"].get<size_t>();
   ASSERT_GT(merged.size(), saved_count + 10);
-  const std::vector<std::array<double, 8>> saved_rows(merged.begin(), merged.begin() + saved_count);
+  const Trajectory saved_rows(merged.begin(),
+                              merged.begin() + static_cast<std::ptrdiff_t>(saved_count));
   const size_t live = merged.size() - saved_count;
   const size_t placed_at = status["placed_at"].get<size_t>() % (size_t{1} << 20);
   std::cout << "[real_drive] resumed: " << live << " live keyframes, placed at the "
@@ -429,9 +401,9 @@ TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
 
   constexpr double kClockOffset = 4.1;
   // Where the localiser put the placing keyframe, against the saved session at its time.
-  const auto placement_row = merged[saved_count + placed_at];
+  const StampedPose& placement_row = merged[saved_count + placed_at];
   const std::vector<double> p = status["placement"].get<std::vector<double>>();
-  const auto there = poseAt(saved_rows, placement_row[0] + kClockOffset);
+  const auto there = poseAt(saved_rows, placement_row.stamp + kClockOffset);
   ASSERT_TRUE(there.has_value());
   const double placement_error =
       (Eigen::Vector2d(p[0], p[1]) - there->translation().head<2>()).norm();
@@ -439,9 +411,9 @@ TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
       std::remainder(p[3] - std::atan2(there->linear()(1, 0), there->linear()(0, 0)), 2.0 * M_PI));
   std::vector<double> errors, yaws;
   for (size_t k = saved_count; k < merged.size(); ++k) {
-    const auto at = poseAt(saved_rows, merged[k][0] + kClockOffset);
+    const auto at = poseAt(saved_rows, merged[k].stamp + kClockOffset);
     if (!at) continue;
-    const Eigen::Isometry3d d = at->inverse() * tumPose(merged[k]);
+    const Eigen::Isometry3d d = at->inverse() * merged[k].pose;
     errors.push_back(d.translation().head<2>().norm());
     yaws.push_back(std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0))));
   }
@@ -474,7 +446,8 @@ TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
   EXPECT_FALSE(elsewhere["placed"].get<bool>()) << log;
   EXPECT_EQ(elsewhere["inter_session_loops"].get<size_t>(), 0u);
   EXPECT_GT(elsewhere["global_attempts"].get<size_t>(), 0u);
-  EXPECT_GT(readTum(kTmp / "resumed_elsewhere" / "trajectory_tum.txt").size(),
+  EXPECT_GT(readTumTrajectory((kTmp / "resumed_elsewhere" / "trajectory_tum.txt").string())
+                .trajectory.size(),
             elsewhere["saved_keyframes"].get<size_t>());
 }
 

@@ -124,8 +124,6 @@ class MapResume {
   /// What the candidate's checks conclude (nullopt: not yet).
   std::optional<bool> candidateVerdict(const Candidate& c) const;
   std::vector<LoopClosureInput> acceptCandidate();
-  /// [m] 2-D distance from position to the nearest saved keyframe.
-  double nearestSavedDistance(const Eigen::Vector3d& position) const;
   void decidePlacement(const KeyframeInput& keyframe, GraphBackend& backend);
   std::vector<LoopClosureInput> tryToPlace(const KeyframeInput& keyframe);
   std::vector<LoopClosureInput> confirmCandidate(const KeyframeInput& keyframe);
