@@ -37,6 +37,15 @@ std::string MapResumeStatus::text() const {
     std::snprintf(line, sizeof(line),
                   "session %u placed by its GNSS fixes; %zu inter-session loops", session,
                   inter_session_loops);
+  else if (placed_by_localizer)
+    std::snprintf(line, sizeof(line),
+                  "session %u handed over by the localiser at keyframe %llu (%.2f, %.2f, yaw "
+                  "%.1f deg), %zu keyframes tied (%zu refused); %zu inter-session loops (%zu "
+                  "refused as inconsistent)",
+                  session, static_cast<unsigned long long>(placed_at.value_or(0)),
+                  placement.translation().x(), placement.translation().y(),
+                  planarPose(placement).theta * 180.0 / M_PI, localizer_ties,
+                  localizer_ties_refused, inter_session_loops, loops_inconsistent);
   else if (placed)
     std::snprintf(line, sizeof(line),
                   "session %u placed at keyframe %llu (%.2f, %.2f, yaw %.1f deg) after %zu global "
@@ -147,9 +156,11 @@ void MapResume::decidePlacement(const KeyframeInput& keyframe, GraphBackend& bac
                 "places it; mapped on its own until then");
 }
 
-std::vector<LoopClosureInput> MapResume::process(const KeyframeInput& keyframe,
-                                                 GraphBackend& backend) {
+std::vector<LoopClosureInput> MapResume::process(
+    const KeyframeInput& keyframe, GraphBackend& backend,
+    const std::optional<Eigen::Isometry3d>& localized) {
   if (first_keyframe_) decidePlacement(keyframe, backend);
+  if (localized) return placeByLocalizer(keyframe, *localized);
   if (!keyframe.cloud || keyframe.cloud->empty()) return {};
   if (!status_.placed) return candidate_ ? confirmCandidate(keyframe) : tryToPlace(keyframe);
   const Eigen::Isometry3d map_to_odom =
@@ -166,9 +177,9 @@ std::vector<LoopClosureInput> MapResume::tryToPlace(const KeyframeInput& keyfram
   status_.global_ms += msSince(t0);
   if (!r.success) return {};
   ++status_.global_answers;
-  const MapKeyframe* saved = nearestKeyframe(*package_, r.pose.translation());
-  if (!saved) return {};
-  const Answer answer{keyframe.id, keyframe.odom_pose, r.pose, keyframe.accum_distance, saved->id};
+  const std::optional<Answer> found = answerAt(keyframe, r.pose);
+  if (!found) return {};
+  const Answer& answer = *found;
   std::vector<Answer> agreeing;
   for (const auto& earlier : answers_)
     if (agree(answer, earlier)) agreeing.push_back(earlier);
@@ -185,6 +196,39 @@ std::vector<LoopClosureInput> MapResume::tryToPlace(const KeyframeInput& keyfram
   candidate_ = Candidate{{answer}, 0};
   candidate_->answers.insert(candidate_->answers.end(), agreeing.begin(), agreeing.end());
   return {};
+}
+
+std::optional<MapResume::Answer> MapResume::answerAt(const KeyframeInput& keyframe,
+                                                     const Eigen::Isometry3d& map_pose) const {
+  const MapKeyframe* saved = nearestKeyframe(*package_, map_pose.translation());
+  if (!saved) return std::nullopt;
+  return Answer{keyframe.id, keyframe.odom_pose, map_pose, keyframe.accum_distance, saved->id};
+}
+
+std::vector<LoopClosureInput> MapResume::placeByLocalizer(const KeyframeInput& keyframe,
+                                                          const Eigen::Isometry3d& map_pose) {
+  const std::optional<Answer> answer = answerAt(keyframe, map_pose);
+  if (!answer) return {};
+  // A tracked pose needs no vote: the localiser's filter already checked it scan by scan. The
+  // later ties must still agree with the first through odometry (a localiser that slid along
+  // a street on its way off the map would pull the session apart).
+  if (status_.placed_by_localizer && !agree(*answer, answers_.front())) {
+    ++status_.localizer_ties_refused;
+    logger_->info("session " + std::to_string(status_.session) + ": the localiser's pose of " +
+                  "keyframe " + std::to_string(keyframe.id) +
+                  " disagrees with the first tie through odometry; not tied");
+    return {};
+  }
+  if (!status_.placed) {
+    status_.placed = status_.placed_by_localizer = true;
+    status_.placed_at = keyframe.id;
+    status_.placement = map_pose;
+    placed_map_to_odom_ = map_pose * keyframe.odom_pose.inverse();
+    answers_.assign(1, *answer);
+    logger_->info(status_.text());
+  }
+  ++status_.localizer_ties;
+  return {tie(*answer)};
 }
 
 std::vector<LoopClosureInput> MapResume::confirmCandidate(const KeyframeInput& keyframe) {

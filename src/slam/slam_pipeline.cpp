@@ -101,6 +101,51 @@ bool SlamPipeline::resumeOn(const std::string& directory, const MapResumeParams&
   return true;
 }
 
+bool SlamPipeline::handOverOn(const std::string& directory, const MapResumeParams& resume,
+                              const LocalizationParams& localization,
+                              const LocalizationHandoverParams& handover, std::string* error) {
+  if (!resumeOn(directory, resume, localization, error)) return false;
+  handover_ = std::make_unique<LocalizationHandover>(handover);
+  logger_->info("localising on the saved map; mapping starts when the drive has left it (" +
+                std::to_string(handover.leave_after) + " s not tracked)");
+  return true;
+}
+
+void SlamPipeline::localize(double stamp, const PointCloudConstPtr& cloud,
+                            const std::optional<Eigen::Quaterniond>& imu_orientation) {
+  StageTimer t(timings_.localization_ms);
+  // The filter's motion model turns with the gyro; without one it assumes a constant turn rate
+  // and loses the map in sharp turns. The rate is the IMU orientation's change since the last
+  // scan, in base_link.
+  std::optional<Eigen::Vector3d> gyro;
+  if (imu_orientation && last_imu_orientation_ && stamp > last_imu_orientation_->first) {
+    const Eigen::AngleAxisd turn(last_imu_orientation_->second.conjugate() * *imu_orientation);
+    gyro = turn.axis() * turn.angle() / (stamp - last_imu_orientation_->first);
+  }
+  if (imu_orientation)
+    last_imu_orientation_ = std::make_pair(stamp, *imu_orientation);
+  else
+    last_imu_orientation_.reset();
+  const LocalizationOutput out = resume_->localizer().process(stamp, cloud, gyro);
+  const bool tracking =
+      out.status == LocalizationStatus::kTracking || out.status == LocalizationStatus::kRelocalized;
+  if (out.status != LocalizationStatus::kUninitialized) localized_.push_back({stamp, out.pose});
+  handover_->addLocalization(stamp, tracking, out.pose);
+}
+
+Trajectory SlamPipeline::drivePoses() const {
+  Trajectory poses;
+  const uint32_t session = resume_ ? resume_->session() : 0;
+  for (const auto& kf : backend_->keyframes())
+    if (kf.session == session) poses.push_back({kf.stamp, kf.map_pose});
+  const double first_mapped = poses.empty() ? INFINITY : poses.front().stamp;
+  Trajectory out;
+  for (const auto& p : localized_)
+    if (p.stamp < first_mapped) out.push_back(p);
+  out.insert(out.end(), poses.begin(), poses.end());
+  return out;
+}
+
 bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cloud,
                                const ScanAiding& aiding) {
   startClock();
@@ -133,6 +178,7 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
     logTracking(tracking_.updateRejected(stamp, filtered.reason));
     return false;
   }
+  if (handover_ && !handover_->mapping()) localize(stamp, filtered.cloud, aiding.imu_orientation);
   TrackResult result;
   {
     StageTimer t(timings_.tracking_ms);
@@ -165,18 +211,28 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     const std::string message = floor_health_.update(kf.id, floor);
     if (!message.empty()) logger_->warn(message);
   }
+  if (!handover_) return mapKeyframe(std::move(input), std::nullopt);
+  handover_->addKeyframe(input);
+  for (auto& released : handover_->release())
+    mapKeyframe(std::move(released.keyframe), released.localized);
+}
+
+void SlamPipeline::mapKeyframe(KeyframeInput input,
+                               const std::optional<Eigen::Isometry3d>& localized) {
+  ++mapped_keyframes_;
   if (resume_) resume_->renumber(input);  // the live session's ids from here on
   const uint64_t graph_id = input.id;
   backend_->addKeyframe(input);
   if (resume_)
-    for (const auto& loop : resume_->process(input, *backend_)) backend_->addLoopClosure(loop);
+    for (const auto& loop : resume_->process(input, *backend_, localized))
+      backend_->addLoopClosure(loop);
 
   std::vector<LineSegment2> segments;
   if (backend_->params().use_osm) {
     PointCloudPtr wall_points;
     {
       StageTimer t(timings_.walls_ms);
-      wall_points = walls_.extract(*kf.cloud);
+      wall_points = walls_.extract(*input.cloud);
     }
     StageTimer t(timings_.segments_ms);
     segments = segments_.extract(*wall_points);
@@ -188,9 +244,9 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     LoopKeyframe lk;
     lk.id = graph_id;
     // In the map frame the search follows the back-end's corrections of the odometry's drift.
-    lk.odom_pose = loop_search_in_map_ ? backend_->mapToOdom() * kf.pose : kf.pose;
-    lk.accum_distance = kf.accum_distance;
-    lk.cloud = kf.cloud;
+    lk.odom_pose = loop_search_in_map_ ? backend_->mapToOdom() * input.odom_pose : input.odom_pose;
+    lk.accum_distance = input.accum_distance;
+    lk.cloud = input.cloud;
     if (auto loop = loops_->process(lk)) {
       LoopClosureInput in;
       in.from_id = loop->from_id;
@@ -202,7 +258,7 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
     }
   }
 
-  if (osm_buffer_ && (resume_ ? timings_.keyframes == 1 : backend_->numKeyframes() == 0)) {
+  if (osm_buffer_ && (resume_ ? mapped_keyframes_ == 1 : backend_->numKeyframes() == 0)) {
     // map->odom holds the origin and the heading only once the first keyframe is in the graph:
     // until the first update the queries below would be made in the odometry frame.
     StageTimer t(timings_.backend_ms);
@@ -211,9 +267,10 @@ void SlamPipeline::processKeyframe(const Keyframe& kf, const TrackResult& track,
   if (osm_buffer_) {
     StageTimer t(timings_.osm_ms);
     // The query position is the keyframe's estimate in the map (map->odom of the last update).
-    const Eigen::Vector2d position = (backend_->mapToOdom() * kf.pose).translation().head<2>();
+    const Eigen::Vector2d position =
+        (backend_->mapToOdom() * input.odom_pose).translation().head<2>();
     OsmQueryResult q = osm_buffer_->query(position);
-    if (!q.buffer_valid && kf.id == 0) {
+    if (!q.buffer_valid && mapped_keyframes_ == 1) {
       // The very first fill is the only time the pipeline waits for the map (thesis §3.1).
       osm_buffer_->fillBlocking(position);
       q = osm_buffer_->query(position);
@@ -352,7 +409,18 @@ std::string SlamPipeline::timingTable() const {
           ? "prefilter ran ahead on the reading thread, overlapping the stages below: "
             "the stage times add up to more than the wall time\n"
           : "";
-  return std::string(buf) + ahead + track + updates + floor + heading + scaleLine();
+  std::string localization;
+  if (handover_) {
+    char line[320];
+    std::snprintf(line, sizeof(line),
+                  "localisation on the saved map: %.0f ms over %zu scans, %s; %zu keyframes "
+                  "localised, not mapped\n",
+                  t.localization_ms, localized_.size(),
+                  handover_->mapping() ? "then handed over to mapping" : "never left the map",
+                  handover_->keyframesLocalized());
+    localization = line;
+  }
+  return std::string(buf) + ahead + track + updates + floor + heading + localization + scaleLine();
 }
 
 std::string SlamPipeline::timingJson() const {
@@ -396,6 +464,7 @@ std::string SlamPipeline::timingJson() const {
                           {"osm", t.osm_ms},
                           {"backend", t.backend_ms},
                           {"floor", t.floor_ms},
+                          {"localization", t.localization_ms},
                           {"pre_tracker", t.pre_tracker_ms}}},
                         {"prefilter_ahead", t.prefilter_ahead},
                         {"tracking",

@@ -59,6 +59,7 @@ namespace {
 /// (CommandLine::values()), as openDriveSource() reads them.
 struct Switches {
   bool json = false, use_osm = true, use_loops = true, use_imu = true, dump_clouds = true;
+  bool handover = false;
   size_t max_scans = std::numeric_limits<size_t>::max();
   GnssUse gnss;
 };
@@ -86,6 +87,10 @@ void declareOptions(CommandLine& cli, Switches& sw) {
       .option("--resume", "DIR",
               "continue the map an earlier run saved in DIR (its --output): this drive becomes a "
               "new session of it, placed by the global localiser or its GNSS fixes")
+      .flag("--handover",
+            "with --resume: localise on the saved map first and map only once the drive has "
+            "left it (drive_tum.txt: the localiser's poses, then the new session's)",
+            &sw.handover)
       .option("--dump", "DIR", "also dump the graph for replay_backend")
       .flag("--dump-without-clouds",
             "the dump without keyframes/*.pcd (replay_backend does not read them)", &sw.dump_clouds,
@@ -188,6 +193,9 @@ std::string resumeJson(const MapResumeStatus& s) {
     << ", \"saved_keyframes\": " << s.saved_keyframes
     << ", \"placed\": " << (s.placed ? "true" : "false")
     << ", \"placed_by_gnss\": " << (s.placed_by_gnss ? "true" : "false")
+    << ", \"placed_by_localizer\": " << (s.placed_by_localizer ? "true" : "false")
+    << ", \"localizer_ties\": " << s.localizer_ties
+    << ", \"localizer_ties_refused\": " << s.localizer_ties_refused
     << ", \"placed_at\": " << (s.placed_at ? std::to_string(*s.placed_at) : "null")
     << ", \"placement\": [" << s.placement.translation().x() << ", "
     << s.placement.translation().y() << ", " << s.placement.translation().z() << ", "
@@ -275,9 +283,13 @@ int main(int argc, char** argv) {
   } else if (heading != "global_matching") {
     return usage("--initial-heading takes imu or global_matching");
   }
+  if (sw.handover && !args.count("resume")) return usage("--handover needs --resume DIR");
   SlamPipeline pipeline(params, source);
   if (args.count("resume") &&
-      !pipeline.resumeOn(args["resume"], MapResumeParams(), LocalizationParams(), &error)) {
+      !(sw.handover
+            ? pipeline.handOverOn(args["resume"], MapResumeParams(), LocalizationParams(),
+                                  LocalizationHandoverParams(), &error)
+            : pipeline.resumeOn(args["resume"], MapResumeParams(), LocalizationParams(), &error))) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
   }
@@ -335,6 +347,15 @@ int main(int argc, char** argv) {
   if (const MapResume* resume = pipeline.resume()) {
     std::cout << "resumed: " << resume->status().text() << "\n";
     writeFileAtomically(out + "/resume.json", resumeJson(resume->status()) + "\n");
+  }
+  if (const LocalizationHandover* handover = pipeline.handover()) {
+    writeTumTrajectory(out + "/drive_tum.txt", pipeline.drivePoses());
+    if (handover->mapping())
+      std::cout << "handed over to mapping at " << std::fixed << std::setprecision(3)
+                << *handover->handoverStamp() << " s (" << handover->keyframesLocalized()
+                << " keyframes localised before)\n";
+    else
+      std::cout << "never left the saved map: localised throughout, nothing mapped\n";
   }
   warnIfTrackLost(pipeline.timings().tracking);
   if (!json) std::cout << "saved: " << saved.message << "\n";  // files, and the grid's cost

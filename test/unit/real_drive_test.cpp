@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
@@ -68,12 +69,14 @@ nlohmann::json readJson(const fs::path& path) {
 
 /// The scans of one parity (0: even, 1: odd) from scan `first` on, linked into a folder of their
 /// own.
-fs::path halfOfScans(const fs::path& scans, int parity, int first, const std::string& name) {
+fs::path halfOfScans(const fs::path& scans, int parity, int first, const std::string& name,
+                     int end = std::numeric_limits<int>::max()) {
   const fs::path half = kTmp / name;
   fs::create_directories(half);
   for (const auto& f : fs::directory_iterator(scans)) {
     const int index = std::stoi(f.path().stem().string());
-    if (index % 2 == parity && index >= first && !fs::exists(half / f.path().filename()))
+    if (index % 2 == parity && index >= first && index < end &&
+        !fs::exists(half / f.path().filename()))
       fs::create_symlink(f.path(), half / f.path().filename());
   }
   return half;
@@ -449,6 +452,60 @@ TEST_F(RealDrive, Kitti0005OddScansResumeTheEvenScansMap) {
   EXPECT_GT(readTumTrajectory((kTmp / "resumed_elsewhere" / "trajectory_tum.txt").string())
                 .trajectory.size(),
             elsewhere["saved_keyframes"].get<size_t>());
+}
+
+// The localisation -> SLAM hand-over on real scans: the even scans of the drive's first half make
+// the map; the odd scans of the whole drive (no fix: --gnss origin) localise on it and are mapped
+// from where they leave it. The drive's poses (the localiser's, then the new session's) cover
+// every scan, and stay where the even scans of the whole drive put the vehicle (their own run,
+// 0.1 s earlier: scan 2j against 2j + 1).
+TEST_F(RealDrive, Kitti0005HandsOverFromLocalisationToMappingWhereTheMapEnds) {
+  std::string why;
+  const fs::path scans = unpack("kitti_raw_0005", &why);
+  if (scans.empty()) GTEST_SKIP() << why;
+  OGS_REQUIRE_SHARED_FILE(test::sharedDataPath("osm/2011_09_26_drive_0005_sync.osm"));
+  std::string log;
+  const fs::path whole = kTmp / "handover_reference", map = kTmp / "handover_map";
+  ASSERT_EQ(mapScans0005(halfOfScans(scans, 0, 0, "handover_even"), whole, "", &log), 0) << log;
+  ASSERT_EQ(mapScans0005(halfOfScans(scans, 0, 0, "handover_even_first", 80), map, "", &log), 0)
+      << log;
+  const fs::path drive = kTmp / "handed_over";
+  ASSERT_EQ(mapScans0005(halfOfScans(scans, 1, 0, "handover_odd"), drive,
+                         "--gnss origin --handover --resume '" + map.string() + "'", &log),
+            0)
+      << log;
+  ASSERT_NE(log.find("handed over to mapping"), std::string::npos) << log;
+  const nlohmann::json status = readJson(drive / "resume.json");
+  ASSERT_FALSE(status.is_discarded()) << log;
+  EXPECT_TRUE(status["placed_by_localizer"].get<bool>()) << log;
+  EXPECT_EQ(status["localizer_ties"].get<size_t>(), 3u);
+  EXPECT_EQ(status["localizer_ties_refused"].get<size_t>(), 0u);
+
+  const TrajectoryReadResult poses = readTumTrajectory((drive / "drive_tum.txt").string());
+  const TrajectoryReadResult reference = readTumTrajectory((whole / "trajectory_tum.txt").string());
+  ASSERT_TRUE(poses.ok && reference.ok) << poses.error << reference.error;
+  const Trajectory& p = poses.trajectory;
+  ASSERT_GT(p.size(), 40u);
+  double longest_gap = 0.0;
+  for (size_t i = 1; i < p.size(); ++i)
+    longest_gap = std::max(longest_gap, p[i].stamp - p[i - 1].stamp);
+  std::vector<double> errors;
+  for (const auto& sp : p)
+    if (const auto at = poseAt(reference.trajectory, sp.stamp + 0.1))
+      errors.push_back((at->translation() - sp.pose.translation()).head<2>().norm());
+  ASSERT_GT(errors.size(), p.size() - 5);
+  std::sort(errors.begin(), errors.end());
+  std::cout << "[real_drive] hand-over: " << p.size() << " drive poses from " << p.front().stamp
+            << " to " << p.back().stamp << " s, longest gap " << longest_gap
+            << " s; against the whole drive's run: median " << errors[errors.size() / 2]
+            << " m, worst " << errors.back() << " m\n";
+  // Scans read at 5 Hz from stamp 1: the localiser starts within 1 s (it confirms its first
+  // answer), and the poses run to the last scan (16.2 s) without a gap.
+  EXPECT_LT(p.front().stamp, 2.0);
+  EXPECT_GT(p.back().stamp, 15.5);
+  EXPECT_LT(longest_gap, 1.0);
+  EXPECT_LT(errors[errors.size() / 2], 0.25);  // measured 0.135 m
+  EXPECT_LT(errors.back(), 0.5);               // measured 0.324 m
 }
 
 // A folder that is not a saved map, a map without its graph or of another package version: one

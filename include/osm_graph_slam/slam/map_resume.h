@@ -66,7 +66,12 @@ struct MapResumeStatus {
   size_t saved_keyframes = 0;  ///< replayed from the saved map
   size_t saved_sessions = 0;
   bool placed = false;
-  bool placed_by_gnss = false;        ///< the live session had fixes: GNSS placed it
+  bool placed_by_gnss = false;  ///< the live session had fixes: GNSS placed it
+  /// The localiser tracked the session's first keyframes on the saved map (a hand-over,
+  /// slam/localization_handover.h): its poses of them placed it.
+  bool placed_by_localizer = false;
+  size_t localizer_ties = 0;          ///< keyframes tied by the localiser's poses
+  size_t localizer_ties_refused = 0;  ///< ... refused: they disagreed with odometry
   std::optional<uint64_t> placed_at;  ///< the keyframe (graph id) whose answer placed it
   Eigen::Isometry3d placement = Eigen::Isometry3d::Identity();  ///< its map pose then
   size_t global_attempts = 0, global_answers = 0;
@@ -99,8 +104,13 @@ class MapResume {
   /// After the keyframe went to the back-end, before the update that takes it in: the loops it
   /// gives (placement ties, then inter-session loops) for backend.addLoopClosure. The first
   /// keyframe decides whether the session waits for the localiser (no fix the back-end uses)
-  /// and tells the back-end so.
-  std::vector<LoopClosureInput> process(const KeyframeInput& keyframe, GraphBackend& backend);
+  /// and tells the back-end so. `localized`: where a localiser tracking on the saved map put
+  /// the keyframe (a hand-over): it places the session, no global search needed.
+  std::vector<LoopClosureInput> process(
+      const KeyframeInput& keyframe, GraphBackend& backend,
+      const std::optional<Eigen::Isometry3d>& localized = std::nullopt);
+  /// The saved map's localiser (global answers); a hand-over tracks with it before mapping.
+  Localizer& localizer() { return *localizer_; }
 
   const MapResumeStatus& status() const { return status_; }
 
@@ -126,6 +136,11 @@ class MapResume {
   std::vector<LoopClosureInput> acceptCandidate();
   void decidePlacement(const KeyframeInput& keyframe, GraphBackend& backend);
   std::vector<LoopClosureInput> tryToPlace(const KeyframeInput& keyframe);
+  std::vector<LoopClosureInput> placeByLocalizer(const KeyframeInput& keyframe,
+                                                 const Eigen::Isometry3d& map_pose);
+  /// The answer a keyframe at `map_pose` gives: tied to the saved keyframe nearest to it.
+  std::optional<Answer> answerAt(const KeyframeInput& keyframe,
+                                 const Eigen::Isometry3d& map_pose) const;
   std::vector<LoopClosureInput> confirmCandidate(const KeyframeInput& keyframe);
   /// Where two map poses of one keyframe agree within the placement tolerances (path: metres of
   /// odometry between the poses' evidence).

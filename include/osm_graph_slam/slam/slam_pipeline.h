@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "osm_graph_slam/cloud/cloud_prefilter.h"
 #include "osm_graph_slam/cloud/floor_detector.h"
@@ -16,6 +17,7 @@
 #include "osm_graph_slam/osm/osm_buffer.h"
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/keyframe_input.h"
+#include "osm_graph_slam/slam/localization_handover.h"
 #include "osm_graph_slam/slam/map_resume.h"
 
 namespace osm_graph_slam {
@@ -45,6 +47,7 @@ struct PipelineTimings {
          backend_ms = 0;
   double pre_tracker_ms = 0;     ///< inside tracking_ms: the pre-tracker's registrations
   double floor_ms = 0;           ///< floor detection (keyframes only)
+  double localization_ms = 0;    ///< on the saved map before a hand-over (handOverOn)
   bool prefilter_ahead = false;  ///< prefiltered on another thread (processFiltered): overlapped
   size_t floors_found = 0, floors_missing = 0, floor_edges = 0, floor_slope_changes = 0;
   /// Back-end updates: all, windowed (optimization_window), full batches a loop called for, and
@@ -74,8 +77,21 @@ class SlamPipeline {
   /// False with the reason; the pipeline then maps on its own as before.
   bool resumeOn(const std::string& directory, const MapResumeParams& resume,
                 const LocalizationParams& localization, std::string* error);
+  /// resumeOn, but this drive first localises on the saved map (its localiser, every scan) and
+  /// maps only once it has left it (slam/localization_handover.h): the session starts at the
+  /// last keyframes the localiser tracked, placed by its poses of them.
+  bool handOverOn(const std::string& directory, const MapResumeParams& resume,
+                  const LocalizationParams& localization,
+                  const LocalizationHandoverParams& handover, std::string* error);
   /// Where the resumed session stands (null without resumeOn).
   const MapResume* resume() const { return resume_.get(); }
+  /// The hand-over's state (null without handOverOn).
+  const LocalizationHandover* handover() const { return handover_.get(); }
+  /// The localiser's poses (map frame) of the scans before the hand-over.
+  const Trajectory& localizedPoses() const { return localized_; }
+  /// The drive's poses in the map frame, whole: the localiser's before the first mapped
+  /// keyframe, then the live session's keyframes (without a hand-over: those alone).
+  Trajectory drivePoses() const;
   /// One raw scan in the sensor frame (sensor -> base_link from params.prefilter) with what the
   /// other sensors say at its time. Bad scans are reported and skipped; returns true if the scan
   /// produced a pose.
@@ -113,6 +129,12 @@ class SlamPipeline {
   void account(const BackendUpdateReport& report);
   void logTracking(const std::optional<TrackingEvent>& event) const;
   void processKeyframe(const Keyframe& kf, const TrackResult& track, const ScanAiding& aiding);
+  /// One keyframe into the graph: loops, walls, buildings, the back-end's update. `localized`:
+  /// the hand-over's localiser pose of it.
+  void mapKeyframe(KeyframeInput input, const std::optional<Eigen::Isometry3d>& localized);
+  /// The scan on the saved map until the hand-over.
+  void localize(double stamp, const PointCloudConstPtr& cloud,
+                const std::optional<Eigen::Quaterniond>& imu_orientation);
 
   SlamPipelineParams params_;
   std::shared_ptr<const Logger> logger_;
@@ -129,6 +151,10 @@ class SlamPipeline {
   std::unique_ptr<OsmBuffer> osm_buffer_;
   std::unique_ptr<GraphBackend> backend_;
   std::unique_ptr<MapResume> resume_;
+  std::unique_ptr<LocalizationHandover> handover_;
+  Trajectory localized_;
+  std::optional<std::pair<double, Eigen::Quaterniond>> last_imu_orientation_;  ///< stamp, q
+  size_t mapped_keyframes_ = 0;
   KeyframeAiding aiding_;
   PipelineTimings timings_;
   size_t keyframes_since_update_ = 0;
