@@ -3,7 +3,9 @@
 // publishes the corrected pose, path, buildings, markers, map cloud, the occupancy grid and TF
 // map -> odom; services save_map and dump_graph. With ~resume_map the saved map's graph is loaded
 // first and this drive is a new session of it (slam/map_resume.h), placed on the optimisation
-// thread.
+// thread; with ~handover as well, its keyframes are held while the localization nodelet tracks on
+// the saved map (localization/status) and mapped once it has left it (slam/localization_handover.h;
+// slam/mapping, latched, says which, and map -> odom is published only while mapping).
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/OccupancyGrid.h>
@@ -14,6 +16,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Bool.h>
 #include <std_msgs/String.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -34,6 +37,7 @@
 #include "osm_graph_slam/FloorCoeffs.h"
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/LineSegmentArray.h"
+#include "osm_graph_slam/LocalizationReport.h"
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
 #include "osm_graph_slam/common/upper_triangle.h"
@@ -48,6 +52,7 @@
 #include "osm_graph_slam/slam/graph_backend.h"
 #include "osm_graph_slam/slam/grid_map.h"
 #include "osm_graph_slam/slam/keyframe_input.h"
+#include "osm_graph_slam/slam/localization_handover.h"
 #include "osm_graph_slam/slam/map_export.h"
 #include "osm_graph_slam/slam/map_resume.h"
 #include "osm_graph_slam/slam/optimization_schedule.h"
@@ -84,6 +89,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     auto logger = std::make_shared<Logger>(nodeletLogSink(getName()));
     backend_ = std::make_unique<GraphBackend>(params, logger);
     if (!node_params_.resume_map.empty()) resumeOn(node_params_.resume_map, logger);
+    if (node_params_.handover) startHandover(nh);
 
     pose_pub_ = nh.advertise<geometry_msgs::PoseStamped>("slam/pose", 10);
     path_pub_ = nh.advertise<nav_msgs::Path>("slam/path", 1, true);
@@ -124,6 +130,28 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     publishResumeStatus();
   }
 
+  /// Mapping waits for the localiser to leave the saved map. Without a saved map there is nothing
+  /// to localise on: an error said once, and this drive is mapped from the start.
+  void startHandover(ros::NodeHandle& nh) {
+    if (!resume_) {
+      NODELET_ERROR("graph_backend: handover needs a saved map (resume_map); mapping from the start");
+      return;
+    }
+    LocalizationHandoverParams params;
+    params.leave_after = node_params_.handover_leave_after;
+    params.ties = node_params_.handover_ties;
+    handover_ = std::make_unique<LocalizationHandover>(params);
+    mapping_ = false;
+    mapping_pub_ = nh.advertise<std_msgs::Bool>("slam/mapping", 1, true);
+    std_msgs::Bool msg;
+    msg.data = false;
+    mapping_pub_.publish(msg);
+    NODELET_INFO(
+        "graph_backend: localising on the saved map (localization/status); mapping starts once "
+        "the localiser has not tracked for %.1f s",
+        params.leave_after);
+  }
+
   /// slam/resume_status (latched): the session's state, whenever it changes.
   void publishResumeStatus() {
     std_msgs::String msg;
@@ -139,14 +167,15 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   /// Optimisation thread: the queued live keyframes are placed or searched against the saved
   /// map (global localisation and loop registration take too long for the input thread).
   void resumeKeyframes() {
-    std::deque<KeyframeInput> queued;
+    std::deque<HandoverKeyframe> queued;
     {
       std::lock_guard<std::mutex> guard(resume_mutex_);
       queued.swap(resume_queue_);
     }
     const bool was_placed = resume_->status().placed;
-    for (const auto& kf : queued)
-      for (const auto& loop : resume_->process(kf, *backend_)) backend_->addLoopClosure(loop);
+    for (const auto& h : queued)
+      for (const auto& loop : resume_->process(h.keyframe, *backend_, h.localized))
+        backend_->addLoopClosure(loop);
     if (!was_placed && resume_->status().placed)
       NODELET_INFO("graph_backend: %s", resume_->status().text().c_str());
     publishResumeStatus();
@@ -190,6 +219,9 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     origin_sub_ = nh.subscribe("osm/origin", 1, &GraphBackendNodelet::onOrigin, this);
     if (use_imu) imu_sub_ = nh.subscribe("imu/data", 200, &GraphBackendNodelet::onImu, this);
     fix_sub_ = nh.subscribe("gps/fix", 50, &GraphBackendNodelet::onFix, this);
+    if (handover_)
+      localization_sub_ =
+          nh.subscribe("localization/status", 100, &GraphBackendNodelet::onLocalization, this);
     if (node_params_.tf_publish_rate > 0.0)
       tf_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / node_params_.tf_publish_rate),
                                      &GraphBackendNodelet::publishTf, this);
@@ -206,24 +238,107 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             "keyframe %lu without a usable cloud (%s); kept for the graph",
                             static_cast<unsigned long>(msg->id), error.c_str());
     addSensorInputs(kf);
-    if (resume_) {
-      resume_->renumber(kf);  // the live session's id from here on
-      std::lock_guard<std::mutex> guard(resume_mutex_);
-      resume_queue_.push_back(kf);
+    {
+      std::lock_guard<std::mutex> guard(stamp_mutex_);
+      last_stamp_ = msg->header.stamp;
+      keyframe_stamps_[graphId(kf.id)] = msg->header.stamp;
     }
-    const uint64_t graph_id = kf.id;
-    backend_->addKeyframe(std::move(kf));
+    if (!handover_) return addToGraph({std::move(kf), std::nullopt});
+    handover_->addKeyframe(kf);
+    mapReleasedKeyframes();
+  }
+
+  /// A hand-over: the localiser's result for one scan, which may release held keyframes.
+  void onLocalization(const LocalizationReportConstPtr& msg) {
+    if (mapping_) return;
+    const bool tracking = msg->state == "tracking" || msg->state == "relocalized";
+    handover_->addLocalization(msg->header.stamp.toSec(), tracking, fromPoseMsg(msg->pose.pose));
+    mapReleasedKeyframes();
+  }
+
+  void mapReleasedKeyframes() {
+    for (auto& released : handover_->release()) addToGraph(std::move(released));
+    if (!mapping_) dropLocalizedInputs();
+  }
+
+  /// The first keyframe mapped after a hand-over: map -> odom is where the localiser put it
+  /// until the first optimisation, and the localization nodelet hands TF over.
+  void startMapping(const HandoverKeyframe& first) {
+    mapping_ = true;
+    if (first.localized) {
+      std::lock_guard<std::mutex> guard(map_to_odom_mutex_);
+      map_to_odom_ = *first.localized * first.keyframe.odom_pose.inverse();
+    }
+    std_msgs::Bool msg;
+    msg.data = true;
+    mapping_pub_.publish(msg);
+    NODELET_INFO(
+        "graph_backend: the localiser has left the saved map (%.3f s): mapping from keyframe %lu "
+        "on, %s; %zu keyframes were localised, not mapped",
+        *handover_->handoverStamp(), static_cast<unsigned long>(first.keyframe.id),
+        first.localized ? "placed by the localiser" : "unplaced (the localiser never tracked)",
+        handover_->keyframesLocalized());
+    dropLocalizedInputs();
+  }
+
+  void addToGraph(HandoverKeyframe h) {
+    if (handover_ && !mapping_) startMapping(h);
+    const uint64_t live_id = h.keyframe.id;
+    if (resume_) resume_->renumber(h.keyframe);  // the live session's id from here on
+    const uint64_t graph_id = h.keyframe.id;
+    const Eigen::Isometry3d odom_pose = h.keyframe.odom_pose;
+    backend_->addKeyframe(h.keyframe);
+    if (resume_) {
+      std::lock_guard<std::mutex> guard(resume_mutex_);
+      resume_queue_.push_back(std::move(h));
+    }
+    forwardHeldInputs(live_id, graph_id);
     keyframeReceived();
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
-    const Eigen::Isometry3d map_to_odom = cachedMapToOdom();
     geometry_msgs::PoseStamped pose;
-    pose.header.stamp = msg->header.stamp;
+    pose.header.stamp = keyframeStamp(graph_id);
     pose.header.frame_id = node_params_.map_frame;
-    pose.pose = toPoseMsg(map_to_odom * fromPoseMsg(msg->odom_pose));
+    pose.pose = toPoseMsg(cachedMapToOdom() * odom_pose);
     pose_pub_.publish(pose);
-    std::lock_guard<std::mutex> guard(stamp_mutex_);
-    last_stamp_ = msg->header.stamp;
-    keyframe_stamps_[graph_id] = msg->header.stamp;
+  }
+
+  /// Inputs of a keyframe a hand-over still holds wait with it; those of a keyframe it
+  /// localised and never maps are dropped. True: the input goes into the graph now.
+  template <typename Held, typename Input>
+  bool passOrHold(uint64_t live_id, std::map<uint64_t, Held>& held, Input&& input) {
+    if (!handover_) return true;
+    switch (handover_->fate(live_id)) {
+      case LocalizationHandover::Fate::kMapped:
+        return true;
+      case LocalizationHandover::Fate::kWaiting:
+        held[live_id] = std::forward<Input>(input);
+        return false;
+      case LocalizationHandover::Fate::kLocalized:
+        return false;
+    }
+    return false;
+  }
+
+  void forwardHeldInputs(uint64_t live_id, uint64_t graph_id) {
+    if (!handover_) return;
+    if (auto it = held_segments_.find(live_id); it != held_segments_.end()) {
+      backend_->addLineSegments(graph_id, std::move(it->second));
+      held_segments_.erase(it);
+    }
+    if (auto it = held_floors_.find(live_id); it != held_floors_.end()) {
+      backend_->addFloor(graph_id, it->second);
+      held_floors_.erase(it);
+    }
+  }
+
+  void dropLocalizedInputs() {
+    const auto localized = [this](uint64_t id) {
+      return handover_->fate(id) == LocalizationHandover::Fate::kLocalized;
+    };
+    while (!held_segments_.empty() && localized(held_segments_.begin()->first))
+      held_segments_.erase(held_segments_.begin());
+    while (!held_floors_.empty() && localized(held_floors_.begin()->first))
+      held_floors_.erase(held_floors_.begin());
   }
 
   void onFloor(const FloorCoeffsConstPtr& msg) {
@@ -235,7 +350,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             static_cast<unsigned long>(msg->keyframe_id));
       return;
     }
-    backend_->addFloor(graphId(msg->keyframe_id), coeffs);
+    if (passOrHold(msg->keyframe_id, held_floors_, coeffs))
+      backend_->addFloor(graphId(msg->keyframe_id), coeffs);
   }
 
   /// The keyframe's exact header stamp (the core keeps seconds as a double, which loses the
@@ -244,6 +360,11 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> guard(stamp_mutex_);
     const auto it = keyframe_stamps_.find(kf.id);
     return it != keyframe_stamps_.end() ? it->second : ros::Time().fromSec(kf.stamp);
+  }
+  ros::Time keyframeStamp(uint64_t graph_id) {
+    std::lock_guard<std::mutex> guard(stamp_mutex_);
+    const auto it = keyframe_stamps_.find(graph_id);
+    return it != keyframe_stamps_.end() ? it->second : last_stamp_;
   }
 
   ros::Time lastStamp() {
@@ -304,7 +425,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
       segments.emplace_back(Eigen::Vector2d(s.start.x, s.start.y),
                             Eigen::Vector2d(s.end.x, s.end.y), s.support);
     }
-    backend_->addLineSegments(graphId(msg->keyframe_id), std::move(segments));
+    if (passOrHold(msg->keyframe_id, held_segments_, std::move(segments)))
+      backend_->addLineSegments(graphId(msg->keyframe_id), std::move(segments));
   }
 
   void onBuildings(const BuildingArrayConstPtr& msg) {
@@ -333,6 +455,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
                             "loop %lu -> %lu has an invalid information matrix; ignored",
                             static_cast<unsigned long>(msg->from_id),
                             static_cast<unsigned long>(msg->to_id));
+      return;
+    }
+    // A loop that names a keyframe a hand-over localised (or still holds) has no vertex.
+    if (handover_ && (handover_->fate(msg->from_id) != LocalizationHandover::Fate::kMapped ||
+                      handover_->fate(msg->to_id) != LocalizationHandover::Fate::kMapped)) {
+      NODELET_INFO_ONCE(
+          "graph_backend: loops between keyframes localised on the saved map are not mapped; "
+          "dropped (their keyframes are the saved map's)");
       return;
     }
     backend_->addLoopClosure(loop);
@@ -488,7 +618,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   void publishTf(const ros::WallTimerEvent&) {
     // Not backend_->numKeyframes(): it waits for a running optimisation, and at 20 Hz that wait
     // held a worker thread of the manager for the whole optimisation (the soak's starvation).
-    if (!first_keyframe_seen_) return;
+    if (!first_keyframe_seen_ || !mapping_) return;  // a hand-over: the localiser publishes it
     // Stamped with the current time, as map -> odom corrects odometry from now on; the latest
     // keyframe's stamp republished at 20 Hz made tf2 warn TF_REPEATED_DATA thousands of times.
     // A clock standing still (paused or finished bag) publishes nothing new, unless an
@@ -539,6 +669,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     res.success = r.success;
     res.message = r.message;
     if (resume_) res.message += "; " + resume_->status().text();
+    if (handover_ && !mapping_) res.message += "; localising on the saved map, nothing mapped yet";
     res.files = r.files;
     if (r.success)
       NODELET_INFO("save_map: %s", res.message.c_str());
@@ -597,7 +728,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::optional<EnuConverter> origin_;                ///< the map origin, on the input thread only
   std::unique_ptr<MapResume> resume_;                 ///< with ~resume_map
   std::mutex resume_mutex_;                           ///< guards resume_queue_
-  std::deque<KeyframeInput> resume_queue_;            ///< live keyframes not yet placed/searched
+  std::deque<HandoverKeyframe> resume_queue_;  ///< live keyframes not yet placed/searched
+  /// ~handover (input thread only, as the held inputs).
+  std::unique_ptr<LocalizationHandover> handover_;
+  std::atomic<bool> mapping_{true};  ///< false while a hand-over localises
+  std::map<uint64_t, std::vector<LineSegment2>> held_segments_;  ///< by the tracker's id
+  std::map<uint64_t, Eigen::Vector4d> held_floors_;
+  ros::Subscriber localization_sub_;
+  ros::Publisher mapping_pub_;  ///< slam/mapping
   ros::Publisher resume_pub_;                         ///< slam/resume_status
   std::string last_resume_status_;
 };

@@ -5,6 +5,8 @@
 //   dead reckoning unless another odometry publishes it), localization/map_points (latched).
 //   initialpose (rviz "2D Pose Estimate", PoseWithCovarianceStamped in the map frame) restarts the
 //   filter there. Without ~initial_pose the first scans are localised globally (Scan Context).
+//   With ~stop_when_mapping (a hand-over, graph_backend ~handover) it stops once slam/mapping
+//   says the SLAM back-end maps: from then on graph_backend publishes map -> odom.
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -13,11 +15,13 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Bool.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -127,6 +131,16 @@ class LocalizationNodelet : public nodelet::Nodelet {
     if (node_params_.use_gnss && map_)
       gnss_sub_ = nh.subscribe("gps/fix", 10, &LocalizationNodelet::onGnssFix, this);
     initial_sub_ = nh.subscribe("initialpose", 2, &LocalizationNodelet::onInitialPose, this);
+    if (node_params_.stop_when_mapping)
+      mapping_sub_ = nh.subscribe("slam/mapping", 1, &LocalizationNodelet::onMapping, this);
+  }
+
+  void onMapping(const std_msgs::BoolConstPtr& msg) {
+    if (!msg->data || stopped_.exchange(true)) return;
+    NODELET_INFO(
+        "localization: the SLAM back-end maps from here on (slam/mapping): localisation stops, "
+        "graph_backend publishes %s -> %s",
+        node_params_.map_frame.c_str(), node_params_.odom_frame.c_str());
   }
 
   /// Global localisation also searches the map package's buildings with the scan's walls
@@ -201,6 +215,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
   }
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    if (stopped_) return;
     if (!localizer_) {
       NODELET_ERROR_THROTTLE(node_params_.warn_throttle_period,
                              "localization: no map loaded, scans ignored");
@@ -352,7 +367,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::optional<GnssFix> pending_gnss_;      ///< the newest fix, handed over with the next scan
   std::optional<EnuConverter> map_enu_;      ///< the map package's ENU origin
   ros::Publisher status_pub_, odom_pub_, map_pub_;
-  ros::Subscriber cloud_sub_, imu_sub_, initial_sub_, gnss_sub_;
+  ros::Subscriber cloud_sub_, imu_sub_, initial_sub_, gnss_sub_, mapping_sub_;
+  std::atomic<bool> stopped_{false};  ///< slam/mapping said the SLAM back-end maps
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

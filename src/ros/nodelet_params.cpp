@@ -50,6 +50,9 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("warn_throttle_period", p.warn_throttle_period);
   r.param("input_queue_size", p.input_queue_size);
   r.param("resume_map", p.resume_map);
+  r.param("handover", p.handover);
+  r.param("handover_leave_after", p.handover_leave_after);
+  r.param("handover_ties", p.handover_ties);
 }
 
 void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
@@ -68,6 +71,7 @@ void readParams(const ParamReader& r, LocalizationNodeletParams& p) {
   r.param("osm_file", p.osm_file);
   r.param("line_extraction_ns", p.line_extraction_ns);
   r.param("line_matcher_ns", p.line_matcher_ns);
+  r.param("stop_when_mapping", p.stop_when_mapping);
 }
 
 void readParams(const ParamReader& r, OsmLocalizationNodeletParams& p) {

@@ -48,8 +48,15 @@ void LocalizationHandover::dropOlderThanTies() {
       --tied;
       ++keyframes_localized_;
     }
+    last_localized_ = held_.front().keyframe.id;
     held_.pop_front();
   }
+}
+
+LocalizationHandover::Fate LocalizationHandover::fate(uint64_t id) const {
+  if (first_mapped_) return id >= *first_mapped_ ? Fate::kMapped : Fate::kLocalized;
+  if (last_localized_ && id <= *last_localized_) return Fate::kLocalized;
+  return Fate::kWaiting;
 }
 
 std::vector<HandoverKeyframe> LocalizationHandover::release() {
@@ -76,6 +83,7 @@ std::vector<HandoverKeyframe> LocalizationHandover::release() {
       waiting_.pop_front();
     }
   if (!mapping()) return {};
+  if (!first_mapped_ && !held_.empty()) first_mapped_ = held_.front().keyframe.id;
   std::vector<HandoverKeyframe> out(held_.begin(), held_.end());
   held_.clear();
   return out;

@@ -3,15 +3,23 @@
 // from start_s on through the nodelets without GNSS priors. The session must be placed by the
 // global localiser near where the saved map has the same stamp (both runs see the same bag, so
 // the saved trajectory at a stamp is where the new one belongs), joined by inter-session loops,
-// and mapped on after the saved map ends; save_map writes both sessions.
+// and mapped on after the saved map ends; save_map writes both sessions. With ~handover
+// (handover_mapping.test) the localization nodelet tracks on the saved map first and graph_backend
+// maps only once it has left it: the localiser's poses, then the new session's keyframes, must
+// cover the drive and agree with the saved run.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <ros/topic.h>
+#include <std_msgs/Bool.h>
 #include <std_msgs/String.h>
 
+#include <mutex>
+
+#include "osm_graph_slam/LocalizationReport.h"
 #include "osm_graph_slam/SaveMap.h"
 #include "osm_graph_slam/common/planar_pose.h"
 #include "osm_graph_slam/io/trajectory_io.h"
+#include "osm_graph_slam/ros/conversions.h"
 #include "slam_regression_common.h"
 
 namespace osm_graph_slam {
@@ -23,6 +31,10 @@ struct ResumeRun {
   Drive drive;
   fs::path dir, saved, out;
   std::string error;  ///< set-up failure
+  bool handover = false;
+  std::mutex mutex;    ///< guards localized (the spinner's threads)
+  Trajectory localized;  ///< the localiser's poses it reported localised (handover)
+  ros::Subscriber localization_sub;
 };
 ResumeRun* R = nullptr;
 
@@ -41,6 +53,25 @@ std::optional<Eigen::Isometry3d> poseAt(const Trajectory& t, double stamp) {
   return pose;
 }
 
+/// A hand-over: the localization nodelet on the saved map (its other parameters from the .test),
+/// and its poses recorded.
+std::string startLocalizer() {
+  ros::param::set("/graph_backend/handover", true);
+  ros::param::set("/localization/map_dir", (R->saved / "map_package").string());
+  ros::NodeHandle nh;
+  R->localization_sub =
+      nh.subscribe<LocalizationReport>(
+          "localization/status", 1000,
+          boost::function<void(const LocalizationReportConstPtr&)>(
+              [](const LocalizationReportConstPtr& msg) {
+        if (!msg->localized) return;
+        std::lock_guard<std::mutex> guard(R->mutex);
+        R->localized.push_back({msg->header.stamp.toSec(), fromPoseMsg(msg->pose.pose)});
+              }));
+  return loadNodelet(managerName(), "/localization", "osm_graph_slam/LocalizationNodelet",
+                     {{"odom", "localization/odom"}});
+}
+
 std::string setUp() {
   const ros::NodeHandle pnh("~");
   const DriveOptions o = driveOptionsFromParams(pnh);
@@ -53,6 +84,11 @@ std::string setUp() {
   if (runOfflineSlam(R->drive, R->saved, "--no-osm --max-scans " + std::to_string(saved_scans)) !=
       0)
     return "offline_slam (the saved map) failed:\n" + readText(R->saved.string() + ".log");
+  R->handover = pnh.param("handover", false);
+  if (R->handover) {
+    const std::string loaded = startLocalizer();
+    if (!loaded.empty()) return loaded;
+  }
   const std::string swap =
       swapNodelet(managerName(), "/graph_backend", "osm_graph_slam/GraphBackendNodelet",
                   "resume_map", R->saved.string());
@@ -67,6 +103,7 @@ std::string setUp() {
 }
 
 TEST(ResumeMapping, TheNewSessionIsPlacedOnTheSavedMapAndJoinedByLoops) {
+  if (R->handover) GTEST_SKIP() << "handover_mapping.test";
   ASSERT_TRUE(R->error.empty()) << R->error;
   SaveMap srv;
   srv.request.destination = R->out.string();
@@ -120,6 +157,74 @@ TEST(ResumeMapping, TheNewSessionIsPlacedOnTheSavedMapAndJoinedByLoops) {
   EXPECT_LT(yaws[yaws.size() / 2], 0.5 * M_PI / 180.0);
   EXPECT_LT(yaws.back(), 5.0 * M_PI / 180.0);
   EXPECT_GE(beyond, 5u) << "mapped on after the saved map ends";
+}
+
+/// Translation errors of `poses` against the saved run at their stamps (sorted), and how many
+/// lie after its end.
+std::vector<double> errorsAgainstSaved(const Trajectory& saved, const Trajectory& poses,
+                                       size_t* beyond) {
+  std::vector<double> errors;
+  for (const auto& p : poses) {
+    if (const auto at = poseAt(saved, p.stamp))
+      errors.push_back(planarPose(at->inverse() * p.pose).translation().norm());
+    else if (beyond && p.stamp > saved.back().stamp)
+      ++*beyond;
+  }
+  std::sort(errors.begin(), errors.end());
+  return errors;
+}
+
+TEST(ResumeMapping, TheLocaliserHandsOverToMappingWhereTheDriveLeavesTheMap) {
+  if (!R->handover) GTEST_SKIP() << "resume_mapping.test";
+  ASSERT_TRUE(R->error.empty()) << R->error;
+  const std_msgs::BoolConstPtr mapping =
+      ros::topic::waitForMessage<std_msgs::Bool>("slam/mapping", ros::Duration(10.0));
+  ASSERT_TRUE(mapping != nullptr) << "no slam/mapping";
+  EXPECT_TRUE(mapping->data) << "the drive never left the saved map";
+  SaveMap srv;
+  srv.request.destination = R->out.string();
+  srv.request.resolution = 0.2;
+  ASSERT_TRUE(ros::service::call("/graph_backend_test/save_map", srv));
+  ASSERT_TRUE(srv.response.success) << srv.response.message;
+  std::cout << "[handover] save_map: " << srv.response.message << std::endl;
+  EXPECT_NE(srv.response.message.find("handed over by the localiser"), std::string::npos);
+
+  const TrajectoryReadResult saved_read =
+      readTumTrajectory((R->saved / "trajectory_tum.txt").string());
+  const TrajectoryReadResult merged_read =
+      readTumTrajectory((R->out / "trajectory_tum.txt").string());
+  ASSERT_TRUE(saved_read.ok && merged_read.ok) << saved_read.error << merged_read.error;
+  const Trajectory& saved = saved_read.trajectory;
+  const Trajectory live(merged_read.trajectory.begin() + static_cast<std::ptrdiff_t>(saved.size()),
+                        merged_read.trajectory.end());
+  Trajectory localized;
+  {
+    std::lock_guard<std::mutex> guard(R->mutex);
+    localized = R->localized;
+  }
+  ASSERT_GE(live.size(), 5u);
+  ASSERT_GE(localized.size(), 50u);
+  // The drive's poses: the localiser's until the first mapped keyframe, then the keyframes'.
+  Trajectory drive;
+  for (const auto& p : localized)
+    if (p.stamp < live.front().stamp) drive.push_back(p);
+  drive.insert(drive.end(), live.begin(), live.end());
+  double longest_gap = 0.0;
+  for (size_t i = 1; i < drive.size(); ++i)
+    longest_gap = std::max(longest_gap, drive[i].stamp - drive[i - 1].stamp);
+  size_t beyond = 0;
+  const std::vector<double> on_map = errorsAgainstSaved(saved, drive, &beyond);
+  ASSERT_GE(on_map.size(), 20u);
+  std::cout << "[handover] " << localized.size() << " localised scans, " << live.size()
+            << " mapped keyframes (" << beyond << " beyond the saved map) from "
+            << live.front().stamp - drive.front().stamp << " s after the first pose; longest gap "
+            << longest_gap << " s; on the saved map: median " << on_map[on_map.size() / 2]
+            << " m, worst " << on_map.back() << " m" << std::endl;
+  // Keyframes are made every 2 m: a gap above 3 s means scans the drive's poses miss.
+  EXPECT_LT(longest_gap, 3.0);
+  EXPECT_GE(beyond, 5u) << "mapped on after the saved map ends";
+  EXPECT_LT(on_map[on_map.size() / 2], 0.2);
+  EXPECT_LT(on_map.back(), 0.6);
 }
 
 }  // namespace

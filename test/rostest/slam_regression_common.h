@@ -454,6 +454,24 @@ inline std::string playBag(const std::string& bag, double rate, const std::strin
   return "";
 }
 
+/// Loads a nodelet of `type` named `name` (its parameters already set) into `manager`.
+inline std::string loadNodelet(const std::string& manager, const std::string& name,
+                               const std::string& type,
+                               const std::vector<std::pair<std::string, std::string>>& remaps) {
+  if (!ros::service::waitForService(manager + "/load_nodelet", ros::Duration(60.0)))
+    return "no nodelet manager " + manager;
+  nodelet::NodeletLoad load;
+  load.request.name = name;
+  load.request.type = type;
+  for (const auto& [from, to] : remaps) {
+    load.request.remap_source_args.push_back(from);
+    load.request.remap_target_args.push_back(to);
+  }
+  if (!ros::service::call(manager + "/load_nodelet", load) || !load.response.success)
+    return "loading " + name + " failed";
+  return "";
+}
+
 /// Replaces the launch file's nodelet `name` (e.g. "/localization") in `manager` by one of `type`
 /// named name + "_test" with name's parameters and one of them set (`key` = `value`: a path only
 /// known at test time), remapped as given (the launch file's remaps are not carried over).
@@ -478,16 +496,7 @@ inline std::string swapNodelet(
           },
           60.0))
     return "could not unload the launch file's " + name;
-  nodelet::NodeletLoad load;
-  load.request.name = name + "_test";
-  load.request.type = type;
-  for (const auto& [from, to] : remaps) {
-    load.request.remap_source_args.push_back(from);
-    load.request.remap_target_args.push_back(to);
-  }
-  if (!ros::service::call(manager + "/load_nodelet", load) || !load.response.success)
-    return "loading " + name + "_test failed";
-  return "";
+  return loadNodelet(manager, name + "_test", type, remaps);
 }
 
 /// main() of a rostest node: gtest, ros::init as `node_name`, two spinner threads.

@@ -36,6 +36,10 @@ TEST(LocalizationHandover, HoldsEveryKeyframeWhileTheLocaliserTracks) {
   for (uint64_t id = 0; id <= 20; ++id) h.addKeyframe(keyframeAt(id));
   EXPECT_TRUE(h.release().empty());
   EXPECT_FALSE(h.mapping());
+  // The last three tracked keyframes may still be mapped (the ties); the ones before never are.
+  EXPECT_EQ(h.fate(17), LocalizationHandover::Fate::kLocalized);
+  EXPECT_EQ(h.fate(18), LocalizationHandover::Fate::kWaiting);
+  EXPECT_EQ(h.fate(21), LocalizationHandover::Fate::kWaiting);
 }
 
 TEST(LocalizationHandover, MapsFromTheLastTiesOnceTheLocaliserHasLeftTheMap) {
@@ -62,6 +66,10 @@ TEST(LocalizationHandover, MapsFromTheLastTiesOnceTheLocaliserHasLeftTheMap) {
   }
   for (size_t i = 3; i < out.size(); ++i) EXPECT_FALSE(out[i].localized.has_value()) << i;
   EXPECT_EQ(h.keyframesLocalized(), 10u);  // 0 .. 4.5 s: covered by the saved map
+  // Segments, floors and loops of those keyframes are dropped, the others' go into the graph.
+  EXPECT_EQ(h.fate(9), LocalizationHandover::Fate::kLocalized);
+  EXPECT_EQ(h.fate(10), LocalizationHandover::Fate::kMapped);
+  EXPECT_EQ(h.fate(30), LocalizationHandover::Fate::kMapped);
   // From then on every keyframe as it comes.
   h.addKeyframe(keyframeAt(18));
   const std::vector<HandoverKeyframe> next = h.release();

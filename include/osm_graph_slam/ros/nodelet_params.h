@@ -66,6 +66,11 @@ struct GraphBackendNodeletParams {
   int input_queue_size = 1000;  ///< messages per input topic (keyframes: ~5 min of driving)
   /// A folder save_map wrote: mapping continues on it as a new session (slam/map_resume.h).
   std::string resume_map;
+  /// With resume_map: the localization nodelet tracks on the map (localization/status) and
+  /// mapping starts only once it has left it (slam/localization_handover.h).
+  bool handover = false;
+  double handover_leave_after = 2.0;  ///< [s] LocalizationHandoverParams::leave_after
+  int handover_ties = 3;              ///< LocalizationHandoverParams::ties
 };
 
 struct LocalizationNodeletParams {
@@ -87,6 +92,9 @@ struct LocalizationNodeletParams {
   /// search by the OSM walls; launch/localization.launch loads them as osm_localization.launch).
   std::string line_extraction_ns = "/line_extraction";
   std::string line_matcher_ns = "/graph_backend/line_matcher";
+  /// A hand-over (graph_backend ~handover): once slam/mapping says the SLAM back-end maps, this
+  /// nodelet stops (no pose, no TF: graph_backend publishes map -> odom from then on).
+  bool stop_when_mapping = false;
 };
 
 struct OsmLocalizationNodeletParams {

@@ -49,6 +49,12 @@ class LocalizationHandover {
   /// every keyframe as it comes.
   std::vector<HandoverKeyframe> release();
 
+  /// What becomes of the tracker's keyframe `id` and of the inputs that name it (wall segments,
+  /// floors, loops), which may arrive before or after it: they wait for the decision, go into
+  /// the graph, or are dropped with a keyframe that was localised and never mapped.
+  enum class Fate { kWaiting, kMapped, kLocalized };
+  Fate fate(uint64_t id) const;
+
   bool mapping() const { return handover_stamp_.has_value(); }
   /// When mapping started: the first keyframe (or the localiser's latest scan) leave_after or
   /// more after the first scan it did not track.
@@ -74,6 +80,8 @@ class LocalizationHandover {
   std::deque<HandoverKeyframe> held_;         ///< decided keyframes, not mapped yet
   std::optional<double> not_tracking_since_;  ///< first scan not tracked after the last tracked
   std::optional<double> handover_stamp_;
+  std::optional<uint64_t> first_mapped_;   ///< the first keyframe released
+  std::optional<uint64_t> last_localized_;  ///< the newest keyframe dropped as localised
   size_t keyframes_localized_ = 0;
 };
 
