@@ -134,7 +134,8 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   /// to localise on: an error said once, and this drive is mapped from the start.
   void startHandover(ros::NodeHandle& nh) {
     if (!resume_) {
-      NODELET_ERROR("graph_backend: handover needs a saved map (resume_map); mapping from the start");
+      NODELET_ERROR(
+          "graph_backend: handover needs a saved map (resume_map); mapping from the start");
       return;
     }
     LocalizationHandoverParams params;
@@ -728,7 +729,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::optional<EnuConverter> origin_;                ///< the map origin, on the input thread only
   std::unique_ptr<MapResume> resume_;                 ///< with ~resume_map
   std::mutex resume_mutex_;                           ///< guards resume_queue_
-  std::deque<HandoverKeyframe> resume_queue_;  ///< live keyframes not yet placed/searched
+  std::deque<HandoverKeyframe> resume_queue_;         ///< live keyframes not yet placed/searched
   /// ~handover (input thread only, as the held inputs).
   std::unique_ptr<LocalizationHandover> handover_;
   std::atomic<bool> mapping_{true};  ///< false while a hand-over localises
@@ -736,7 +737,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   std::map<uint64_t, Eigen::Vector4d> held_floors_;
   ros::Subscriber localization_sub_;
   ros::Publisher mapping_pub_;  ///< slam/mapping
-  ros::Publisher resume_pub_;                         ///< slam/resume_status
+  ros::Publisher resume_pub_;   ///< slam/resume_status
   std::string last_resume_status_;
 };
 

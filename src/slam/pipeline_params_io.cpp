@@ -5,6 +5,7 @@
 #include "osm_graph_slam/cloud/params_io.h"
 #include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/lines/params_io.h"
+#include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/osm/params_io.h"
@@ -77,6 +78,27 @@ bool loadPipelineParams(const std::string& config_dir, const std::string& overri
   if (!readPipelineParams(overrides, params, error)) {
     if (error) *error = override_file + ": " + *error;
     return false;
+  }
+  return true;
+}
+
+bool loadLocalizationParams(const std::string& config_dir, const std::string& override_file,
+                            LocalizationParams& params, std::string* error) {
+  for (const char* name : {"/localization.yaml", "/localization_advanced.yaml"}) {
+    const YamlParamReader file = YamlParamReader::fromFile(config_dir + name);
+    if (!file.ok()) {
+      if (error) *error = file.error();
+      return false;
+    }
+    readParams(file, params);
+  }
+  if (!override_file.empty()) {
+    const YamlParamReader overrides = YamlParamReader::fromFile(override_file);
+    if (!overrides.ok()) {
+      if (error) *error = overrides.error();
+      return false;
+    }
+    readParams(PrefixedParamReader(overrides, "localization"), params);
   }
   return true;
 }

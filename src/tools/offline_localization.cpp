@@ -35,11 +35,9 @@
 #include "osm_graph_slam/drive_io/drive_source.h"
 #include "osm_graph_slam/eval/trajectory_metrics.h"
 #include "osm_graph_slam/io/trajectory_io.h"
-#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/localization/localizer.h"
 #include "osm_graph_slam/localization/map_frames.h"
 #include "osm_graph_slam/localization/map_package.h"
-#include "osm_graph_slam/localization/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
 #include "support/command_line.h"
@@ -149,25 +147,11 @@ void declareOptions(CommandLine& cli, Options& o) {
           "(no per-scan time base).");
 }
 
-/// Pipeline parameters (the prefilter as the SLAM pipeline has it) and the localiser's
-/// (config/localization.yaml and localization_advanced.yaml, then the override file's
-/// "localization" block).
+/// Pipeline parameters (the prefilter as the SLAM pipeline has it) and the localiser's.
 bool loadParams(const std::string& config_dir, const std::string& overrides_file,
                 SlamPipelineParams& pipeline, LocalizationParams& params, std::string* error) {
-  if (!loadPipelineParams(config_dir, overrides_file, pipeline, error)) return false;
-  for (const char* name : {"/localization.yaml", "/localization_advanced.yaml"}) {
-    const YamlParamReader file = YamlParamReader::fromFile(config_dir + name);
-    if (!file.ok()) {
-      *error = file.error();
-      return false;
-    }
-    readParams(file, params);
-  }
-  if (!overrides_file.empty()) {
-    const YamlParamReader overrides = YamlParamReader::fromFile(overrides_file);
-    readParams(PrefixedParamReader(overrides, "localization"), params);
-  }
-  return true;
+  return loadPipelineParams(config_dir, overrides_file, pipeline, error) &&
+         loadLocalizationParams(config_dir, overrides_file, params, error);
 }
 
 /// Map frame -> truth frame, from the map's keyframes and their ground truth (--map-truth).

@@ -232,8 +232,8 @@ int main(int argc, char** argv) {
   std::string error;
   // KITTI raw layout (real or simulated): base_link is the OXTS unit, as in launch/kitti.launch.
   const std::string config_dir = std::string(OGS_SOURCE_DIR) + "/config";
-  if (!loadPipelineParams(config_dir, argOr(args, "config", config_dir + "/kitti.yaml"), params,
-                          &error)) {
+  const std::string overrides = argOr(args, "config", config_dir + "/kitti.yaml");
+  if (!loadPipelineParams(config_dir, overrides, params, &error)) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
   }
@@ -285,11 +285,13 @@ int main(int argc, char** argv) {
   }
   if (sw.handover && !args.count("resume")) return usage("--handover needs --resume DIR");
   SlamPipeline pipeline(params, source);
+  LocalizationParams localization;  // the resumed map's localiser, as the nodelet has it
   if (args.count("resume") &&
-      !(sw.handover
-            ? pipeline.handOverOn(args["resume"], MapResumeParams(), LocalizationParams(),
-                                  LocalizationHandoverParams(), &error)
-            : pipeline.resumeOn(args["resume"], MapResumeParams(), LocalizationParams(), &error))) {
+      !(loadLocalizationParams(config_dir, overrides, localization, &error) &&
+        (sw.handover
+             ? pipeline.handOverOn(args["resume"], MapResumeParams(), localization,
+                                   LocalizationHandoverParams(), &error)
+             : pipeline.resumeOn(args["resume"], MapResumeParams(), localization, &error)))) {
     std::cerr << "offline_slam: " << error << "\n";
     return 1;
   }

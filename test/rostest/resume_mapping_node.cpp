@@ -32,7 +32,7 @@ struct ResumeRun {
   fs::path dir, saved, out;
   std::string error;  ///< set-up failure
   bool handover = false;
-  std::mutex mutex;    ///< guards localized (the spinner's threads)
+  std::mutex mutex;      ///< guards localized (the spinner's threads)
   Trajectory localized;  ///< the localiser's poses it reported localised (handover)
   ros::Subscriber localization_sub;
 };
@@ -59,15 +59,14 @@ std::string startLocalizer() {
   ros::param::set("/graph_backend/handover", true);
   ros::param::set("/localization/map_dir", (R->saved / "map_package").string());
   ros::NodeHandle nh;
-  R->localization_sub =
-      nh.subscribe<LocalizationReport>(
-          "localization/status", 1000,
-          boost::function<void(const LocalizationReportConstPtr&)>(
-              [](const LocalizationReportConstPtr& msg) {
-        if (!msg->localized) return;
-        std::lock_guard<std::mutex> guard(R->mutex);
-        R->localized.push_back({msg->header.stamp.toSec(), fromPoseMsg(msg->pose.pose)});
-              }));
+  R->localization_sub = nh.subscribe<LocalizationReport>(
+      "localization/status", 1000,
+      boost::function<void(const LocalizationReportConstPtr&)>(
+          [](const LocalizationReportConstPtr& msg) {
+            if (!msg->localized) return;
+            std::lock_guard<std::mutex> guard(R->mutex);
+            R->localized.push_back({msg->header.stamp.toSec(), fromPoseMsg(msg->pose.pose)});
+          }));
   return loadNodelet(managerName(), "/localization", "osm_graph_slam/LocalizationNodelet",
                      {{"odom", "localization/odom"}});
 }
