@@ -108,7 +108,9 @@ SimulatedScan simulateScan(const World& world, const LidarModel& model, const Se
             local[i] = (to_stamp * p_col).cast<float>();
             range[i] = float(noisy);
             // Lambertian-ish return with a slight range fall-off, clamped to KITTI's [0, 1].
-            const double value = hit.reflectivity * (0.35 + 0.65 * hit.cos_incidence) *
+            const float reflectance =
+                surfaceReflectance(world, hit, T.translation() + dir_w * hit.range, model.texture);
+            const double value = reflectance * (0.35 + 0.65 * hit.cos_incidence) *
                                      (1.0 - 0.25 * noisy / model.max_range) +
                                  model.intensity_noise_sigma * rng.gaussian();
             intensity[i] = float(std::clamp(value, 0.0, 1.0));

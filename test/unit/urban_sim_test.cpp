@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <set>
 
@@ -184,6 +185,45 @@ TEST(UrbanSim, ScanStatisticsArePlausibleForAnHdl64e) {
     EXPECT_LT(fg, 0.85) << "scan " << k;
     EXPECT_LE(max_range, 120.0 + 0.2);
   }
+}
+
+// Intensity by surface class and place: painted markings and asphalt patches on the ground, glass
+// in the facades, leaf clumps; the points themselves are those of a uniform reflectivity.
+TEST(UrbanSim, IntensityCarriesTextureAndLeavesTheGeometryAlone) {
+  const UrbanSimulator& sim = defaultSim();
+  LidarModel textured = LidarModel::hdl64e(), plain = textured;
+  plain.texture.enabled = false;
+  const double t = sim.scanTime(300);
+  const SensorPoseFn pose = [&sim](double s) { return sim.sensorPose(s); };
+  const SimulatedScan a = simulateScan(sim.scene().world, textured, pose, t, 7, 300);
+  const SimulatedScan b = simulateScan(sim.scene().world, plain, pose, t, 7, 300);
+  ASSERT_EQ(a.cloud.size(), b.cloud.size());
+  // Both scans draw the same noise: the ratio of the intensities is the texture's reflectance
+  // over the surface's own, times a shading both share.
+  std::map<SimLabel, std::vector<double>> ratio;
+  for (size_t i = 0; i < a.cloud.size(); ++i) {
+    ASSERT_EQ(a.cloud[i].getVector3fMap(), b.cloud[i].getVector3fMap()) << i;
+    if (b.cloud[i].intensity > 0.05f)
+      ratio[a.labels[i]].push_back(a.cloud[i].intensity / b.cloud[i].intensity);
+  }
+  const auto share = [](const std::vector<double>& v, auto&& pred) {
+    return double(std::count_if(v.begin(), v.end(), pred)) / double(std::max<size_t>(1, v.size()));
+  };
+  const std::vector<double>& ground = ratio[SimLabel::kGround];
+  ASSERT_GT(ground.size(), 10000u);
+  // Markings (reflectance 0.7 on asphalt of 0.18): a few percent of the ground returns.
+  const double markings = share(ground, [](double r) { return r > 2.5; });
+  EXPECT_GT(markings, 0.01);
+  EXPECT_LT(markings, 0.06);
+  // Asphalt patches +-35 %: the shades spread the ratio.
+  EXPECT_GT(share(ground, [](double r) { return r < 0.85; }), 0.15);
+  EXPECT_GT(share(ground, [](double r) { return r > 1.15 && r < 2.0; }), 0.15);
+  // Glass (0.05 against walls of 0.2-0.5): a large share of the facade returns.
+  const double glass = share(ratio[SimLabel::kBuilding], [](double r) { return r < 0.5; });
+  std::cout << "[urban_sim] intensity texture: markings " << markings
+            << " of ground returns, glass " << glass << " of facade returns\n";
+  EXPECT_GT(glass, 0.15);
+  EXPECT_LT(glass, 0.6);
 }
 
 TEST(UrbanSim, TrueOutlinesLieOnTheWallPoints) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "osm_graph_slam/cloud/point_cloud.h"
+#include "osm_graph_slam/sim/surface_texture.h"
 #include "osm_graph_slam/sim/world.h"
 
 namespace osm_graph_slam::sim {
@@ -22,6 +23,9 @@ struct LidarModel {
   double range_noise_sigma = 0.02;  ///< [m]
   double dropout_probability = 0.02;
   double intensity_noise_sigma = 0.02;
+  /// The intensity's reflectance by surface class and position (sim/surface_texture.h); the
+  /// detection of returns keeps the surface's own reflectivity.
+  SurfaceTextureParams texture;
   /// Weak returns are lost: a return needs reflectivity * cos(incidence) * (20 m / range)^2 above
   /// this (grazing far ground, dark far surfaces), which brings an HDL-64E to ~120k points.
   double detection_threshold = 0.005;
