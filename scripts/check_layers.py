@@ -13,7 +13,7 @@ import re
 import sys
 
 CORE_STAGES = ["common", "cloud", "registration", "graph", "lines", "osm", "io", "landmarks",
-               "loop", "odometry", "radar", "localization", "multi_cue"]
+               "loop", "odometry", "radar", "localization", "multi_cue", "visual"]
 
 # folder -> the folders it may include (besides itself)
 ALLOWED = {
@@ -28,6 +28,7 @@ ALLOWED = {
     "loop": ["common", "cloud", "registration", "landmarks"],
     "odometry": ["common", "cloud", "registration"],
     "multi_cue": ["common", "cloud", "registration"],
+    "visual": ["common"],
     "radar": ["common", "graph", "io", "loop", "osm"],
     "localization": ["common", "cloud", "graph", "io", "landmarks", "lines", "loop", "osm",
                      "registration"],
