@@ -63,6 +63,11 @@ StereoOdometry::Correspondences StereoOdometry::match(const StereoFrame& frame,
     if (best < 0 || best_distance > params_.max_descriptor_distance ||
         best_distance > params_.match_ratio * second)
       continue;
+    // Confirmed in the right image: where the new corner has a depth of its own, it must be the
+    // depth the prediction gives the keyframe point.
+    if (frame.has_depth[size_t(best)] &&
+        std::abs(frame.points[size_t(best)].z() - p.z()) > params_.depth_tolerance * p.z())
+      continue;
     const Eigen::Vector3d& x = kf.points[i];
     c.object.emplace_back(float(x.x()), float(x.y()), float(x.z()));
     c.image.push_back(frame.keypoints[size_t(best)].pt);

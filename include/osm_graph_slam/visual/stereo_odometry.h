@@ -27,7 +27,10 @@ struct StereoOdometryParams {
   /// vehicle changes its speed by far less than this in 0.1 s). Not before the motion is known.
   double max_correction_trans = 1.0;   ///< [m]
   double max_correction_angle = 0.15;  ///< [rad]
-  double ransac_reprojection = 2.0;    ///< [px] inlier threshold
+  /// A match whose new corner has its own stereo depth must agree with the predicted depth of
+  /// the keyframe point within this fraction (a 1 px disparity error at 20 px is 5 %).
+  double depth_tolerance = 0.15;
+  double ransac_reprojection = 2.0;  ///< [px] inlier threshold
   int ransac_iterations = 300;
   int min_inliers = 20;  ///< fewer: the pair is not tracked (the motion model carries it)
   /// A new keyframe when fewer than this many of the keyframe's points are inliers: the overlap
