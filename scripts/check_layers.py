@@ -13,7 +13,8 @@ import re
 import sys
 
 CORE_STAGES = ["common", "cloud", "registration", "graph", "lines", "osm", "io", "landmarks",
-               "loop", "odometry", "radar", "localization", "multi_cue", "visual"]
+               "loop", "odometry", "radar", "localization", "multi_cue", "visual",
+               "inertial"]
 
 # folder -> the folders it may include (besides itself)
 ALLOWED = {
@@ -29,6 +30,7 @@ ALLOWED = {
     "odometry": ["common", "cloud", "registration"],
     "multi_cue": ["common", "cloud", "registration"],
     "visual": ["common"],
+    "inertial": ["common"],
     "radar": ["common", "graph", "io", "loop", "osm"],
     "localization": ["common", "cloud", "graph", "io", "landmarks", "lines", "loop", "osm",
                      "registration"],
