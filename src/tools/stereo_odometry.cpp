@@ -129,11 +129,7 @@ std::optional<PairSource> simulatedSource(size_t pairs, std::string* error) {
   if (!sim->build(sim::SimulationParams(), error)) return std::nullopt;
   const sim::StereoCameraModel model;
   PairSource source;
-  source.camera.fx = model.fx;
-  source.camera.fy = model.fy;
-  source.camera.cx = model.cx;
-  source.camera.cy = model.cy;
-  source.camera.baseline = model.baseline;
+  source.camera = model.camera();
   source.pairs = std::min(pairs, sim->numScans());
   source.name = "the simulated drive";
   const Eigen::Isometry3d first = sim::kittiCameraFromLidar(sim->sensorPose(0.0));

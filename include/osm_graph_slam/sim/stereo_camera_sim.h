@@ -9,6 +9,7 @@
 
 #include "osm_graph_slam/sim/surface_texture.h"
 #include "osm_graph_slam/sim/world.h"
+#include "osm_graph_slam/visual/stereo_camera.h"
 
 namespace osm_graph_slam::sim {
 
@@ -29,6 +30,16 @@ struct StereoCameraModel {
     t.foliage_cell = 0.15;
     return t;
   }();
+  /// The calibration a stereo tracker of these images uses.
+  StereoCamera camera() const {
+    StereoCamera c;
+    c.fx = fx;
+    c.fy = fy;
+    c.cx = cx;
+    c.cy = cy;
+    c.baseline = baseline;
+    return c;
+  }
 };
 
 /// Left camera (x right, y down, z forward) in the world, from the LiDAR's pose: KITTI's gray
