@@ -26,7 +26,7 @@ ALLOWED = {
     "io": ["common", "cloud", "osm"],
     "landmarks": ["common", "cloud"],
     "loop": ["common", "cloud", "registration", "landmarks"],
-    "odometry": ["common", "cloud", "registration"],
+    "odometry": ["common", "cloud", "registration", "multi_cue"],
     "multi_cue": ["common", "cloud", "registration"],
     "radar": ["common", "graph", "io", "loop", "osm"],
     "localization": ["common", "cloud", "graph", "io", "landmarks", "lines", "loop", "osm",

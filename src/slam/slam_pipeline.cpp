@@ -113,17 +113,19 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   const auto t0 = Clock::now();
   const CloudPrefilterResult filtered = prefilter_.filter(*sensor_cloud);
   const double prefilter_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding, sensor_cloud);
 }
 
 bool SlamPipeline::processFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                   double prefilter_ms, const ScanAiding& aiding) {
+                                   double prefilter_ms, const ScanAiding& aiding,
+                                   const PointCloudConstPtr& sensor_cloud) {
   timings_.prefilter_ahead = true;
-  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding, sensor_cloud);
 }
 
 bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                 double prefilter_ms, const ScanAiding& aiding) {
+                                 double prefilter_ms, const ScanAiding& aiding,
+                                 const PointCloudConstPtr& sensor_cloud) {
   startClock();
   ++timings_.scans;
   timings_.prefilter_ms += prefilter_ms;
@@ -136,9 +138,10 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
   TrackResult result;
   {
     StageTimer t(timings_.tracking_ms);
-    result = tracker_.track(stamp, filtered.cloud, aiding.imu_orientation);
+    result = tracker_.track(stamp, filtered.cloud, aiding.imu_orientation, sensor_cloud);
   }
-  timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
+  if (!result.notice.empty()) logger_->warn(result.notice);  // the tracker gives each once
+  timings_.pre_tracker_ms += result.pre_tracker_ms;          // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));
   if (!result.has_pose()) return false;
   if (result.new_keyframe) processKeyframe(tracker_.keyframe(), result, aiding);
