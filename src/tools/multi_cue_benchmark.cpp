@@ -216,15 +216,19 @@ TrackerRun runTracker(const KeyframeTrackerParams& params, const std::vector<Poi
 }
 
 /// Both trackers (config/scan_matching.yaml, tracker gicp and multi_cue) on the same scans.
-int runTrackers(const std::vector<PointCloud>& scans, double rate, int threads) {
+int runTrackers(const std::vector<PointCloud>& scans, double rate, int threads,
+                const std::string& overrides) {
   KeyframeTrackerParams params;
-  const YamlParamReader yaml =
-      YamlParamReader::fromFile(std::string(OGS_SOURCE_DIR) + "/config/scan_matching.yaml");
-  if (!yaml.ok()) {
-    std::cerr << "multi_cue_benchmark: " << yaml.error() << "\n";
-    return 1;
+  for (const std::string& file :
+       {std::string(OGS_SOURCE_DIR) + "/config/scan_matching.yaml", overrides}) {
+    if (file.empty()) continue;
+    const YamlParamReader yaml = YamlParamReader::fromFile(file);
+    if (!yaml.ok()) {
+      std::cerr << "multi_cue_benchmark: " << yaml.error() << "\n";
+      return 1;
+    }
+    readParams(yaml, params);
   }
-  readParams(yaml, params);
   params.registration.num_threads = params.multi_cue.registration.num_threads = threads;
   const CloudPrefilter prefilter;
   std::vector<PointCloudConstPtr> filtered;
@@ -267,7 +271,7 @@ void printStage(const char* name, double total_ms, size_t scans) {
 
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
-  std::string dir, sensor = "hdl64e";
+  std::string dir, sensor = "hdl64e", tracker_config;
   size_t max_scans = 0, simulated_pairs = 0;
   int threads = 1, cols = 0;
   bool skip_gicp = false, trackers = false;
@@ -308,7 +312,9 @@ int main(int argc, char** argv) {
             "instead: the keyframe tracker with tracker gicp and multi_cue on the same scans "
             "(config/scan_matching.yaml; --threads): scans tracked, ms per scan, end difference",
             &trackers)
-      .option("--rate", "HZ", "--trackers: the scan rate (stamps)", &rate);
+      .option("--rate", "HZ", "--trackers: the scan rate (stamps)", &rate)
+      .option("--tracker-config", "YAML",
+              "--trackers: scan_matching keys over config/scan_matching.yaml", &tracker_config);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   SphericalProjectionParams projection = sensor == "os1_64" ? SphericalProjectionParams::os1_64()
                                                             : SphericalProjectionParams::hdl64e();
@@ -329,7 +335,7 @@ int main(int argc, char** argv) {
     scans.push_back(std::move(cloud));
   }
   if (scans.size() < 2) return cli.fail("fewer than 2 .bin scans in '" + dir + "'");
-  if (trackers) return runTrackers(scans, rate, threads);
+  if (trackers) return runTrackers(scans, rate, threads, tracker_config);
 
   std::vector<PairResult> pairs(scans.size() - 1);
   MultiCueTimes mc;
