@@ -55,8 +55,8 @@ std::string KeyframeTrackerParams::validate() const {
     return "unknown guess '" + guess +
            "' (constant_velocity | pre_tracker | imu | pre_tracker_imu)";
   if (tracker != "multi_cue") return "";
-  if (multi_cue.sensor != "hdl64e" && multi_cue.sensor != "os1_64")
-    return "unknown multi_cue_sensor '" + multi_cue.sensor + "' (hdl64e | os1_64)";
+  if (multi_cue.sensor != "auto" && multi_cue.sensor != "hdl64e" && multi_cue.sensor != "os1_64")
+    return "unknown multi_cue_sensor '" + multi_cue.sensor + "' (auto | hdl64e | os1_64)";
   if (const std::string why = multi_cue.registration.validate(); !why.empty())
     return "multi_cue: " + why;
   if (!(multi_cue.keyframe_delta_trans > 0.0) || !(multi_cue.keyframe_delta_angle > 0.0))

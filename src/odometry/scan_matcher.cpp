@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include "osm_graph_slam/multi_cue/multi_cue_image.h"
@@ -20,6 +21,22 @@ Eigen::Isometry3d orthonormal(const Eigen::Isometry3d& t) {
   Eigen::Isometry3d out = t;
   out.linear() = Eigen::Quaterniond(t.linear()).normalized().toRotationMatrix();
   return out;
+}
+
+/// The projection preset named by `sensor`; "auto" decides on the first scan: an HDL-64E sees up to
+/// +2 deg of elevation, an OS1-64 up to +16.6 deg, so a scan with more than 1 % of its returns
+/// above +5 deg is an OS1-64's. (The simulator's drives have both sensors under one config.)
+std::string presetFor(const std::string& sensor, const PointCloud& scan) {
+  if (sensor != "auto") return sensor;
+  const double tan_5deg = std::tan(5.0 * M_PI / 180.0);
+  size_t above = 0, valid = 0;
+  for (const auto& p : scan.points) {
+    const double rho = std::hypot(p.x, p.y);
+    if (!std::isfinite(rho) || rho < 2.0) continue;
+    ++valid;
+    above += p.z > tan_5deg * rho;
+  }
+  return above > 0.01 * valid ? "os1_64" : "hdl64e";
 }
 
 /// GICP (or the other `registration_method`s) on the prefiltered scan against the graph
@@ -45,10 +62,7 @@ class GicpMatcher : public ScanMatcher {
 class MultiCueMatcher : public ScanMatcher {
  public:
   explicit MultiCueMatcher(const MultiCueTrackingParams& params)
-      : params_(params),
-        projection_(params.sensor == "os1_64" ? SphericalProjectionParams::os1_64()
-                                              : SphericalProjectionParams::hdl64e()),
-        registration_(params.registration, params.continuity) {}
+      : params_(params), registration_(params.registration, params.continuity) {}
 
   void setReference(const MatcherScan& scan) override { reference_ = pyramidOf(scan); }
 
@@ -92,22 +106,26 @@ class MultiCueMatcher : public ScanMatcher {
   std::shared_ptr<const MultiCuePyramid> pyramidOf(const MatcherScan& scan) {
     const PointCloudConstPtr& key = scan.sensor_scan ? scan.sensor_scan : scan.cloud;
     if (key == cached_key_ && cached_) return cached_;
-    const int threads = params_.registration.num_threads;
-    auto pyramid = std::make_shared<MultiCuePyramid>();
-    if (scan.sensor_scan) {
-      *pyramid = buildPyramid(*scan.sensor_scan, projection_, params_.registration.pyramid_levels,
-                              params_.continuity, nullptr, threads);
-    } else {
+    PointCloud moved;
+    if (!scan.sensor_scan) {
       // A 0.5 m voxel cloud fills a fraction of the image: it tracks, less accurately.
       note(no_sensor_scan_noted_,
            "multi_cue tracker: no full-resolution scan given, projecting the prefiltered cloud "
            "(a sparse image: less accurate)");
-      PointCloud in_sensor;
-      pcl::transformPointCloud(*scan.cloud, in_sensor,
+      pcl::transformPointCloud(*scan.cloud, moved,
                                scan.sensor_to_base.inverse().matrix().cast<float>());
-      *pyramid = buildPyramid(in_sensor, projection_, params_.registration.pyramid_levels,
-                              params_.continuity, nullptr, threads);
     }
+    const PointCloud& in_sensor = scan.sensor_scan ? *scan.sensor_scan : moved;
+    if (!projection_) {
+      const std::string preset = presetFor(params_.sensor, in_sensor);
+      projection_ = preset == "os1_64" ? SphericalProjectionParams::os1_64()
+                                       : SphericalProjectionParams::hdl64e();
+      if (params_.sensor == "auto")
+        note(sensor_noted_, "multi_cue tracker: multi_cue_sensor auto: " + preset + " projection");
+    }
+    auto pyramid = std::make_shared<MultiCuePyramid>(
+        buildPyramid(in_sensor, *projection_, params_.registration.pyramid_levels,
+                     params_.continuity, nullptr, params_.registration.num_threads));
     if (!pyramid->has_intensity())
       note(no_intensity_noted_,
            "multi_cue tracker: the scans carry no intensity (every value zero or missing): "
@@ -124,13 +142,13 @@ class MultiCueMatcher : public ScanMatcher {
   }
 
   MultiCueTrackingParams params_;
-  SphericalProjectionParams projection_;
+  std::optional<SphericalProjectionParams> projection_;  ///< from the first scan with "auto"
   MultiCueRegistration registration_;
   std::shared_ptr<const MultiCuePyramid> reference_;
   PointCloudConstPtr cached_key_;
   std::shared_ptr<const MultiCuePyramid> cached_;
   std::string notice_;
-  bool no_intensity_noted_ = false, no_sensor_scan_noted_ = false;
+  bool no_intensity_noted_ = false, no_sensor_scan_noted_ = false, sensor_noted_ = false;
 };
 
 }  // namespace

@@ -27,8 +27,9 @@ class ScanMatcher;
 /// a large image overlap. The graph's keyframes stay as keyframe_delta_* make them.
 struct MultiCueTrackingParams {
   MultiCueParams registration;
-  /// The LiDAR's spherical image: "hdl64e" (KITTI) or "os1_64" (SphericalProjectionParams).
-  std::string sensor = "hdl64e";
+  /// The LiDAR's spherical image: "hdl64e" (KITTI), "os1_64" (SphericalProjectionParams) or
+  /// "auto" (the one whose field of view the first scan fills; logged once).
+  std::string sensor = "auto";
   SurfaceContinuityParams continuity;
   double keyframe_delta_trans = 0.5;      ///< [m] new tracker keyframe after this
   double keyframe_delta_angle = 0.01745;  ///< [rad] ... or this rotation (1 deg)
