@@ -355,7 +355,15 @@ std::string SlamPipeline::timingTable() const {
           ? "prefilter ran ahead on the reading thread, overlapping the stages below: "
             "the stage times add up to more than the wall time\n"
           : "";
-  return std::string(buf) + ahead + track + updates + floor + heading + scaleLine();
+  // The multi-cue tracker's health report says what it lacks next to GICP's (doc/multi_cue.md).
+  const std::string multi_cue =
+      usesSensorCloud()
+          ? "tracker multi_cue: " + std::to_string(tracker_.trackerKeyframeCount()) +
+                " tracker keyframes; next to gicp it lacks: match information on the odometry "
+                "edges (they get the fitness model's middle), a multi-cue pre-tracker (the "
+                "pre-tracker and its recovery guess register with GICP)\n"
+          : "";
+  return std::string(buf) + ahead + track + multi_cue + updates + floor + heading + scaleLine();
 }
 
 std::string SlamPipeline::timingJson() const {

@@ -146,6 +146,7 @@ SequenceRun trackSequence(const KeyframeTrackerParams& params, bool give_raw) {
 }
 
 TEST(MultiCueTrackerTest, TracksASimulatedDriveWithTrackerKeyframes) {
+  // The default tracker keyframes (0.5 m / 1 deg): every scan (~0.8 m apart) becomes one.
   const SequenceRun run = trackSequence(multiCueParams(), /*give_raw=*/true);
   const double t_cm = 100.0 * translationError(run.truth, run.end);
   const double r_deg = rotationErrorDeg(run.truth, run.end);
@@ -168,10 +169,24 @@ TEST(MultiCueTrackerTest, TracksASimulatedDriveWithTrackerKeyframes) {
   EXPECT_LT(r_deg, 0.1);
   EXPECT_LT(run.worst_step_cm, 1.5);
   EXPECT_LT(run.worst_orthonormality, 1e-12);
-  // Graph keyframes every 2 m; tracker keyframes every 0.5 m (each scan here: ~0.7 m apart).
+  // Graph keyframes every 2 m; tracker keyframes every 0.5 m (each scan here: ~0.8 m apart).
   EXPECT_GE(run.keyframes, 5u);
   EXPECT_LE(run.keyframes, 10u);
   EXPECT_GE(run.tracker_keyframes, 2 * run.keyframes);
+
+  // References 2 m / 5 deg apart chain a third of the matches: measured 2.3 cm, 0.014 deg (each
+  // match comes out ~3 mm short along the motion, doc/multi_cue.md).
+  KeyframeTrackerParams sparse_params = multiCueParams();
+  sparse_params.multi_cue.keyframe_delta_trans = 2.0;
+  sparse_params.multi_cue.keyframe_delta_angle = 5.0 * kDeg;
+  const SequenceRun sparse = trackSequence(sparse_params, true);
+  std::cout << "[multi_cue tracker, 2 m / 5 deg references] end error "
+            << 100.0 * translationError(sparse.truth, sparse.end) << " cm, "
+            << rotationErrorDeg(sparse.truth, sparse.end) << " deg; tracker keyframes "
+            << sparse.tracker_keyframes << "\n";
+  EXPECT_EQ(sparse.matched, static_cast<int>(sequence().size()) - 1);
+  EXPECT_LT(100.0 * translationError(sparse.truth, sparse.end), 4.0);
+  EXPECT_LT(rotationErrorDeg(sparse.truth, sparse.end), 0.05);
 }
 
 TEST(MultiCueTrackerTest, WithoutTheRawScanProjectsTheFilteredOneAndSaysSo) {
