@@ -261,8 +261,8 @@ KeyframeTracker::Scan KeyframeTracker::deskewedBy(const Scan& scan, const Eigen:
   // The full-resolution scan is in the LiDAR's frame: the same motion seen from there.
   if (scan.sensor_scan) {
     const Eigen::Isometry3d& s = params_.sensor_to_base;
-    out.sensor_scan = deskewedCopy(*scan.sensor_scan, Eigen::Isometry3d::Identity(),
-                                   s.inverse() * motion * s, dt, params_.sweep);
+    out.sensor_scan =
+        deskewedScanBySector(*scan.sensor_scan, s.inverse() * motion * s, dt, params_.sweep);
   }
   return out;
 }
