@@ -27,7 +27,7 @@ ALLOWED = {
     "io": ["common", "cloud", "osm"],
     "landmarks": ["common", "cloud"],
     "loop": ["common", "cloud", "registration", "landmarks"],
-    "odometry": ["common", "cloud", "registration"],
+    "odometry": ["common", "cloud", "registration", "multi_cue"],
     "multi_cue": ["common", "cloud", "registration"],
     "visual": ["common"],
     "inertial": ["common"],

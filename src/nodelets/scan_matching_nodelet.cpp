@@ -1,6 +1,8 @@
 // ScanMatchingNodelet: filtered_points (base_link) -> KeyframeTracker -> odom, TF odom->base_link,
 // keyframe (new keyframes only), scan_matching_status (every scan) and tracking_health_marker
 // (an rviz text above the vehicle: OK / RECOVERED / LOST, on changes and with each keyframe).
+// With `tracker: multi_cue` it also subscribes to velodyne_points, the raw scans in the LiDAR's
+// frame, which the multi-cue tracker projects at full resolution (doc/multi_cue.md).
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <nodelet/nodelet.h>
@@ -11,8 +13,10 @@
 #include <visualization_msgs/Marker.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <deque>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 
 #include "osm_graph_slam/KeyFrame.h"
 #include "osm_graph_slam/ScanMatchingStatus.h"
@@ -37,6 +41,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     readParams(RosParamReader(pnh), node_params_);  // defaults: nodelet_params.h
     KeyframeTrackerParams params;
     readParams(RosParamReader(pnh), params);
+    // A wrong tracker or guess is a mistake in the configuration: stop here, saying which.
+    if (const std::string why = params.validate(); !why.empty()) {
+      NODELET_FATAL("scan_matching: %s", why.c_str());
+      throw std::invalid_argument("scan_matching: " + why);
+    }
     try {
       tracker_ = std::make_unique<KeyframeTracker>(params);
     } catch (const std::exception& e) {
@@ -46,7 +55,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       tracker_ = std::make_unique<KeyframeTracker>(fallback);
     }
     health_ = std::make_unique<TrackingHealth>(params.lost_track_after);
-    if (params.deskew)
+    const bool multi_cue = params.tracker == "multi_cue";
+    if (params.deskew || multi_cue)  // multi_cue: its image is the LiDAR's view
       mount_ = std::make_unique<SensorMountLookup>(nh, node_params_.base_link_frame,
                                                    node_params_.sensor_frame);
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 10);
@@ -58,14 +68,45 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     // The IMU's orientation (or integrated rates) for the imu guesses and the recovery; its
     // frame is taken to be base_link (kitti2bag and mulran2bag mount it there).
     imu_sub_ = nh.subscribe("imu/data", 200, &ScanMatchingNodelet::onImu, this);
+    if (multi_cue) raw_sub_ = nh.subscribe("velodyne_points", 5, &ScanMatchingNodelet::onRaw, this);
     if (node_params_.imu_wait_timeout > 0.0)
       pending_timer_ =
           nh.createWallTimer(ros::WallDuration(0.05), &ScanMatchingNodelet::onPendingTimer, this);
     NODELET_INFO("scan matching: %s, keyframe every %.2f m / %.3f rad / %.1f s, %s -> %s%s",
-                 params.registration.method.c_str(), params.keyframe_delta_trans,
-                 params.keyframe_delta_angle, params.keyframe_delta_time,
-                 node_params_.odom_frame.c_str(), node_params_.base_link_frame.c_str(),
-                 params.deskew ? ", deskewing" : "");
+                 multi_cue ? "multi_cue" : params.registration.method.c_str(),
+                 params.keyframe_delta_trans, params.keyframe_delta_angle,
+                 params.keyframe_delta_time, node_params_.odom_frame.c_str(),
+                 node_params_.base_link_frame.c_str(), params.deskew ? ", deskewing" : "");
+  }
+
+  // --- the raw scans (multi_cue) -------------------------------------------------------------
+  // The prefilter publishes filtered_points with the raw scan's stamp a few milliseconds after
+  // the raw scan arrived here, so the raw scan of a filtered one is found by its stamp among
+  // the last few.
+  void onRaw(const sensor_msgs::PointCloud2ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(raw_mutex_);
+    raw_.push_back(msg);
+    while (raw_.size() > kRawScansKept) raw_.pop_front();
+  }
+
+  /// The raw scan stamped `stamp`, converted; null when it did not arrive (the tracker then
+  /// projects the filtered scan and says so once).
+  PointCloudConstPtr rawScanAt(const ros::Time& stamp) {
+    sensor_msgs::PointCloud2ConstPtr msg;
+    {
+      std::lock_guard<std::mutex> lock(raw_mutex_);
+      for (const auto& m : raw_)
+        if (m->header.stamp == stamp) msg = m;
+    }
+    if (!msg) return nullptr;
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != node_params_.sensor_frame)
+      NODELET_WARN_THROTTLE(node_params_.warn_throttle_period,
+                            "velodyne_points in frame '%s', expected sensor_frame '%s'",
+                            msg->header.frame_id.c_str(), node_params_.sensor_frame.c_str());
+    PointCloudPtr cloud = std::make_shared<PointCloud>();
+    std::string error;
+    if (!fromPointCloud2(*msg, *cloud, &error)) return nullptr;
+    return cloud;
   }
 
   void onImu(const sensor_msgs::ImuConstPtr& msg) {
@@ -172,7 +213,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     warnOnGap(stamp);
     if (mount_)
       if (const auto mount = mount_->get()) tracker_->setSensorToBase(*mount);
-    const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp));
+    const PointCloudConstPtr raw = raw_sub_ ? rawScanAt(msg->header.stamp) : nullptr;
+    const TrackResult result = tracker_->track(stamp, cloud, imuOrientationAt(stamp), raw);
+    if (!result.notice.empty()) NODELET_WARN("%s", result.notice.c_str());  // each once
     // Lost and recovered are each one line, whatever the throttling.
     if (const auto event = health_->update(msg->header.stamp.toSec(), result))
       NODELET_WARN("%s", event->message.c_str());
@@ -240,7 +283,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     msg->header.frame_id = node_params_.odom_frame;
     msg->has_converged = result.registration.converged;
     msg->failed = result.failed();
-    msg->method = tracker_->params().registration.method;
+    msg->method = tracker_->params().tracker == "multi_cue"
+                      ? "multi_cue"
+                      : tracker_->params().registration.method;
     msg->fitness = result.registration.fitness;
     msg->iterations = result.registration.iterations;
     msg->time_ms = result.registration.time_ms;
@@ -292,8 +337,11 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<SensorMountLookup> mount_;  ///< only when deskewing
   ros::Publisher odom_pub_, keyframe_pub_, status_pub_, marker_pub_;
-  ros::Subscriber sub_, imu_sub_;
-  std::mutex imu_mutex_;  ///< after track_mutex_ when both are held
+  ros::Subscriber sub_, imu_sub_, raw_sub_;
+  static constexpr size_t kRawScansKept = 10;
+  std::mutex raw_mutex_;
+  std::deque<sensor_msgs::PointCloud2ConstPtr> raw_;  ///< the last raw scans (multi_cue)
+  std::mutex imu_mutex_;                              ///< after track_mutex_ when both are held
   ImuOrientationBuffer imu_;
   std::mutex track_mutex_;  ///< the tracker and pending_: scans and IMU samples call in
   PendingScan pending_;     ///< a scan waiting for its IMU sample (msg null: none)

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "scan_matcher.h"
+
 namespace osm_graph_slam {
 namespace {
 
@@ -45,14 +47,31 @@ const char* toString(TrackStatus status) {
   return "unknown";
 }
 
+std::string KeyframeTrackerParams::validate() const {
+  if (tracker != "gicp" && tracker != "multi_cue")
+    return "unknown tracker '" + tracker + "' (gicp | multi_cue)";
+  if (guess != "constant_velocity" && guess != "pre_tracker" && guess != "imu" &&
+      guess != "pre_tracker_imu")
+    return "unknown guess '" + guess +
+           "' (constant_velocity | pre_tracker | imu | pre_tracker_imu)";
+  if (tracker != "multi_cue") return "";
+  if (multi_cue.sensor != "auto" && multi_cue.sensor != "hdl64e" && multi_cue.sensor != "os1_64")
+    return "unknown multi_cue_sensor '" + multi_cue.sensor + "' (auto | hdl64e | os1_64)";
+  if (const std::string why = multi_cue.registration.validate(); !why.empty())
+    return "multi_cue: " + why;
+  if (!(multi_cue.keyframe_delta_trans > 0.0) || !(multi_cue.keyframe_delta_angle > 0.0))
+    return "multi_cue_keyframe_delta_trans and _angle must be positive";
+  return "";
+}
+
 KeyframeTracker::KeyframeTracker(const KeyframeTrackerParams& params)
     : params_(params),
-      registration_(createRegistration(params.registration)),
-      fitness_gate_(params.fitness_ratio, params.fitness_ratio_floor) {
-  if (params_.guess != "constant_velocity" && params_.guess != "pre_tracker" &&
-      params_.guess != "imu" && params_.guess != "pre_tracker_imu")
-    throw std::invalid_argument("unknown guess '" + params_.guess +
-                                "' (constant_velocity | pre_tracker | imu | pre_tracker_imu)");
+      matcher_(createScanMatcher(params)),  // throws for an unknown choice
+      max_fitness_(params.tracker == "multi_cue" ? params.multi_cue.max_fitness
+                                                 : params.max_fitness),
+      fitness_gate_(params.fitness_ratio, params.tracker == "multi_cue"
+                                              ? params.multi_cue.fitness_ratio_floor
+                                              : params.fitness_ratio_floor) {
   if (params_.guess.rfind("pre_tracker", 0) == 0 || params_.recovery)
     pre_tracker_ = std::make_unique<PreTracker>(params_.pre_tracker, params_.registration);
 }
@@ -60,7 +79,9 @@ KeyframeTracker::KeyframeTracker(const KeyframeTrackerParams& params)
 KeyframeTracker::~KeyframeTracker() = default;
 
 void KeyframeTracker::reset() {
-  registration_ = createRegistration(params_.registration);
+  matcher_ = createScanMatcher(params_);
+  reference_pose_ = Eigen::Isometry3d::Identity();
+  tracker_keyframes_ = 0;
   has_keyframe_ = false;
   keyframe_ = Keyframe();
   pose_ = prev_pose_ = Eigen::Isometry3d::Identity();
@@ -87,8 +108,8 @@ bool KeyframeTracker::acceptMatch(const RegistrationResult& reg, const Eigen::Is
   std::ostringstream why;
   if (!reg.converged) {
     why << "registration failed: " << reg.message;
-  } else if (!(reg.fitness <= params_.max_fitness)) {
-    why << "fitness " << reg.fitness << " above max_fitness " << params_.max_fitness;
+  } else if (!(reg.fitness <= max_fitness_)) {
+    why << "fitness " << reg.fitness << " above max_fitness " << max_fitness_;
   } else if (!fitness_gate_.accepts(reg.fitness)) {
     why << "fitness " << reg.fitness << " above " << params_.fitness_ratio
         << " x the recent median (limit " << fitness_gate_.limit() << ")";
@@ -106,12 +127,12 @@ bool KeyframeTracker::acceptMatch(const RegistrationResult& reg, const Eigen::Is
   return false;
 }
 
-bool KeyframeTracker::attempt(const PointCloudConstPtr& cloud, const Guess& guess,
-                              TrackResult& result, Eigen::Isometry3d& relative) {
-  const Eigen::Isometry3d guess_relative = keyframe_.pose.inverse() * guess.pose;
+bool KeyframeTracker::attempt(const Scan& scan, const Guess& guess, TrackResult& result,
+                              Eigen::Isometry3d& relative) {
+  const Eigen::Isometry3d guess_relative = reference_pose_.inverse() * guess.pose;
   RegistrationResult reg;
   try {
-    reg = registration_->align(cloud, guess_relative);
+    reg = matcher_->align({scan.cloud, scan.sensor_scan, params_.sensor_to_base}, guess_relative);
   } catch (const std::exception& e) {
     reg.message = std::string("exception: ") + e.what();
   }
@@ -148,7 +169,18 @@ bool KeyframeTracker::needsKeyframe(const Eigen::Isometry3d& relative, double st
          stamp - keyframe_.stamp >= params_.keyframe_delta_time;
 }
 
-void KeyframeTracker::makeKeyframe(double stamp, const PointCloudConstPtr& cloud) {
+void KeyframeTracker::setReference(const Scan& scan) {
+  matcher_->setReference({scan.cloud, scan.sensor_scan, params_.sensor_to_base});
+  reference_pose_ = pose_;
+  ++tracker_keyframes_;
+}
+
+void KeyframeTracker::takeNotice(TrackResult& result) {
+  const std::string notice = matcher_->takeNotice();
+  if (!notice.empty()) result.notice += (result.notice.empty() ? "" : "; ") + notice;
+}
+
+void KeyframeTracker::makeKeyframe(double stamp, const Scan& scan) {
   Keyframe next;
   next.id = has_keyframe_ ? keyframe_.id + 1 : 0;
   next.accum_distance = has_keyframe_ ? keyframe_.accum_distance +
@@ -156,10 +188,10 @@ void KeyframeTracker::makeKeyframe(double stamp, const PointCloudConstPtr& cloud
                                       : 0.0;
   next.stamp = stamp;
   next.pose = pose_;
-  next.cloud = cloud;
+  next.cloud = scan.cloud;
+  setReference(scan);  // first: a cloud that cannot serve leaves the keyframe as it was
   keyframe_ = next;
   has_keyframe_ = true;
-  registration_->setTarget(cloud);
 }
 
 std::optional<Eigen::Isometry3d> KeyframeTracker::imuPredict(
@@ -186,7 +218,7 @@ bool KeyframeTracker::jumpedBack(double stamp) const {
          stamp < last_stamp_ - params_.restart_after_jump_back;
 }
 
-TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& cloud,
+TrackResult KeyframeTracker::restart(double stamp, const Scan& scan,
                                      const std::optional<Eigen::Quaterniond>& imu_orientation) {
   // Nothing of the old motion model holds across the jump (velocity, fitness level, IMU and
   // pre-tracker references); the keyframe ids and the pose continue so that the back-end keeps
@@ -197,7 +229,7 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
       << "): tracking restarted, the new keyframe continues from the last pose";
   TrackResult result;
   try {
-    makeKeyframe(stamp, cloud);
+    makeKeyframe(stamp, scan);
   } catch (const std::exception& e) {
     result.status = TrackStatus::kRejectedCloud;
     result.message = std::string("could not index the restart keyframe: ") + e.what();
@@ -212,7 +244,7 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
   last_imu_ = imu_orientation;
   if (pre_tracker_) {
     pre_tracker_->reset();
-    pre_tracker_->remember(cloud);
+    pre_tracker_->remember(scan.cloud);
   }
   result.status = TrackStatus::kRestarted;
   result.new_keyframe = result.reanchored = true;
@@ -222,30 +254,41 @@ TrackResult KeyframeTracker::restart(double stamp, const PointCloudConstPtr& clo
   return result;
 }
 
-PointCloudConstPtr KeyframeTracker::deskewed(double stamp, const PointCloudConstPtr& cloud,
-                                             const Eigen::Isometry3d& predicted) const {
+KeyframeTracker::Scan KeyframeTracker::deskewedBy(const Scan& scan, const Eigen::Isometry3d& motion,
+                                                  double dt) const {
+  Scan out;
+  out.cloud = deskewedCopy(*scan.cloud, params_.sensor_to_base, motion, dt, params_.sweep);
+  // The full-resolution scan is in the LiDAR's frame: the same motion seen from there.
+  if (scan.sensor_scan) {
+    const Eigen::Isometry3d& s = params_.sensor_to_base;
+    out.sensor_scan =
+        deskewedScanBySector(*scan.sensor_scan, s.inverse() * motion * s, dt, params_.sweep);
+  }
+  return out;
+}
+
+KeyframeTracker::Scan KeyframeTracker::deskewed(double stamp, const Scan& scan,
+                                                const Eigen::Isometry3d& predicted) const {
   // The predicted motion to this scan (constant velocity, its rotation from the IMU when the
   // guess uses it) is centred half a period before the sweep; the last tracked motion would be a
   // period and a half before it, and lag behind every change of speed or turn rate.
   const double dt = stamp - last_stamp_, dt_prev = last_stamp_ - prev_stamp_;
   const bool recent = dt > 1e-9 && dt <= params_.deskew_max_interval && dt_prev > 1e-9 &&
                       dt_prev <= params_.deskew_max_interval;
-  if (!params_.deskew || poses_seen_ < 2 || !recent) return cloud;
-  return deskewedCopy(*cloud, params_.sensor_to_base, pose_.inverse() * predicted, dt,
-                      params_.sweep);
+  if (!params_.deskew || poses_seen_ < 2 || !recent) return scan;
+  return deskewedBy(scan, pose_.inverse() * predicted, dt);
 }
 
-PointCloudConstPtr KeyframeTracker::deskewedByMatch(double stamp, const PointCloudConstPtr& raw,
-                                                    TrackResult& result,
-                                                    Eigen::Isometry3d& relative) {
+KeyframeTracker::Scan KeyframeTracker::deskewedByMatch(double stamp, const Scan& raw,
+                                                       TrackResult& result,
+                                                       Eigen::Isometry3d& relative) {
   // A scan matched as it came (after a gap, or the second of the drive: no velocity known): its
   // match gives the mean motion since the last scan. Deskewed by that, it is matched again from
   // there (frontend_dropout, 2.1 s hole in a turn: the raw first scan was 0.17 m off).
   const double dt = stamp - last_stamp_;
   if (!params_.deskew || !(dt > 1e-9) || dt > params_.max_prediction_gap) return raw;
-  const Eigen::Isometry3d matched = keyframe_.pose * relative;
-  const PointCloudConstPtr moved =
-      deskewedCopy(*raw, params_.sensor_to_base, pose_.inverse() * matched, dt, params_.sweep);
+  const Eigen::Isometry3d matched = reference_pose_ * relative;
+  const Scan moved = deskewedBy(raw, pose_.inverse() * matched, dt);
   Eigen::Isometry3d again = relative;
   if (!attempt(moved, {"deskewed_by_match", matched}, result, again)) return raw;
   relative = again;
@@ -253,16 +296,20 @@ PointCloudConstPtr KeyframeTracker::deskewedByMatch(double stamp, const PointClo
 }
 
 TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_cloud,
-                                   const std::optional<Eigen::Quaterniond>& imu_orientation) {
+                                   const std::optional<Eigen::Quaterniond>& imu_orientation,
+                                   const PointCloudConstPtr& sensor_scan) {
   TrackResult result;
   result.keyframe_id = keyframe_.id;
+  result.registration_is_edge = matcher_->registrationIsEdge();
+  // GICP never reads the full-resolution scan: it is not deskewed for nothing.
+  const Scan raw{raw_cloud, params_.tracker == "multi_cue" ? sensor_scan : nullptr};
   if (!std::isfinite(stamp)) {
     result.status = TrackStatus::kRejectedStamp;
     result.message = "stamp is not finite";
     return result;
   }
   const bool cloud_ok = raw_cloud && static_cast<int>(raw_cloud->size()) >= params_.min_points;
-  if (cloud_ok && jumpedBack(stamp)) return restart(stamp, raw_cloud, imu_orientation);
+  if (cloud_ok && jumpedBack(stamp)) return restart(stamp, raw, imu_orientation);
   if (has_keyframe_ && stamp <= last_stamp_) {
     std::ostringstream why;
     why << std::fixed << std::setprecision(3) << "stamp " << stamp
@@ -280,9 +327,9 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
     return result;
   }
   if (!has_keyframe_) {
-    const PointCloudConstPtr& cloud = raw_cloud;  // no motion known yet to deskew it
+    const Scan& scan = raw;  // no motion known yet to deskew it
     try {
-      makeKeyframe(stamp, cloud);
+      makeKeyframe(stamp, scan);
     } catch (const std::exception& e) {
       has_keyframe_ = false;
       result.status = TrackStatus::kRejectedCloud;
@@ -292,7 +339,8 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
     last_stamp_ = prev_stamp_ = stamp;
     poses_seen_ = 1;
     last_imu_ = imu_orientation;
-    if (pre_tracker_) pre_tracker_->remember(cloud);
+    if (pre_tracker_) pre_tracker_->remember(scan.cloud);
+    takeNotice(result);
     result.status = TrackStatus::kFirstKeyframe;
     result.new_keyframe = true;
     result.pose = pose_;
@@ -307,20 +355,21 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
   const bool imu_guess = params_.guess == "imu" || params_.guess == "pre_tracker_imu";
   // The pre-tracker starts from the best motion model at hand.
   const Eigen::Isometry3d motion_model = imu_guess && imu ? *imu : constant_velocity;
-  PointCloudConstPtr cloud = deskewed(stamp, raw_cloud, motion_model);
+  Scan scan = deskewed(stamp, raw, motion_model);
   Guess best{imu_guess && imu ? "imu" : "constant_velocity", motion_model};
   if (params_.guess.rfind("pre_tracker", 0) == 0)
-    if (const auto p = preTracked(cloud, motion_model, result)) best = {"pre_tracker", *p};
+    if (const auto p = preTracked(scan.cloud, motion_model, result)) best = {"pre_tracker", *p};
 
-  Eigen::Isometry3d relative = keyframe_.pose.inverse() * best.pose;
-  bool matched = attempt(cloud, best, result, relative);
+  // relative: the scan's pose in the matcher's reference (the graph keyframe with GICP).
+  Eigen::Isometry3d relative = reference_pose_.inverse() * best.pose;
+  bool matched = attempt(scan, best, result, relative);
   const std::string first_failure = result.message;
   if (!matched && params_.recovery) {
     // Other guesses, most likely first; the best of them is kept if every one fails.
     std::vector<Guess> retries;
     if (imu && !imu_guess) retries.push_back({"imu", *imu});
     if (best.source != std::string("pre_tracker")) {
-      if (const auto p = preTracked(cloud, motion_model, result)) {
+      if (const auto p = preTracked(scan.cloud, motion_model, result)) {
         best = {"pre_tracker", *p};
         retries.push_back(best);
       }
@@ -338,8 +387,8 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
         retries.push_back(g);
       }
     for (const Guess& g : retries)
-      if ((matched = attempt(cloud, g, result, relative))) break;
-    if (!matched) relative = keyframe_.pose.inverse() * best.pose;
+      if ((matched = attempt(scan, g, result, relative))) break;
+    if (!matched) relative = reference_pose_.inverse() * best.pose;
   }
   if (matched) {
     result.status = TrackStatus::kMatched;
@@ -354,36 +403,40 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
                                              : std::string());
     ++failures_in_row_;
   }
-  if (matched && cloud == raw_cloud) cloud = deskewedByMatch(stamp, raw_cloud, result, relative);
+  if (matched && scan == raw) scan = deskewedByMatch(stamp, raw, result, relative);
 
   prev_pose_ = pose_;
   prev_stamp_ = last_stamp_;
-  pose_ = keyframe_.pose * relative;
+  pose_ = reference_pose_ * relative;
+  const Eigen::Isometry3d to_keyframe = keyframe_.pose.inverse() * pose_;
   if (matched) result.prediction_error = (motion_model.inverse() * pose_).translation();
   last_stamp_ = stamp;
   last_imu_ = imu_orientation;
   ++poses_seen_;
   result.pose = pose_;
-  result.relative_to_keyframe = relative;
+  result.relative_to_keyframe = to_keyframe;
   result.keyframe_id = keyframe_.id;
-  if (pre_tracker_) pre_tracker_->remember(cloud);
+  if (pre_tracker_) pre_tracker_->remember(scan.cloud);
   // Only a verified match may become a keyframe: a predicted pose would anchor later scans on
   // a guess. The exception is re-anchoring after failures in a row, flagged for the back-end:
   // without it the keyframe falls ever further behind and the rest of the drive is lost.
   // A scan that could not be deskewed (just after a gap) makes a poor keyframe: every later
   // scan would be matched against its smear. It waits up to kMaxRawKeyframeDeferrals scans for
   // one that can (frontend_dropout, 2.1 s hole: 0.17 m error after the gap without the wait).
-  const bool raw = params_.deskew && cloud == raw_cloud;
-  raw_keyframe_deferrals_ = raw ? raw_keyframe_deferrals_ + 1 : 0;
-  const bool defer = raw && raw_keyframe_deferrals_ <= kMaxRawKeyframeDeferrals;
-  if (matched && !defer && needsKeyframe(relative, stamp)) {
-    makeKeyframe(stamp, cloud);
+  // The same holds for the multi-cue tracker's own keyframes, made between the graph's.
+  const bool not_deskewed = params_.deskew && scan == raw;
+  raw_keyframe_deferrals_ = not_deskewed ? raw_keyframe_deferrals_ + 1 : 0;
+  const bool defer = not_deskewed && raw_keyframe_deferrals_ <= kMaxRawKeyframeDeferrals;
+  if (matched && !defer && needsKeyframe(to_keyframe, stamp)) {
+    makeKeyframe(stamp, scan);
     result.new_keyframe = true;
     result.keyframe_id = keyframe_.id;
+  } else if (matched && !defer && matcher_->wantsReference(relative)) {
+    setReference(scan);
   } else if (!matched && params_.reanchor_after_failures > 0 &&
              failures_in_row_ >= params_.reanchor_after_failures) {
     result.gap = stamp - keyframe_.stamp;
-    makeKeyframe(stamp, cloud);
+    makeKeyframe(stamp, scan);
     result.status = TrackStatus::kReanchored;
     result.new_keyframe = result.reanchored = true;
     result.keyframe_id = keyframe_.id;
@@ -395,6 +448,7 @@ TrackResult KeyframeTracker::track(double stamp, const PointCloudConstPtr& raw_c
     // them against the old one.
     fitness_gate_.clear();
   }
+  takeNotice(result);
   return result;
 }
 

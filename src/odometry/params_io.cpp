@@ -3,6 +3,32 @@
 #include "osm_graph_slam/registration/params_io.h"
 
 namespace osm_graph_slam {
+namespace {
+
+/// The multi-cue tracker's keys, "multi_cue_" + the field's name.
+void readMultiCueParams(const ParamReader& r, MultiCueTrackingParams& p) {
+  r.param("multi_cue_sensor", p.sensor);
+  r.param("multi_cue_keyframe_delta_trans", p.keyframe_delta_trans);
+  r.param("multi_cue_keyframe_delta_angle", p.keyframe_delta_angle);
+  r.param("multi_cue_max_fitness", p.max_fitness);
+  r.param("multi_cue_fitness_ratio_floor", p.fitness_ratio_floor);
+  r.param("multi_cue_max_range_jump_ratio", p.continuity.max_range_jump_ratio);
+  MultiCueParams& g = p.registration;
+  r.param("multi_cue_pyramid_levels", g.pyramid_levels);
+  r.param("multi_cue_model_stride", g.model_stride);
+  r.param("multi_cue_max_iterations_per_level", g.max_iterations_per_level);
+  r.param("multi_cue_range_weight", g.range_weight);
+  r.param("multi_cue_intensity_weight", g.intensity_weight);
+  r.param("multi_cue_normal_weight", g.normal_weight);
+  r.param("multi_cue_kernel", g.kernel);
+  r.param("multi_cue_kernel_width", g.kernel_width);
+  r.param("multi_cue_range_gate", g.range_gate);
+  r.param("multi_cue_translation_epsilon", g.translation_epsilon);
+  r.param("multi_cue_rotation_epsilon", g.rotation_epsilon);
+  r.param("multi_cue_min_inliers", g.min_inliers);
+}
+
+}  // namespace
 
 void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   // The registration's fields share the top level with the tracker's; only the method is renamed
@@ -11,6 +37,10 @@ void readParams(const ParamReader& r, KeyframeTrackerParams& p) {
   readParams(r, p.registration);
   p.registration.method = method;
   r.param("registration_method", p.registration.method);
+  r.param("tracker", p.tracker);
+  readMultiCueParams(r, p.multi_cue);
+  // One thread count for whichever registration tracks.
+  p.multi_cue.registration.num_threads = p.registration.num_threads;
   r.param("keyframe_delta_trans", p.keyframe_delta_trans);
   r.param("keyframe_delta_angle", p.keyframe_delta_angle);
   r.param("keyframe_delta_time", p.keyframe_delta_time);

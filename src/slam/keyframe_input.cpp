@@ -11,8 +11,12 @@ KeyframeInput keyframeInput(const Keyframe& kf, const TrackResult& track) {
   input.odom_pose = kf.pose;
   input.accum_distance = kf.accum_distance;
   if (track.registration.converged) {
-    input.odom_fitness = track.registration.fitness;
-    input.odom_hessian = track.registration.hessian;
+    // The multi-cue tracker's match is not the edge's evidence (TrackResult): the edge keeps
+    // the fitness model's middle, loosened by the prediction error as any other.
+    if (track.registration_is_edge) {
+      input.odom_fitness = track.registration.fitness;
+      input.odom_hessian = track.registration.hessian;
+    }
     input.odom_prediction_error = track.prediction_error;
   }
   input.reanchored = track.reanchored;

@@ -16,6 +16,10 @@ namespace osm_graph_slam {
 bool readPipelineParams(const ParamReader& r, SlamPipelineParams& p, std::string* error) {
   readParams(PrefixedParamReader(r, "prefiltering"), p.prefilter);
   readParams(PrefixedParamReader(r, "scan_matching"), p.tracker);
+  if (const std::string why = p.tracker.validate(); !why.empty()) {
+    if (error) *error = "scan_matching: " + why;  // at start, not at the first scan
+    return false;
+  }
   readParams(PrefixedParamReader(r, "floor_detection"), p.floor);
   readParams(PrefixedParamReader(r, "line_extraction/wall"), p.wall);
   readParams(PrefixedParamReader(r, "line_extraction/segments"), p.segments);

@@ -158,17 +158,19 @@ bool SlamPipeline::processScan(double stamp, const PointCloudConstPtr& sensor_cl
   const auto t0 = Clock::now();
   const CloudPrefilterResult filtered = prefilter_.filter(*sensor_cloud);
   const double prefilter_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding, sensor_cloud);
 }
 
 bool SlamPipeline::processFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                   double prefilter_ms, const ScanAiding& aiding) {
+                                   double prefilter_ms, const ScanAiding& aiding,
+                                   const PointCloudConstPtr& sensor_cloud) {
   timings_.prefilter_ahead = true;
-  return trackFiltered(stamp, filtered, prefilter_ms, aiding);
+  return trackFiltered(stamp, filtered, prefilter_ms, aiding, sensor_cloud);
 }
 
 bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filtered,
-                                 double prefilter_ms, const ScanAiding& aiding) {
+                                 double prefilter_ms, const ScanAiding& aiding,
+                                 const PointCloudConstPtr& sensor_cloud) {
   startClock();
   ++timings_.scans;
   timings_.prefilter_ms += prefilter_ms;
@@ -182,9 +184,10 @@ bool SlamPipeline::trackFiltered(double stamp, const CloudPrefilterResult& filte
   TrackResult result;
   {
     StageTimer t(timings_.tracking_ms);
-    result = tracker_.track(stamp, filtered.cloud, aiding.imu_orientation);
+    result = tracker_.track(stamp, filtered.cloud, aiding.imu_orientation, sensor_cloud);
   }
-  timings_.pre_tracker_ms += result.pre_tracker_ms;  // part of tracking, shown on its own
+  if (!result.notice.empty()) logger_->warn(result.notice);  // the tracker gives each once
+  timings_.pre_tracker_ms += result.pre_tracker_ms;          // part of tracking, shown on its own
   logTracking(tracking_.update(stamp, result));
   if (!result.has_pose()) return false;
   if (result.new_keyframe) processKeyframe(tracker_.keyframe(), result, aiding);
@@ -420,7 +423,16 @@ std::string SlamPipeline::timingTable() const {
                   handover_->keyframesLocalized());
     localization = line;
   }
-  return std::string(buf) + ahead + track + updates + floor + heading + localization + scaleLine();
+  // The multi-cue tracker's health report says what it lacks next to GICP's (doc/multi_cue.md).
+  const std::string multi_cue =
+      usesSensorCloud()
+          ? "tracker multi_cue: " + std::to_string(tracker_.trackerKeyframeCount()) +
+                " tracker keyframes; next to gicp it lacks: match information on the odometry "
+                "edges (they get the fitness model's middle), a multi-cue pre-tracker (the "
+                "pre-tracker and its recovery guess register with GICP)\n"
+          : "";
+  return std::string(buf) + ahead + track + multi_cue + updates + floor + heading + localization +
+         scaleLine();
 }
 
 std::string SlamPipeline::timingJson() const {

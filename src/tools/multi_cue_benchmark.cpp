@@ -6,6 +6,9 @@
 // motions are apart (translation cm, rotation deg: median, 90th percentile, worst).
 // --simulated N: consecutive pairs of a simulated drive against the true motion instead (the
 // real drive has no ground truth; the defaults were chosen on both, doc/multi_cue.md).
+// --trackers: the whole KeyframeTracker instead, with tracker gicp and with tracker multi_cue
+// (config/scan_matching.yaml otherwise), on the same scans in the same run: scans tracked, ms
+// per scan, and how far the two odometry trajectories end apart.
 //
 //   (the options: multi_cue_benchmark --help)
 #include <algorithm>
@@ -20,8 +23,10 @@
 #include "osm_graph_slam/common/memory_tuning.h"
 #include "osm_graph_slam/io/kitti_bin.h"
 #include "osm_graph_slam/io/kitti_raw.h"
+#include "osm_graph_slam/io/yaml_param_reader.h"
 #include "osm_graph_slam/multi_cue/multi_cue_registration.h"
 #include "osm_graph_slam/odometry/keyframe_tracker.h"
+#include "osm_graph_slam/odometry/params_io.h"
 #include "osm_graph_slam/registration/registration.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "support/command_line.h"
@@ -176,6 +181,88 @@ int runSimulated(size_t pair_count, const SphericalProjectionParams& projection,
   return 0;
 }
 
+/// One tracker's odometry over the scans: its poses, what it did with each scan, and its time.
+struct TrackerRun {
+  std::vector<Eigen::Isometry3d> poses;
+  int matched = 0, failed = 0, reanchored = 0;
+  uint64_t keyframes = 0, tracker_keyframes = 0;
+  double ms = 0.0;  ///< track() wall clock over all scans (the prefilter is not in it)
+  std::vector<double> fitness;
+};
+
+TrackerRun runTracker(const KeyframeTrackerParams& params, const std::vector<PointCloud>& scans,
+                      const std::vector<PointCloudConstPtr>& filtered, double rate) {
+  KeyframeTracker tracker(params);
+  TrackerRun run;
+  for (size_t k = 0; k < scans.size(); ++k) {
+    // The raw scan is shared without a copy: only the multi-cue tracker reads it.
+    const PointCloudConstPtr raw(&scans[k], [](const PointCloud*) {});
+    const auto start = Clock::now();
+    const TrackResult r = tracker.track(k / rate, filtered[k], std::nullopt, raw);
+    run.ms += msSince(start);
+    if (!r.notice.empty()) std::printf("  (%s)\n", r.notice.c_str());
+    run.matched += r.status == TrackStatus::kMatched;
+    run.failed += r.status == TrackStatus::kMatchFailed;
+    run.reanchored += r.status == TrackStatus::kReanchored;
+    if (r.status == TrackStatus::kMatched) run.fitness.push_back(r.registration.fitness);
+    if (r.failed())
+      std::printf("  %s: scan %zu %s: %s\n", params.tracker.c_str(), k, toString(r.status),
+                  r.message.c_str());
+    run.poses.push_back(r.pose);
+  }
+  run.keyframes = tracker.keyframeCount();
+  run.tracker_keyframes = tracker.trackerKeyframeCount();
+  return run;
+}
+
+/// Both trackers (config/scan_matching.yaml, tracker gicp and multi_cue) on the same scans.
+int runTrackers(const std::vector<PointCloud>& scans, double rate, int threads,
+                const std::string& overrides) {
+  KeyframeTrackerParams params;
+  for (const std::string& file :
+       {std::string(OGS_SOURCE_DIR) + "/config/scan_matching.yaml", overrides}) {
+    if (file.empty()) continue;
+    const YamlParamReader yaml = YamlParamReader::fromFile(file);
+    if (!yaml.ok()) {
+      std::cerr << "multi_cue_benchmark: " << yaml.error() << "\n";
+      return 1;
+    }
+    readParams(yaml, params);
+  }
+  params.registration.num_threads = params.multi_cue.registration.num_threads = threads;
+  const CloudPrefilter prefilter;
+  std::vector<PointCloudConstPtr> filtered;
+  for (const PointCloud& scan : scans) filtered.push_back(prefilter.filter(scan).cloud);
+  params.tracker = "gicp";
+  const TrackerRun gicp = runTracker(params, scans, filtered, rate);
+  params.tracker = "multi_cue";
+  const TrackerRun mc = runTracker(params, scans, filtered, rate);
+  const size_t n = scans.size();
+  for (const auto* run : {&gicp, &mc}) {
+    std::printf(
+        "%-9s: %zu scans, matched %d, failed %d, re-anchored %d, %lu keyframes (%lu tracker "
+        "keyframes), %.2f ms/scan, fitness median %.4g worst %.4g\n",
+        run == &gicp ? "gicp" : "multi_cue", n, run->matched, run->failed, run->reanchored,
+        static_cast<unsigned long>(run->keyframes),
+        static_cast<unsigned long>(run->tracker_keyframes), run->ms / n,
+        quantile(run->fitness, 0.5), quantile(run->fitness, 1.0));
+  }
+  double worst_m = 0.0, worst_deg = 0.0, length = 0.0;
+  for (size_t k = 0; k < n; ++k) {
+    const Eigen::Isometry3d d = gicp.poses[k].inverse() * mc.poses[k];
+    worst_m = std::max(worst_m, d.translation().norm());
+    worst_deg = std::max(worst_deg, Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI);
+    if (k > 0) length += (gicp.poses[k - 1].inverse() * gicp.poses[k]).translation().norm();
+  }
+  const Eigen::Isometry3d end = gicp.poses.back().inverse() * mc.poses.back();
+  std::printf(
+      "multi_cue vs gicp odometry over %.1f m: end %.3f m, %.3f deg; worst over the drive %.3f m, "
+      "%.3f deg; ms/scan ratio %.2f\n",
+      length, end.translation().norm(), Eigen::AngleAxisd(end.linear()).angle() * 180.0 / M_PI,
+      worst_m, worst_deg, mc.ms / gicp.ms);
+  return 0;
+}
+
 void printStage(const char* name, double total_ms, size_t scans) {
   std::printf("  %-28s %7.2f ms/scan\n", name, total_ms / scans);
 }
@@ -184,10 +271,11 @@ void printStage(const char* name, double total_ms, size_t scans) {
 
 int main(int argc, char** argv) {
   reuseFreedMemory();  // scan-sized buffers stay in the heap (common/memory_tuning.h)
-  std::string dir, sensor = "hdl64e";
+  std::string dir, sensor = "hdl64e", tracker_config;
   size_t max_scans = 0, simulated_pairs = 0;
   int threads = 1, cols = 0;
-  bool skip_gicp = false;
+  bool skip_gicp = false, trackers = false;
+  double rate = 10.0;
   MultiCueParams params;
   SurfaceContinuityParams continuity;
   CommandLine cli("multi_cue_benchmark",
@@ -219,7 +307,14 @@ int main(int argc, char** argv) {
       .option("--rotation-epsilon", "RAD", "convergence on the step [rad]",
               &params.rotation_epsilon)
       .option("--threads", "N", "threads of both registrations (0: all hardware threads)", &threads)
-      .flag("--no-gicp", "multi-cue only (tuning; no ratio, no agreement)", &skip_gicp);
+      .flag("--no-gicp", "multi-cue only (tuning; no ratio, no agreement)", &skip_gicp)
+      .flag("--trackers",
+            "instead: the keyframe tracker with tracker gicp and multi_cue on the same scans "
+            "(config/scan_matching.yaml; --threads): scans tracked, ms per scan, end difference",
+            &trackers)
+      .option("--rate", "HZ", "--trackers: the scan rate (stamps)", &rate)
+      .option("--tracker-config", "YAML",
+              "--trackers: scan_matching keys over config/scan_matching.yaml", &tracker_config);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   SphericalProjectionParams projection = sensor == "os1_64" ? SphericalProjectionParams::os1_64()
                                                             : SphericalProjectionParams::hdl64e();
@@ -240,6 +335,7 @@ int main(int argc, char** argv) {
     scans.push_back(std::move(cloud));
   }
   if (scans.size() < 2) return cli.fail("fewer than 2 .bin scans in '" + dir + "'");
+  if (trackers) return runTrackers(scans, rate, threads, tracker_config);
 
   std::vector<PairResult> pairs(scans.size() - 1);
   MultiCueTimes mc;

@@ -306,9 +306,10 @@ int main(int argc, char** argv) {
   // before it (on 2 cores the tracker's threads leave a core partly idle).
   const CloudPrefilter& prefilter = pipeline.prefilter();
   pipeline.startClock();
-  ScanPrefetcher prefetcher(*drive, n, 8, [&prefilter](DriveScan& s) {
+  const bool keep_raw = pipeline.usesSensorCloud();  // the multi-cue tracker projects it
+  ScanPrefetcher prefetcher(*drive, n, 8, [&prefilter, keep_raw](DriveScan& s) {
     s.filtered = prefilter.filter(*s.cloud);
-    s.cloud.reset();  // the raw scan is not needed any more
+    if (!keep_raw) s.cloud.reset();  // the raw scan is not needed any more
   });
   auto readScan = [&] {
     const auto t0 = std::chrono::steady_clock::now();
@@ -330,7 +331,7 @@ int main(int argc, char** argv) {
     aiding.gnss_std = scan.gnss_std;
     aiding.gnss_altitude = scan.gnss_altitude;
     if (scan.gnss) moveFixToMap(drive_origin, map_origin, aiding);
-    pipeline.processFiltered(scan.stamp, *scan.filtered, scan.prepare_ms, aiding);
+    pipeline.processFiltered(scan.stamp, *scan.filtered, scan.prepare_ms, aiding, scan.cloud);
     printProgress(i + 1, n);
   }
   const BackendUpdateReport report = pipeline.finish();

@@ -39,4 +39,13 @@ PointCloudPtr deskewedCopy(const PointCloud& cloud, const Eigen::Isometry3d& sen
                            const Eigen::Isometry3d& motion, double motion_duration,
                            const SweepTiming& timing);
 
+/// deskewedCopy of a full-resolution scan in the sensor's own frame (sensor_to_base identity),
+/// with the motion computed once per azimuth sector of the sweep instead of per point: the
+/// multi-cue tracker deskews ~120 000 points a scan, and a rotation built per point took 9 of
+/// its 25 ms. A sector lasts period / sectors (49 us at 2048 and 10 Hz); the sectors start at
+/// the sweep's cut, so none straddles it.
+PointCloudPtr deskewedScanBySector(const PointCloud& scan, const Eigen::Isometry3d& motion,
+                                   double motion_duration, const SweepTiming& timing,
+                                   int sectors = 2048);
+
 }  // namespace osm_graph_slam

@@ -1,7 +1,9 @@
 #pragma once
 // Scan-to-keyframe LiDAR odometry (ART-SLAM thesis §3.1.4): every filtered scan is registered
 // against the current keyframe from a constant-velocity guess; a scan becomes the new keyframe
-// when it moved, turned or aged more than the thresholds. ROS-free.
+// when it moved, turned or aged more than the thresholds. The registration is GICP on the
+// prefiltered scans (the default) or MCS-SLAM's multi-cue photometric registration against
+// denser tracker keyframes (`tracker: multi_cue`, thesis §4.1, doc/multi_cue.md). ROS-free.
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
@@ -10,13 +12,43 @@
 
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/cloud/scan_deskew.h"
+#include "osm_graph_slam/multi_cue/multi_cue_registration.h"
 #include "osm_graph_slam/odometry/fitness_gate.h"
 #include "osm_graph_slam/odometry/pre_tracker.h"
 #include "osm_graph_slam/registration/registration.h"
 
 namespace osm_graph_slam {
 
+class ScanMatcher;
+
+/// The multi-cue tracker (`tracker: multi_cue`): photometric registration of the full-resolution
+/// scan's multi-cue image against tracker keyframes, which are made on their own thresholds,
+/// apart from the graph's keyframes (those stay as keyframe_delta_* make them).
+struct MultiCueTrackingParams {
+  MultiCueParams registration;
+  /// The LiDAR's spherical image: "hdl64e" (KITTI), "os1_64" (SphericalProjectionParams) or
+  /// "auto" (the one whose field of view the first scan fills; logged once).
+  std::string sensor = "auto";
+  SurfaceContinuityParams continuity;
+  /// [m] new tracker keyframe after this, [rad] or this rotation (1 deg): the thesis's. Sparser
+  /// references chain fewer matches, each of which comes out ~3 mm short (a bias of the
+  /// registration): 2 m / 5 deg gave quick-matrix ATE 1.17x GICP's instead of 1.28x, but on
+  /// the real drive a map 37 % less sharp than GICP's instead of 12 % (doc/multi_cue.md).
+  double keyframe_delta_trans = 0.5;
+  double keyframe_delta_angle = 0.01745;
+  /// The fitness gate on the multi-cue fitness (chi2 / inlier pixels: the mean weighted squared
+  /// cue error, dominated by the range, ~[m^2]; GICP's limits are in other units). Real KITTI
+  /// 0005 (multi_cue_benchmark --trackers): true matches 0.019 median, 0.043 worst; a track that
+  /// had diverged scored 0.1-0.36. The adaptive limit is fitness_ratio x the recent median (~0.08).
+  double max_fitness = 0.1;
+  double fitness_ratio_floor = 0.05;  ///< the adaptive limit never goes below this
+};
+
 struct KeyframeTrackerParams {
+  /// The scan registration: "gicp" (the prefiltered scan against the graph keyframe with
+  /// `registration`) or "multi_cue" (MultiCueTrackingParams). Anything else fails validate().
+  std::string tracker = "gicp";
+  MultiCueTrackingParams multi_cue;
   /// Scan-to-keyframe matching uses 2 m correspondences (measured on a simulated drive: with 1 m
   /// the tracker lost 20° of heading in a 20°/s U-turn, ATE over 720 scans 1.6 m -> 0.13 m).
   RegistrationParams registration = [] {
@@ -79,6 +111,10 @@ struct KeyframeTrackerParams {
   double deskew_max_interval = 0.3;
   SweepTiming sweep;
   Eigen::Isometry3d sensor_to_base = Eigen::Isometry3d::Identity();
+
+  /// "" when the choices are known (tracker, guess, the multi-cue sensor and parameters), else
+  /// a sentence saying what is wrong and what is allowed.
+  std::string validate() const;
 };
 
 enum class TrackStatus {
@@ -124,6 +160,13 @@ struct TrackResult {
   /// deskewed scan, so the match is uncertain along it (odometry information, doc/backend.md).
   /// Zero if no match was accepted.
   Eigen::Vector3d prediction_error = Eigen::Vector3d::Zero();
+  /// The registration above was against the previous graph keyframe with GICP, so its fitness
+  /// and Hessian describe the odometry edge (graph/information.h). False with multi_cue: its
+  /// reference may be a tracker keyframe, and its fitness has other units.
+  bool registration_is_edge = true;
+  /// A remark to log once per run (the tracker sets each only once), e.g. that the scans carry
+  /// no intensity and the intensity cue is off.
+  std::string notice;
   std::string guess_source;     ///< guess of the accepted match (or of the kept prediction)
   int attempts = 0;             ///< registrations tried against the keyframe
   double pre_tracker_ms = 0.0;  ///< time of the pre-tracker's registration (0 when not run)
@@ -138,14 +181,21 @@ class KeyframeTracker {
   /// Processes one filtered scan (in base_link) taken at stamp [s]. Never throws on bad input.
   /// imu_orientation: base_link's orientation from an IMU at the scan's stamp, in any fixed frame
   /// (an INS attitude, or integrated gyro rates: only its change between scans is used).
+  /// sensor_scan: the same scan before the prefilter (full resolution, in the LiDAR's frame),
+  /// which the multi_cue tracker projects (a 0.5 m voxel cloud leaves most pixels of its image
+  /// empty); ignored by gicp. Without it multi_cue projects `cloud` moved into the LiDAR's frame.
   TrackResult track(double stamp, const PointCloudConstPtr& cloud,
-                    const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt);
+                    const std::optional<Eigen::Quaterniond>& imu_orientation = std::nullopt,
+                    const PointCloudConstPtr& sensor_scan = nullptr);
 
   bool initialized() const { return has_keyframe_; }
   const Eigen::Isometry3d& pose() const { return pose_; }
   const Keyframe& keyframe() const { return keyframe_; }
   uint64_t keyframeCount() const { return has_keyframe_ ? keyframe_.id + 1 : 0; }
   const KeyframeTrackerParams& params() const { return params_; }
+  /// Tracker keyframes made so far (multi_cue: the graph's keyframes and those between them;
+  /// gicp: the graph's keyframes).
+  uint64_t trackerKeyframeCount() const { return tracker_keyframes_; }
   /// The LiDAR's mounting for deskewing, once known (the nodelet reads it from TF).
   void setSensorToBase(const Eigen::Isometry3d& sensor_to_base) {
     params_.sensor_to_base = sensor_to_base;
@@ -157,21 +207,31 @@ class KeyframeTracker {
     const char* source;
     Eigen::Isometry3d pose;  ///< in odom
   };
+  /// One scan as the registrations need it: `cloud` the prefiltered scan in base_link (GICP, the
+  /// keyframe's cloud), `sensor_scan` the full-resolution one in the LiDAR's frame (multi-cue;
+  /// null otherwise). Deskewing moves both.
+  struct Scan {
+    PointCloudConstPtr cloud;
+    PointCloudConstPtr sensor_scan;
+    bool operator==(const Scan& o) const { return cloud == o.cloud; }
+  };
   Eigen::Isometry3d predict(double stamp) const;
   /// The scan moved to the stamp's frame by the predicted motion (params_.deskew), else the scan.
-  PointCloudConstPtr deskewed(double stamp, const PointCloudConstPtr& cloud,
-                              const Eigen::Isometry3d& predicted) const;
+  Scan deskewed(double stamp, const Scan& scan, const Eigen::Isometry3d& predicted) const;
+  /// The scan deskewed by base_link's motion `motion` over dt seconds.
+  Scan deskewedBy(const Scan& scan, const Eigen::Isometry3d& motion, double dt) const;
   /// A scan matched without deskewing, deskewed by the motion its match gives and matched again
   /// (relative updated); the raw scan if that match fails.
-  PointCloudConstPtr deskewedByMatch(double stamp, const PointCloudConstPtr& raw,
-                                     TrackResult& result, Eigen::Isometry3d& relative);
+  Scan deskewedByMatch(double stamp, const Scan& raw, TrackResult& result,
+                       Eigen::Isometry3d& relative);
   /// The constant-velocity prediction with its rotation replaced by the IMU's, if both IMU
   /// orientations (this scan's and the previous tracked scan's) are known.
   std::optional<Eigen::Isometry3d> imuPredict(
       const Eigen::Isometry3d& constant_velocity,
       const std::optional<Eigen::Quaterniond>& imu_orientation) const;
-  /// Registers against the keyframe from `guess`; true (and result filled) when accepted.
-  bool attempt(const PointCloudConstPtr& cloud, const Guess& guess, TrackResult& result,
+  /// Registers against the reference (the scan the matcher holds) from `guess`; true (and
+  /// result filled, relative = the scan's pose in the reference) when accepted.
+  bool attempt(const Scan& scan, const Guess& guess, TrackResult& result,
                Eigen::Isometry3d& relative);
   /// The pre-tracker's prediction of the scan's pose in odom (computed once per scan).
   std::optional<Eigen::Isometry3d> preTracked(const PointCloudConstPtr& cloud,
@@ -180,14 +240,22 @@ class KeyframeTracker {
   bool acceptMatch(const RegistrationResult& reg, const Eigen::Isometry3d& guess,
                    std::string* reason) const;
   bool needsKeyframe(const Eigen::Isometry3d& relative, double stamp) const;
-  void makeKeyframe(double stamp, const PointCloudConstPtr& cloud);
+  /// A graph keyframe at the current pose; it is also the matcher's new reference.
+  void makeKeyframe(double stamp, const Scan& scan);
+  /// The matcher's reference becomes `scan` at the current pose.
+  void setReference(const Scan& scan);
   bool jumpedBack(double stamp) const;
   /// Restarts the motion model at stamp and makes the scan a keyframe at the last pose.
-  TrackResult restart(double stamp, const PointCloudConstPtr& cloud,
+  TrackResult restart(double stamp, const Scan& scan,
                       const std::optional<Eigen::Quaterniond>& imu_orientation);
+  /// The matcher's once-per-run remarks, handed to the result.
+  void takeNotice(TrackResult& result);
 
   KeyframeTrackerParams params_;
-  std::unique_ptr<Registration> registration_;
+  std::unique_ptr<ScanMatcher> matcher_;
+  double max_fitness_;  ///< params_.max_fitness, or multi_cue's
+  Eigen::Isometry3d reference_pose_ = Eigen::Isometry3d::Identity();  ///< the matcher's, in odom
+  uint64_t tracker_keyframes_ = 0;
   std::unique_ptr<PreTracker> pre_tracker_;  ///< null unless a guess or the recovery uses it
   bool pre_tracked_ = false;
   std::optional<Eigen::Isometry3d> pre_tracked_pose_;

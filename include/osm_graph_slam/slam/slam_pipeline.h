@@ -99,8 +99,13 @@ class SlamPipeline {
                    const ScanAiding& aiding = {});
   /// processScan for a scan prefiltered elsewhere with prefilter() (offline_slam runs it on its
   /// reading thread, one scan ahead of the tracking); prefilter_ms is reported in its stage.
+  /// sensor_cloud: the raw scan, which the multi_cue tracker projects (usesSensorCloud()).
   bool processFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
-                       const ScanAiding& aiding = {});
+                       const ScanAiding& aiding = {},
+                       const PointCloudConstPtr& sensor_cloud = nullptr);
+  /// Whether the tracker reads the raw scan (tracker: multi_cue): a caller that prefilters
+  /// ahead must then keep it for processFiltered.
+  bool usesSensorCloud() const { return params_.tracker.tracker == "multi_cue"; }
   /// Starts the wall clock of the throughput report (else the first scan starts it): a caller
   /// that reads or prefilters ahead starts it before, so that work is counted too.
   void startClock();
@@ -123,7 +128,7 @@ class SlamPipeline {
   /// "odometry scale: ..." (empty when the scale is not estimated).
   std::string scaleLine() const;
   bool trackFiltered(double stamp, const CloudPrefilterResult& filtered, double prefilter_ms,
-                     const ScanAiding& aiding);
+                     const ScanAiding& aiding, const PointCloudConstPtr& sensor_cloud);
   /// backend_->update(), accounted; with search_frame map the loop database follows it.
   void updateBackend();
   void account(const BackendUpdateReport& report);
