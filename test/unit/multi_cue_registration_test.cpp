@@ -10,6 +10,7 @@
 #include "osm_graph_slam/multi_cue/multi_cue_registration.h"
 #include "osm_graph_slam/sim/lidar.h"
 #include "osm_graph_slam/sim/simulator.h"
+#include "sim_worlds.h"
 
 using namespace osm_graph_slam;
 using namespace osm_graph_slam::sim;
@@ -18,27 +19,10 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-/// A small procedural city, built once for every test of this file.
-const UrbanSimulator& smallCity() {
-  static UrbanSimulator sim;
-  static bool built = false;
-  if (!built) {
-    SimulationParams p;
-    p.seed = 5;
-    p.city.blocks_x = 4;
-    p.city.blocks_y = 3;
-    p.route.length = 600.0;
-    std::string error;
-    EXPECT_TRUE(sim.build(p, &error)) << error;
-    built = true;
-  }
-  return sim;
-}
-
 /// An HDL-64E scan of the city from the sensor pose of route scan k moved by `motion` (in the
 /// sensor frame).
 PointCloud scanAt(size_t k, const Eigen::Isometry3d& motion, uint64_t noise_seed) {
-  const UrbanSimulator& sim = smallCity();
+  const UrbanSimulator& sim = test::smallCity();
   const Eigen::Isometry3d pose = sim.sensorPose(sim.scanTime(k)) * motion;
   return simulateScan(
              sim.scene().world, LidarModel::hdl64e(), [pose](double) { return pose; }, 0.0,

@@ -17,6 +17,7 @@
 #include "osm_graph_slam/sim/lidar.h"
 #include "osm_graph_slam/sim/simulator.h"
 #include "osm_graph_slam/slam/pipeline_params_io.h"
+#include "sim_worlds.h"
 
 using namespace osm_graph_slam;
 using namespace osm_graph_slam::sim;
@@ -24,23 +25,6 @@ using namespace osm_graph_slam::sim;
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
-
-/// A small procedural city, built once for every test of this file.
-const UrbanSimulator& smallCity() {
-  static UrbanSimulator sim;
-  static bool built = false;
-  if (!built) {
-    SimulationParams p;
-    p.seed = 5;
-    p.city.blocks_x = 4;
-    p.city.blocks_y = 3;
-    p.route.length = 600.0;
-    std::string error;
-    EXPECT_TRUE(sim.build(p, &error)) << error;
-    built = true;
-  }
-  return sim;
-}
 
 /// The LiDAR 0.8 m above base_link and 0.3 m ahead, turned 1 deg (KITTI: 0.80 m above the OXTS
 /// unit): the tracker must carry the registration between the two frames.
@@ -62,14 +46,14 @@ struct SimScan {
 
 /// Route scan k, taken at once (no sweep to deskew), from the route's sensor pose.
 SimScan simScan(size_t k) {
-  const UrbanSimulator& sim = smallCity();
+  const UrbanSimulator& sim = test::smallCity();
   SimScan out;
   out.stamp = sim.scanTime(k);
   const Eigen::Isometry3d sensor_pose = sim.sensorPose(out.stamp);
   out.base_pose = sensor_pose * sensorToBase().inverse();
   out.raw =
       std::make_shared<PointCloud>(simulateScan(
-                                       smallCity().scene().world, LidarModel::hdl64e(),
+                                       test::smallCity().scene().world, LidarModel::hdl64e(),
                                        [sensor_pose](double) { return sensor_pose; }, 0.0, 11, k)
                                        .cloud);
   CloudPrefilterParams prefilter;

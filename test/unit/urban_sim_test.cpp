@@ -21,6 +21,7 @@
 #include "osm_graph_slam/sim/simulator.h"
 #include "osm_graph_slam/sim/stereo_camera_sim.h"
 #include "osm_graph_slam/visual/stereo_odometry.h"
+#include "sim_worlds.h"
 #include "test_data.h"
 
 namespace osm_graph_slam {
@@ -42,17 +43,6 @@ SimulationParams smallCity(uint64_t seed) {
   p.city.blocks_y = 4;
   p.route.length = 900.0;
   return p;
-}
-
-const UrbanSimulator& defaultSim() {
-  static UrbanSimulator sim;
-  static bool built = false;
-  if (!built) {
-    std::string error;
-    EXPECT_TRUE(sim.build(SimulationParams(), &error)) << error;
-    built = true;
-  }
-  return sim;
 }
 
 double distanceToOutline(const Eigen::Vector2d& p, const Polygon2& poly) {
@@ -133,7 +123,7 @@ TEST(UrbanSim, WorldSeedKeepsTheCityAndTheSeedChangesTheRoute) {
 }
 
 TEST(UrbanSim, ProceduralCityHasVariedShapesAndARouteWithRevisit) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   std::map<std::string, int> shapes;
   for (const auto& tags : sim.scene().building_tags) ++shapes[tags.at("sim:shape")];
   EXPECT_GT(shapes["rectangle"], 50);
@@ -165,7 +155,7 @@ TEST(UrbanSim, ProceduralCityHasVariedShapesAndARouteWithRevisit) {
 }
 
 TEST(UrbanSim, ScanStatisticsArePlausibleForAnHdl64e) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   for (size_t k : {0u, 300u, 900u}) {
     const SimulatedScan scan = sim.simulate(k);
     EXPECT_GT(scan.cloud.size(), 105000u) << "scan " << k;
@@ -193,7 +183,7 @@ TEST(UrbanSim, ScanStatisticsArePlausibleForAnHdl64e) {
 // Intensity by surface class and place: painted markings and asphalt patches on the ground, glass
 // in the facades, leaf clumps; the points themselves are those of a uniform reflectivity.
 TEST(UrbanSim, IntensityCarriesTextureAndLeavesTheGeometryAlone) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   LidarModel textured = LidarModel::hdl64e(), plain = textured;
   plain.texture.enabled = false;
   const double t = sim.scanTime(300);
@@ -230,7 +220,7 @@ TEST(UrbanSim, IntensityCarriesTextureAndLeavesTheGeometryAlone) {
 }
 
 TEST(UrbanSim, TrueOutlinesLieOnTheWallPoints) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   int checked = 0;
   for (size_t k : {10u, 400u, 1200u}) {
     const SimulatedScan scan = sim.simulate(k);
@@ -252,7 +242,7 @@ TEST(UrbanSim, TrueOutlinesLieOnTheWallPoints) {
 }
 
 TEST(UrbanSim, GridRayCasterEqualsTestingEveryObject) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   World brute = sim.scene().world;
   brute.use_grid = false;
   SimRng rng(99);
@@ -440,7 +430,7 @@ TEST(UrbanSim, FrontEndRegistrationRecoversTheTrueMotion) {
   if (!&createRegistration) {
     GTEST_SKIP() << "createRegistration (front-end) is not linked into this build yet";
   }
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   auto downsample = [](const PointCloud& in) {
     pcl::VoxelGrid<PointT> grid;
     grid.setLeafSize(0.2f, 0.2f, 0.2f);
@@ -466,7 +456,7 @@ TEST(UrbanSim, FrontEndRegistrationRecoversTheTrueMotion) {
 }
 
 TEST(StereoCameraSim, PairsAreDeterministicAndTheirStereoDepthsAreTheScene) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   const StereoCameraModel model;
   const double t = sim.scanTime(100);
   const Eigen::Isometry3d camera = kittiCameraFromLidar(sim.sensorPose(t));
@@ -498,7 +488,7 @@ TEST(StereoCameraSim, PairsAreDeterministicAndTheirStereoDepthsAreTheScene) {
 }
 
 TEST(StereoCameraSim, StereoOdometryFollowsTheSimulatedDrive) {
-  const UrbanSimulator& sim = defaultSim();
+  const UrbanSimulator& sim = test::defaultSimulator();
   const StereoCameraModel model;
   StereoOdometry odometry(model.camera(), StereoOdometryParams());
   const Eigen::Isometry3d first = kittiCameraFromLidar(sim.sensorPose(0.0));
