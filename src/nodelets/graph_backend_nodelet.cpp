@@ -41,6 +41,8 @@
 #include "osm_graph_slam/LoopClosure.h"
 #include "osm_graph_slam/SaveMap.h"
 #include "osm_graph_slam/common/upper_triangle.h"
+#include "osm_graph_slam/localization/params_io.h"
+#include "osm_graph_slam/loop/params_io.h"
 #include "osm_graph_slam/osm/enu_converter.h"
 #include "osm_graph_slam/ros/backend_markers.h"
 #include "osm_graph_slam/ros/conversions.h"
@@ -111,8 +113,14 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   /// an error said once, and this drive is mapped on its own.
   void resumeOn(const std::string& directory, const std::shared_ptr<const Logger>& logger) {
     std::string error;
-    resume_ = MapResume::load(directory, MapResumeParams(), LocalizationParams(),
-                              LoopDetectorParams(), *backend_, logger, &error);
+    // The localiser and loop detector of the placement and the inter-session loops are set up
+    // as the launch file set up those nodelets.
+    LocalizationParams localization;
+    readParams(RosParamReader(ros::NodeHandle(node_params_.localization_ns)), localization);
+    LoopDetectorParams loops;
+    readParams(RosParamReader(ros::NodeHandle(node_params_.loop_detection_ns)), loops);
+    resume_ = MapResume::load(directory, MapResumeParams(), localization, loops, *backend_, logger,
+                              &error);
     if (!resume_) {
       NODELET_ERROR("graph_backend: %s; mapping without it", error.c_str());
       return;

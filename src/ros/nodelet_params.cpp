@@ -53,6 +53,8 @@ void readParams(const ParamReader& r, GraphBackendNodeletParams& p) {
   r.param("handover", p.handover);
   r.param("handover_leave_after", p.handover_leave_after);
   r.param("handover_ties", p.handover_ties);
+  r.param("localization_ns", p.localization_ns);
+  r.param("loop_detection_ns", p.loop_detection_ns);
 }
 
 void readParams(const ParamReader& r, LocalizationNodeletParams& p) {

@@ -71,6 +71,10 @@ struct GraphBackendNodeletParams {
   bool handover = false;
   double handover_leave_after = 2.0;  ///< [s] LocalizationHandoverParams::leave_after
   int handover_ties = 3;              ///< LocalizationHandoverParams::ties
+  /// Where the launch file loaded the localiser's and the loop detector's parameters: the
+  /// resumed map's placement and inter-session loops use them (absent keys: their defaults).
+  std::string localization_ns = "/localization";
+  std::string loop_detection_ns = "/loop_detection";
 };
 
 struct LocalizationNodeletParams {
