@@ -296,6 +296,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     if (resume_) resume_->renumber(h.keyframe);  // the live session's id from here on
     const uint64_t graph_id = h.keyframe.id;
     const Eigen::Isometry3d odom_pose = h.keyframe.odom_pose;
+    const ros::Time stamp = keyframeStamp(graph_id, ros::Time().fromSec(h.keyframe.stamp));
     backend_->addKeyframe(h.keyframe);
     if (resume_) {
       std::lock_guard<std::mutex> guard(resume_mutex_);
@@ -305,7 +306,7 @@ class GraphBackendNodelet : public nodelet::Nodelet {
     keyframeReceived();
     // A pose right away (map->odom of the last optimisation): the OSM buffer follows it.
     geometry_msgs::PoseStamped pose;
-    pose.header.stamp = keyframeStamp(graph_id);
+    pose.header.stamp = stamp;
     pose.header.frame_id = node_params_.map_frame;
     pose.pose = toPoseMsg(cachedMapToOdom() * odom_pose);
     pose_pub_.publish(pose);
@@ -366,14 +367,13 @@ class GraphBackendNodelet : public nodelet::Nodelet {
   /// The keyframe's exact header stamp (the core keeps seconds as a double, which loses the
   /// nanoseconds at epoch times: TF lookups at path stamps would then miss by ~50 ns).
   ros::Time keyframeStamp(const KeyframeState& kf) {
-    std::lock_guard<std::mutex> guard(stamp_mutex_);
-    const auto it = keyframe_stamps_.find(kf.id);
-    return it != keyframe_stamps_.end() ? it->second : ros::Time().fromSec(kf.stamp);
+    return keyframeStamp(kf.id, ros::Time().fromSec(kf.stamp));
   }
-  ros::Time keyframeStamp(uint64_t graph_id) {
+  /// The header stamp the keyframe `graph_id` came with, else `fallback`.
+  ros::Time keyframeStamp(uint64_t graph_id, const ros::Time& fallback) {
     std::lock_guard<std::mutex> guard(stamp_mutex_);
     const auto it = keyframe_stamps_.find(graph_id);
-    return it != keyframe_stamps_.end() ? it->second : last_stamp_;
+    return it != keyframe_stamps_.end() ? it->second : fallback;
   }
 
   ros::Time lastStamp() {

@@ -48,10 +48,8 @@ std::vector<fs::path> pngFiles(const fs::path& dir) {
   return files;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
+double median(const std::vector<double>& v) {
+  return computeErrorStats(v).median;
 }
 
 double rotationDeg(const Eigen::Matrix3d& R) {
@@ -79,8 +77,7 @@ void reportErrors(const Trajectory& estimate, const Trajectory& truth) {
       "worst position error %.3f m; per pair: translation median %.3f m, worst %.3f m, rotation "
       "median %.3f deg, worst %.3f deg\n",
       n, path, end.translation().norm(), 100.0 * end.translation().norm() / std::max(path, 1e-9),
-      rotationDeg(end.linear()), worst, median(rpe_t),
-      *std::max_element(rpe_t.begin(), rpe_t.end()), median(rpe_r),
+      rotationDeg(end.linear()), worst, median(rpe_t), computeErrorStats(rpe_t).max, median(rpe_r),
       *std::max_element(rpe_r.begin(), rpe_r.end()));
 }
 
