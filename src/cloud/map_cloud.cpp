@@ -28,8 +28,9 @@ PointCloudPtr mergeClouds(const std::vector<PosedCloud>& clouds, double resoluti
   PointCloud transformed;
   if (resolution <= 0.0) {
     for (const auto& posed : clouds) {
-      if (!posed.cloud) continue;
-      pcl::transformPointCloud(*posed.cloud, transformed, posed.pose.matrix().cast<float>());
+      const PointCloudConstPtr cloud = posed.cloud.load();
+      if (!cloud) continue;
+      pcl::transformPointCloud(*cloud, transformed, posed.pose.matrix().cast<float>());
       *map += transformed;
     }
     return map;
@@ -37,8 +38,9 @@ PointCloudPtr mergeClouds(const std::vector<PosedCloud>& clouds, double resoluti
   const double inv = 1.0 / resolution;
   std::unordered_map<int64_t, VoxelSum> voxels;
   for (const auto& posed : clouds) {
-    if (!posed.cloud) continue;
-    pcl::transformPointCloud(*posed.cloud, transformed, posed.pose.matrix().cast<float>());
+    const PointCloudConstPtr cloud = posed.cloud.load();
+    if (!cloud) continue;
+    pcl::transformPointCloud(*cloud, transformed, posed.pose.matrix().cast<float>());
     for (const auto& p : transformed) {
       if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
       VoxelSum& v = voxels[voxelKey(p, inv)];

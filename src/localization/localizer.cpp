@@ -195,12 +195,13 @@ void Localizer::addSideViews() {
   if (d <= 0.0) return;
   for (size_t i = 0; i < map_->keyframes.size(); ++i) {
     const MapKeyframe& kf = map_->keyframes[i];
-    if (!kf.cloud || kf.cloud->empty()) continue;
+    const PointCloudConstPtr cloud = kf.cloud.load();
+    if (!cloud || cloud->empty()) continue;
     for (const double side : {-d, d}) {
       Impl::SideView& v = impl_->side_views.emplace_back();
       v.keyframe = static_cast<int>(i);
       v.pose = kf.pose * Eigen::Translation3d(0.0, side, 0.0);
-      PointCloud shifted(*kf.cloud);
+      PointCloud shifted(*cloud);
       for (auto& p : shifted.points) p.y -= static_cast<float>(side);
       v.descriptor = computeScanContext(shifted, map_->scan_context);
     }
@@ -259,19 +260,19 @@ void Localizer::learnOverlapLimit() {
   for (size_t s = 0; s < samples; ++s) {
     const size_t index = (2 * s + 1) * n / (2 * samples);  // evenly spread over the drive
     const MapKeyframe& kf = map_->keyframes[index];
-    if (!kf.cloud || kf.cloud->size() < static_cast<size_t>(params_.min_points)) continue;
+    const PointCloudConstPtr cloud = kf.cloud.load();
+    if (!cloud || cloud->size() < static_cast<size_t>(params_.min_points)) continue;
     const Eigen::Vector2d centre = impl_->keyframe_xy[index];
     const double own_overlap = ownPlaceOverlap(index);
     if (own_overlap >= 0.0) own.push_back(own_overlap);
     // The other places Scan Context proposes for it.
-    const PointCloudPtr coarse_source = voxelize(kf.cloud, params_.global_voxel_size);
+    const PointCloudPtr coarse_source = voxelize(cloud, params_.global_voxel_size);
     const std::vector<Place> places = distinctPlaces(
         scanContextPlaces(kf.descriptor, &centre, params_.global_impostor_distance, false),
         params_.global_overlap_impostor_places);
     for (const Place& place : places) {
       GlobalCandidate record;
-      if (registerAtPlace(kf.cloud, coarse_source, place, record))
-        impostor.push_back(record.overlap);
+      if (registerAtPlace(cloud, coarse_source, place, record)) impostor.push_back(record.overlap);
     }
   }
   stats_.global_overlap_own = own.size();
@@ -347,7 +348,8 @@ double Localizer::ownPlaceOverlap(size_t index) const {
   const PointCloudPtr target =
       MapGrid(mergeClouds(others, params_.map_voxel_size), 10.0).crop(centre, radius);
   if (target->size() < static_cast<size_t>(params_.min_points)) return -1.0;
-  return overlapAt(*kf.cloud, kf.pose, target, centre, radius).overlap;
+  const PointCloudConstPtr cloud = kf.cloud.load();
+  return cloud ? overlapAt(*cloud, kf.pose, target, centre, radius).overlap : -1.0;
 }
 
 double Localizer::distanceToMap(const Eigen::Vector3d& position) const {
@@ -594,8 +596,10 @@ void Localizer::buildLandmarkIndex() {
   if (params_.landmark_map == "keyframes") {
     impl_->landmarks =
         std::make_unique<LandmarkLoopSource>(params_.landmark_extraction, params_.landmarks);
-    for (const MapKeyframe& kf : map_->keyframes)
-      impl_->landmarks->add(kf.cloud ? kf.cloud : std::make_shared<PointCloud>());
+    for (const MapKeyframe& kf : map_->keyframes) {
+      const PointCloudConstPtr cloud = kf.cloud.load();
+      impl_->landmarks->add(cloud ? cloud : std::make_shared<PointCloud>());
+    }
     return;
   }
   std::vector<KeyframeLandmarks> observed;
@@ -603,8 +607,8 @@ void Localizer::buildLandmarkIndex() {
   for (const MapKeyframe& kf : map_->keyframes) {
     KeyframeLandmarks& k = observed.emplace_back();
     k.pose = planarPose(kf.pose);
-    if (kf.cloud)
-      k.landmarks = landmarkCenters(extractLandmarks(*kf.cloud, params_.landmark_extraction));
+    if (const PointCloudConstPtr cloud = kf.cloud.load())
+      k.landmarks = landmarkCenters(extractLandmarks(*cloud, params_.landmark_extraction));
     path.push_back(kf.pose.translation().head<2>());
   }
   impl_->landmark_map = std::make_unique<LandmarkMapRecognizer>(

@@ -98,9 +98,9 @@ bool writeMapPackage(const MapPackage& package, const std::string& directory, st
   kf_csv << std::setprecision(17) << "# id stamp pose(3x4 row-major: base_link in map)\n";
   sc_csv << std::setprecision(9) << "# id then rings x sectors cells, row-major\n";
   for (const auto& kf : package.keyframes) {
-    if (!kf.cloud || kf.cloud->empty())
-      return abandon("keyframe " + std::to_string(kf.id) + " has no cloud");
-    if (!writePcdAtomically((partial / keyframeCloudName(kf.id)).string(), *kf.cloud, &why))
+    if (kf.cloud.empty()) return abandon("keyframe " + std::to_string(kf.id) + " has no cloud");
+    const PointCloudConstPtr cloud = kf.cloud.load(&why);
+    if (!cloud || !writePcdAtomically((partial / keyframeCloudName(kf.id)).string(), *cloud, &why))
       return abandon(why);
     kf_csv << kf.id << ' ' << kf.stamp << ' ' << poseRow(kf.pose) << '\n';
     sc_csv << kf.id;
@@ -213,7 +213,7 @@ bool loadMapPackage(const std::string& directory, MapPackage& package, std::stri
   }
   for (; next < package.keyframes.size(); ++next)
     package.keyframes[next].descriptor =
-        computeScanContext(*package.keyframes[next].cloud, package.scan_context);
+        computeScanContext(*package.keyframes[next].cloud.load(), package.scan_context);
 
   const fs::path buildings_path = dir / "buildings_corrected.geojson";
   if (expected_buildings > 0 || fs::exists(buildings_path)) {

@@ -128,10 +128,11 @@ struct LoopDetector::FieldCache {
 
 LoopDetector::LoopDetector(const LoopDetectorParams& params, LogSink log_sink)
     : params_(params),
-      logger_(std::move(log_sink)),
+      logger_(log_sink),
       ring_key_index_(std::make_unique<DynamicKdIndex>(params.scan_context.num_rings)),
       position_index_(std::make_unique<DynamicKdIndex>(3)),
-      field_cache_(std::make_unique<FieldCache>()) {
+      field_cache_(std::make_unique<FieldCache>()),
+      clouds_(std::make_shared<CloudStore>(params.cloud_store, log_sink)) {
   if (params_.method != "scan_context" && params_.method != "geometric_hierarchy" &&
       params_.method != "combined") {
     throw std::invalid_argument("loop detection: unknown method '" + params_.method +
@@ -295,13 +296,36 @@ const BevLikelihoodField& LoopDetector::fieldOf(size_t index) {
     cache.items.splice(cache.items.begin(), cache.items, found->second);
     return cache.items.front().second;
   }
-  cache.items.emplace_front(index, BevLikelihoodField(*entries_[index].cloud, params_.correlative));
+  cache.items.emplace_front(index,
+                            BevLikelihoodField(*entryCloud(index, false), params_.correlative));
   cache.where[index] = cache.items.begin();
   while (cache.items.size() > static_cast<size_t>(std::max(1, params_.field_cache_size))) {
     cache.where.erase(cache.items.back().first);
     cache.items.pop_back();
   }
   return cache.items.front().second;
+}
+
+PointCloudConstPtr LoopDetector::entryCloud(size_t index, bool coarse) {
+  const uint64_t key = 2 * index + (coarse ? 1 : 0);
+  for (auto it = decoded_.begin(); it != decoded_.end(); ++it) {
+    if (it->first != key) continue;
+    decoded_.splice(decoded_.begin(), decoded_, it);
+    return it->second;
+  }
+  const LoopDatabaseEntry& entry = entries_[index];
+  std::string error;
+  PointCloudConstPtr cloud = (coarse ? entry.coarse_cloud : entry.cloud).load(&error);
+  if (!cloud) {
+    // An unreadable spilled cloud fails its candidate's registration, not the search.
+    logger_.warnOnce("loop_store_read",
+                     "loop detection: " + error + "; its candidates are rejected (reported once)");
+    cloud = std::make_shared<PointCloud>();
+  }
+  decoded_.emplace_front(key, cloud);
+  const size_t keep = 2 * static_cast<size_t>(std::max(4, params_.candidate_cache_size));
+  while (decoded_.size() > keep) decoded_.pop_back();
+  return cloud;
 }
 
 std::optional<DetectedLoop> LoopDetector::verifyCorrelative(const Query& query,
@@ -354,7 +378,7 @@ std::optional<DetectedLoop> LoopDetector::verifyCandidate(
   outcome.descriptor_distance = candidate.match.distance;
   if (coarse_registration_) {
     auto start = Clock::now();
-    coarse_registration_->setTarget(target.coarse_cloud);  // back-ends keep a repeated target
+    coarse_registration_->setTarget(entryCloud(candidate.index, true));  // kept when repeated
     const RegistrationResult coarse = coarse_registration_->align(query.coarse_cloud, guess);
     stats_.coarse_ms += msSince(start);
     outcome.coarse_fitness = coarse.fitness;
@@ -382,7 +406,8 @@ std::optional<DetectedLoop> LoopDetector::fineStage(
   const bool check_odometry = odom_pose && params_.check_odometry_consistency;
   auto start = Clock::now();
   ++stats_.fine_registrations;
-  fine_registration_->setTarget(target.cloud);
+  const PointCloudConstPtr target_cloud = entryCloud(candidate.index, false);
+  fine_registration_->setTarget(target_cloud);
   stats_.fine_target_ms += msSince(start);
   const RegistrationResult fine = fine_registration_->align(query.fine_cloud, guess);
   stats_.fine_ms += msSince(start);
@@ -403,7 +428,7 @@ std::optional<DetectedLoop> LoopDetector::fineStage(
       fine_registration_->overlap(*query.cloud, fine.transform, params_.overlap_distance);
   outcome.overlap =
       overlap ? *overlap
-              : overlapRatio(*query.cloud, *target.cloud, fine.transform, params_.overlap_distance);
+              : overlapRatio(*query.cloud, *target_cloud, fine.transform, params_.overlap_distance);
   stats_.overlap_ms += msSince(start);
   if (outcome.overlap < params_.min_overlap) {
     return rejectCandidate(outcome, "overlap", stats_.rejected_overlap);
@@ -639,26 +664,30 @@ bool LoopDetector::addKeyframe(const LoopKeyframe& keyframe) {
   LastQuery searched;
   if (keyframe.cloud == last_query_.input) searched = std::move(last_query_);
   last_query_ = LastQuery();
-  LoopDatabaseEntry entry;
-  entry.cloud = searched.stored ? searched.stored
-                                : storedCloud(keyframe.cloud, params_.voxel_size, pclVoxelFilter());
-  if (static_cast<int>(entry.cloud->size()) < params_.min_points) {
+  const PointCloudConstPtr stored =
+      searched.stored ? searched.stored
+                      : storedCloud(keyframe.cloud, params_.voxel_size, pclVoxelFilter());
+  if (static_cast<int>(stored->size()) < params_.min_points) {
     logger_.warnOnce("loop_few_points",
                      "loop detection: keyframe " + std::to_string(keyframe.id) + " has only " +
-                         std::to_string(entry.cloud->size()) +
+                         std::to_string(stored->size()) +
                          " valid points after downsampling; not stored (reported once)");
     return false;
   }
+  LoopDatabaseEntry entry;
+  const uint64_t index = entries_.size();
+  entry.cloud = StoredCloud(clouds_, 2 * index, stored);
   entry.id = keyframe.id;
   entry.odom_pose = keyframe.odom_pose;
   entry.accum_distance = keyframe.accum_distance;
   entry.descriptor = searched.descriptor
                          ? *searched.descriptor
                          : computeScanContext(*keyframe.cloud, params_.scan_context);
-  // Without a coarse stage no coarse cloud is needed: share the pointer.
+  // Without a coarse stage no coarse cloud is needed: share the stored one.
   entry.coarse_cloud =
       coarse_registration_
-          ? downsampleForLoop(*entry.cloud, params_.coarse_voxel_size, pclVoxelFilter())
+          ? StoredCloud(clouds_, 2 * index + 1,
+                        downsampleForLoop(*stored, params_.coarse_voxel_size, pclVoxelFilter()))
           : entry.cloud;
   // Numbered like entries_: the landmark source's index is the database index.
   if (landmark_source_) landmark_source_->add(keyframe.cloud);

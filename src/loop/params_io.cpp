@@ -53,6 +53,8 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("max_refinement_shift", p.max_refinement_shift);
   r.param("field_cache_size", p.field_cache_size);
   r.param("candidate_cache_size", p.candidate_cache_size);
+  auto read = [&r](const char* key, auto& value, const char*) { r.param(key, value); };
+  p.cloud_store.visit(read);
   r.param("coarse_voxel_size", p.coarse_voxel_size);
   r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
   r.param("coarse_max_fitness", p.coarse_max_fitness);

@@ -90,7 +90,10 @@ GraphBackend::GraphBackend(const GraphBackendParams& params, std::shared_ptr<con
                                             params_.odometry.odometry_attitude_std, *logger_)),
       constraints_(std::make_unique<BuildingConstraints>(params_.mode, params_.buildings,
                                                          params_.osm_prior, params_.matcher,
-                                                         params_.schedule.optimizer)) {
+                                                         params_.schedule.optimizer)),
+      clouds_(std::make_shared<CloudStore>(
+          params_.cloud_store,
+          [logger = logger_](LogLevel level, const std::string& m) { logger->log(level, m); })) {
   state_->heading_initialized = params_.initial_yaw_known;
   if (params_.initial_yaw_known) state_->initial_yaw = params_.initial_yaw;
 }
@@ -142,6 +145,10 @@ size_t GraphBackend::pendingInputs() const {
   std::lock_guard<std::mutex> lock(queue_mutex_);
   return pending_->keyframes.size() + pending_->segments.size() + pending_->loops.size() +
          pending_->buildings.size() + pending_->floors.size();
+}
+
+CloudStoreStats GraphBackend::cloudStoreStats() const {
+  return clouds_->stats();
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -296,7 +303,7 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   kf.gnss_std = in.gnss_std;
   kf.gnss_altitude = in.gnss_altitude;
   kf.ins_yaw = in.ins_yaw;
-  kf.cloud = in.cloud;
+  kf.cloud = StoredCloud(clouds_, in.id, in.cloud);
   if (in.floor) s.early_floors[in.id] = *in.floor;
   const auto session = s.sessions.find(in.session);
   if (s.keyframes.empty())

@@ -21,9 +21,11 @@ GridMapUpdate updateGridMap(OccupancyGrid& grid, const std::vector<KeyframeState
       known_poses.emplace(kf.id, kf.map_pose);
       continue;
     }
-    if (!kf.cloud || kf.cloud->empty()) continue;
+    if (kf.cloud.empty()) continue;
     const auto start = std::chrono::steady_clock::now();
-    grid.insertKeyframe(kf.id, kf.map_pose, *kf.cloud, kf.floor);
+    const PointCloudConstPtr cloud = kf.cloud.load();
+    if (!cloud) continue;  // unreadable from the store: counted there, shown in its stats
+    grid.insertKeyframe(kf.id, kf.map_pose, *cloud, kf.floor);
     update.insert_ms.push_back(msSince(start));
     ++update.inserted;
   }

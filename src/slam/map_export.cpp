@@ -122,13 +122,15 @@ MapPackage mapPackageFromBackend(const GraphBackend& backend, double resolution,
   p.map_resolution = resolution;
   p.scan_context = scan_context;
   for (const auto& kf : keyframes) {
-    if (!kf.cloud || kf.cloud->empty()) continue;
+    if (kf.cloud.empty()) continue;
+    const PointCloudConstPtr cloud = kf.cloud.load();
+    if (!cloud) continue;  // unreadable from the store: counted there, shown in its stats
     MapKeyframe m;
     m.id = kf.id;
     m.stamp = kf.stamp;
     m.pose = kf.map_pose;
-    m.cloud = kf.cloud;
-    m.descriptor = computeScanContext(*kf.cloud, scan_context);
+    m.cloud = kf.cloud;  // read again when written: the package never holds every cloud decoded
+    m.descriptor = computeScanContext(*cloud, scan_context);
     p.keyframes.push_back(std::move(m));
   }
   if (const auto origin = backend.origin()) {
@@ -277,10 +279,11 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
       const Eigen::Vector4d& f = *kf.floor;
       floor_csv << kf.id << ' ' << f(0) << ' ' << f(1) << ' ' << f(2) << ' ' << f(3) << '\n';
     }
-    if (with_clouds && kf.cloud && !kf.cloud->empty()) {
+    if (with_clouds && !kf.cloud.empty()) {
       char name[64];
       std::snprintf(name, sizeof(name), "keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
-      write(name, writePcdAtomically(write.path(name), *kf.cloud, &error), error);
+      const PointCloudConstPtr cloud = kf.cloud.load(&error);
+      write(name, cloud && writePcdAtomically(write.path(name), *cloud, &error), error);
     }
   }
   write("keyframes.csv", writeFileAtomically(write.path("keyframes.csv"), kf_csv.str(), &error),

@@ -435,6 +435,29 @@ std::string SlamPipeline::timingTable() const {
          scaleLine();
 }
 
+namespace {
+
+nlohmann::json cloudStoreJson(const CloudStoreStats& s) {
+  constexpr double kMb = 1024.0 * 1024.0;
+  return {{"clouds", s.clouds},
+          {"resident", s.resident},
+          {"on_disk", s.on_disk},
+          {"resident_mb", s.resident_bytes / kMb},
+          {"disk_mb", s.disk_bytes / kMb},
+          {"pcl_mb", s.pcl_bytes / kMb},
+          {"bytes_per_point", s.points ? double(s.encoded_bytes) / s.points : 0.0},
+          {"write_errors", s.write_errors},
+          {"read_errors", s.read_errors},
+          {"last_error", s.last_error},
+          {"ms",
+           {{"encode", s.encode_ms},
+            {"decode", s.decode_ms},
+            {"write", s.write_ms},
+            {"read", s.read_ms}}}};
+}
+
+}  // namespace
+
 std::string SlamPipeline::timingJson() const {
   const PipelineTimings t = timings();
   const TrackingStats& k = t.tracking;
@@ -490,6 +513,8 @@ std::string SlamPipeline::timingJson() const {
                           {"first_stamp", k.first_stamp},
                           {"last_stamp", k.last_stamp},
                           {"longest_no_keyframe_s", k.longest_no_keyframe_s}}}};
+  doc["cloud_store"] = {{"backend", cloudStoreJson(backend_->cloudStoreStats())}};
+  if (loops_) doc["cloud_store"]["loop_detection"] = cloudStoreJson(loops_->cloudStoreStats());
   if (const std::vector<double> scales = backend_->odometryScales(); !scales.empty())
     doc["odometry_scales"] = scales;
   if (const auto& h = t.heading_from_map) {

@@ -45,9 +45,9 @@ std::shared_ptr<const MapPackage> forestMap() {
       kf.stamp = k;
       kf.pose = sensorPose(forest(), xy, heading);
       kf.cloud = keyframeCloud(forest(), kf.pose, 100 + k);
-      kf.descriptor = computeScanContext(*kf.cloud, p->scan_context);
+      kf.descriptor = computeScanContext(*kf.cloud.load(), p->scan_context);
       PointCloud in_map;
-      pcl::transformPointCloud(*kf.cloud, in_map, kf.pose.matrix().cast<float>());
+      pcl::transformPointCloud(*kf.cloud.load(), in_map, kf.pose.matrix().cast<float>());
       *map += in_map;
       p->keyframes.push_back(kf);
     }
@@ -157,10 +157,10 @@ TEST(LocalizerLandmarks, MergedMapLandmarksProposeScansOffTheMappedTrail) {
   for (const MapKeyframe& kf : forestMap()->keyframes) {
     KeyframeLandmarks& k = observed.emplace_back();
     k.pose = planarPose(kf.pose);
-    k.landmarks = landmarkCenters(extractLandmarks(*kf.cloud, params.landmark_extraction));
+    k.landmarks = landmarkCenters(extractLandmarks(*kf.cloud.load(), params.landmark_extraction));
     observations += k.landmarks.size();
     path.push_back(kf.pose.translation().head<2>());
-    per_keyframe.add(kf.cloud);
+    per_keyframe.add(kf.cloud.load());
   }
   const std::vector<MapLandmark> landmarks =
       discoverLandmarks(observed, params.landmark_map_params);

@@ -244,7 +244,7 @@ TEST(MapPackage, RoundTrip) {
   for (size_t i = 0; i < 3; ++i) {
     EXPECT_EQ(read.keyframes[i].id, written.keyframes[i].id);
     EXPECT_LT((read.keyframes[i].pose.matrix() - written.keyframes[i].pose.matrix()).norm(), 1e-12);
-    EXPECT_EQ(read.keyframes[i].cloud->size(), 200u);
+    EXPECT_EQ(read.keyframes[i].cloud.size(), 200u);
     EXPECT_LT((read.keyframes[i].descriptor.cells - written.keyframes[i].descriptor.cells).norm(),
               1e-4);
     EXPECT_LT(
@@ -340,9 +340,9 @@ TownMap buildTownMap() {
     kf.stamp = double(id++);
     kf.pose = planar(p.x(), p.y(), t.lidar.sensor_height, p.z());
     kf.cloud = simulateSyntheticScan(t.world, p.head<2>(), p.z(), t.lidar, 1000 + id);
-    kf.descriptor = computeScanContext(*kf.cloud, t.package->scan_context);
+    kf.descriptor = computeScanContext(*kf.cloud.load(), t.package->scan_context);
     PointCloud in_map;
-    pcl::transformPointCloud(*kf.cloud, in_map, kf.pose.matrix().cast<float>());
+    pcl::transformPointCloud(*kf.cloud.load(), in_map, kf.pose.matrix().cast<float>());
     *map += in_map;
     t.package->keyframes.push_back(kf);
   }
@@ -862,7 +862,7 @@ TEST(Localizer, ReachesTheMapFromAStartOffIt) {
   auto map = std::make_shared<PointCloud>();
   for (const MapKeyframe& kf : partial->keyframes) {
     PointCloud in_map;
-    pcl::transformPointCloud(*kf.cloud, in_map, kf.pose.matrix().cast<float>());
+    pcl::transformPointCloud(*kf.cloud.load(), in_map, kf.pose.matrix().cast<float>());
     *map += in_map;
   }
   partial->map_cloud = map;

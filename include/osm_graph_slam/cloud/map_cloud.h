@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <vector>
 
+#include "osm_graph_slam/cloud/cloud_store.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 
 namespace osm_graph_slam {
@@ -10,7 +11,7 @@ namespace osm_graph_slam {
 /// A cloud in its own frame and that frame's pose in the common one.
 struct PosedCloud {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  PointCloudConstPtr cloud;  ///< null: skipped
+  StoredCloud cloud;  ///< loaded one at a time; none (or unreadable): skipped
 };
 
 /// The clouds moved into the common frame, merged and reduced to one point (the centroid) per

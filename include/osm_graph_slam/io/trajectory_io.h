@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/common/atomic_file.h"  // writeFileAtomically, used by every writer here
+
 namespace osm_graph_slam {
 
 struct StampedPose {
@@ -34,9 +36,5 @@ bool writeKittiPoses(const std::string& path, const Trajectory& trajectory, bool
                      std::string* error = nullptr);
 bool writeTumTrajectory(const std::string& path, const Trajectory& trajectory,
                         std::string* error = nullptr);
-
-/// Writes text to path atomically (path.tmp, then rename). Shared by every file writer.
-bool writeFileAtomically(const std::string& path, const std::string& content,
-                         std::string* error = nullptr);
 
 }  // namespace osm_graph_slam

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/cloud/cloud_store.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/loop/scan_context.h"
 #include "osm_graph_slam/osm/building.h"
@@ -30,7 +31,7 @@ struct MapKeyframe {
   uint64_t id = 0;
   double stamp = 0.0;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< base_link in the map frame
-  PointCloudConstPtr cloud;                                ///< base_link
+  StoredCloud cloud;  ///< base_link (held, or read from the back-end's store when written)
   ScanContext descriptor;
 };
 

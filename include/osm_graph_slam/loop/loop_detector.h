@@ -16,11 +16,13 @@
 // Context's candidates first, then the hierarchy's). Every candidate gets the same verification.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <list>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/cloud/cloud_store.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/common/logger.h"
 #include "osm_graph_slam/landmarks/landmark_extraction.h"
@@ -90,6 +92,13 @@ struct LoopDetectorParams {
   /// Candidate clouds prepared for the fine stage (KD-tree, covariances) kept (LRU; ~0.5 MB
   /// each): a revisit verifies the same keyframes for consecutive queries.
   int candidate_cache_size = 16;
+  /// Where the stored keyframes' downsampled clouds are kept: encoded, spilled to disk beyond
+  /// resident_mb (~25 kB a keyframe encoded; 64 MB: the last ~2,500 in memory).
+  CloudStoreParams cloud_store = [] {
+    CloudStoreParams p;
+    p.resident_mb = 64.0;
+    return p;
+  }();
   double coarse_voxel_size = 1.5;                   ///< [m] coarse GICP stage cloud resolution
   double coarse_max_correspondence_distance = 4.0;  ///< [m] coarse GICP stage (0 = none)
   /// [m^2] early reject: a coarse result with a larger fitness skips the fine stage (<= 0: off).
@@ -194,8 +203,8 @@ struct LoopDatabaseEntry {
   Eigen::Isometry3d odom_pose = Eigen::Isometry3d::Identity();
   double accum_distance = 0.0;
   ScanContext descriptor;
-  PointCloudConstPtr cloud;         ///< voxel-downsampled, for the fine stage
-  PointCloudConstPtr coarse_cloud;  ///< coarse stage
+  StoredCloud cloud;         ///< voxel-downsampled, for the fine stage
+  StoredCloud coarse_cloud;  ///< coarse stage
 };
 
 struct RankedCandidate {
@@ -234,6 +243,8 @@ class LoopDetector {
   const LoopDatabaseEntry& entry(size_t index) const { return entries_[index]; }
   const LoopQueryStats& lastStats() const { return stats_; }
   const LoopDetectorParams& params() const { return params_; }
+  /// How the stored keyframes' clouds are kept (in memory, on disk, read errors).
+  CloudStoreStats cloudStoreStats() const { return clouds_->stats(); }
 
   /// Phase 1 alone: database indices of the odometry candidates of a query.
   std::vector<size_t> odometryCandidates(const Eigen::Isometry3d& odom_pose,
@@ -290,6 +301,9 @@ class LoopDetector {
   void addOdometryNearest(const ScanContext& query, size_t nearest,
                           std::vector<RankedCandidate>& ranked) const;
   size_t indexLimitForDistance(double accum_distance) const;
+  /// An entry's cloud decoded, the same pointer while it stays among the recently used (the
+  /// registration back-ends keep a target they were given before).
+  PointCloudConstPtr entryCloud(size_t index, bool coarse);
 
   LoopDetectorParams params_;
   Logger logger_;
@@ -302,6 +316,8 @@ class LoopDetector {
   LoopQueryStats stats_;
   struct FieldCache;
   std::unique_ptr<FieldCache> field_cache_;
+  std::shared_ptr<CloudStore> clouds_;  ///< entries' clouds: 2 x index, coarse 2 x index + 1
+  std::list<std::pair<uint64_t, PointCloudConstPtr>> decoded_;  ///< most recent first
   /// The last searched cloud and what was computed from it, for addKeyframe() of the same cloud
   /// right after (process(), the nodelet): descriptor and downsampled cloud not computed twice.
   struct LastQuery {

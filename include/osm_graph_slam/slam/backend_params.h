@@ -6,6 +6,7 @@
 // from them. The YAML keys are flat (a field's key is its name, or its slice's prefix + its name).
 #include <string>
 
+#include "osm_graph_slam/cloud/cloud_store_params.h"
 #include "osm_graph_slam/cloud/occupancy_grid_params.h"
 #include "osm_graph_slam/common/param_declaration.h"
 #include "osm_graph_slam/graph/information.h"
@@ -525,6 +526,9 @@ struct GraphBackendParams {
   /// Not the graph's: the 2-D grid rendered from its keyframes (slam/grid_map.h), kept here so
   /// that save_map, the nodelet and the offline runners read it with the back-end's keys.
   OccupancyGridParams grid;
+  /// Not the graph's either: where the keyframes' clouds are kept (compressed, spilled to disk
+  /// beyond a memory budget) for loops, map export, save_map and the grid.
+  CloudStoreParams cloud_store;
 
   /// The keys of this level but "mode" (an enum, read by readParams()).
   template <class V>
@@ -549,6 +553,7 @@ struct GraphBackendParams {
     buildings.visit(v);
     schedule.visit(v);
     grid.visit(v);
+    cloud_store.visit(v);
   }
 };
 

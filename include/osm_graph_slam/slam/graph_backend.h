@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "osm_graph_slam/cloud/cloud_store.h"
 #include "osm_graph_slam/cloud/point_cloud.h"
 #include "osm_graph_slam/common/logger.h"
 #include "osm_graph_slam/graph/pose_graph.h"
@@ -142,7 +143,9 @@ struct KeyframeState {
   std::optional<double> gnss_std;                     ///< as received
   std::optional<double> gnss_altitude;                ///< as received
   std::optional<double> ins_yaw;                      ///< as received
-  PointCloudConstPtr cloud;
+  /// Filtered cloud in base_link as received, kept in the back-end's CloudStore (within its
+  /// quantisation; load() reads a spilled one back from disk).
+  StoredCloud cloud;
   std::vector<LineSegment2> segments;  ///< base_link
   bool osm_processed = false;
   bool has_global_prior = false;
@@ -275,6 +278,8 @@ class GraphBackend {
   std::optional<double> startHeading() const;
   const GraphBackendParams& params() const { return params_; }
   size_t pendingInputs() const;
+  /// How the keyframe clouds are kept (in memory, on disk, read errors).
+  CloudStoreStats cloudStoreStats() const;
 
   /// Vertex id of a building's SE2 vertex (robot keyframe k has vertex id k).
   static constexpr int kBuildingVertexBase = 1 << 30;
@@ -370,6 +375,7 @@ class GraphBackend {
   std::unique_ptr<BackendState> state_;
   std::unique_ptr<OsmAssociation> osm_;               ///< robot<->building edges per OSM mode
   std::unique_ptr<BuildingConstraints> constraints_;  ///< gate, shared walls, overlaps
+  std::shared_ptr<CloudStore> clouds_;                ///< the keyframes' clouds
 };
 
 }  // namespace osm_graph_slam
