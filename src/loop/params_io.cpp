@@ -1,5 +1,6 @@
 #include "osm_graph_slam/loop/params_io.h"
 
+#include "osm_graph_slam/common/param_declaration.h"
 #include "osm_graph_slam/landmarks/params_io.h"
 #include "osm_graph_slam/registration/params_io.h"
 
@@ -53,8 +54,7 @@ void readParams(const ParamReader& r, LoopDetectorParams& p) {
   r.param("max_refinement_shift", p.max_refinement_shift);
   r.param("field_cache_size", p.field_cache_size);
   r.param("candidate_cache_size", p.candidate_cache_size);
-  auto read = [&r](const char* key, auto& value, const char*) { r.param(key, value); };
-  p.cloud_store.visit(read);
+  readDeclaredParams(r, p.cloud_store, nullptr);  // no choices among its keys: nothing to refuse
   r.param("coarse_voxel_size", p.coarse_voxel_size);
   r.param("coarse_max_correspondence_distance", p.coarse_max_correspondence_distance);
   r.param("coarse_max_fitness", p.coarse_max_fitness);

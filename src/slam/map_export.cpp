@@ -73,6 +73,15 @@ std::string missingText(size_t missing) {
 }
 
 /// map.pgm + map.yaml of `grid`, or of a grid built here from the keyframes. Returns a note for the
+/// Appended to a save's or dump's message when keyframe clouds could not be read back from the
+/// back-end's store (those keyframes' clouds are left out; the rest is written).
+std::string cloudStoreNote(const GraphBackend& backend) {
+  const CloudStoreStats s = backend.cloudStoreStats();
+  if (s.read_errors == 0) return {};
+  return "; " + std::to_string(s.read_errors) +
+         " reads of keyframe clouds failed, those clouds left out (last: " + s.last_error + ")";
+}
+
 /// save's message: the build's cost per keyframe, or why no grid was written.
 std::string writeGridMap(const GraphBackend& backend, const std::vector<KeyframeState>& keyframes,
                          const OccupancyGrid* grid, Writer& write) {
@@ -227,11 +236,11 @@ MapExportResult saveMap(const GraphBackend& backend, const std::string& director
 
   result.success = write.finish();
   if (result.success)
-    result.message = "wrote " + std::to_string(result.files.size()) + " files (" +
-                     std::to_string(map->size()) + " map points, " +
-                     std::to_string(buildings.size()) + " buildings, " +
-                     std::to_string(keyframes.size()) + " keyframes" +
-                     missingText(backend.missingKeyframes()) + ")" + grid_note;
+    result.message =
+        "wrote " + std::to_string(result.files.size()) + " files (" + std::to_string(map->size()) +
+        " map points, " + std::to_string(buildings.size()) + " buildings, " +
+        std::to_string(keyframes.size()) + " keyframes" + missingText(backend.missingKeyframes()) +
+        ")" + grid_note + cloudStoreNote(backend);
   return result;
 }
 
@@ -282,8 +291,9 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
     if (with_clouds && !kf.cloud.empty()) {
       char name[64];
       std::snprintf(name, sizeof(name), "keyframes/%06lu.pcd", static_cast<unsigned long>(kf.id));
-      const PointCloudConstPtr cloud = kf.cloud.load(&error);
-      write(name, cloud && writePcdAtomically(write.path(name), *cloud, &error), error);
+      // An unreadable cloud is left out (cloudStoreNote) rather than failing the whole dump.
+      const PointCloudConstPtr cloud = kf.cloud.load();
+      if (cloud) write(name, writePcdAtomically(write.path(name), *cloud, &error), error);
     }
   }
   write("keyframes.csv", writeFileAtomically(write.path("keyframes.csv"), kf_csv.str(), &error),
@@ -330,7 +340,7 @@ MapExportResult dumpGraph(const GraphBackend& backend, const std::string& direct
   if (result.success)
     result.message = "dumped " + std::to_string(keyframes.size()) + " keyframes" +
                      missingText(backend.missingKeyframes()) + " in " +
-                     std::to_string(result.files.size()) + " files";
+                     std::to_string(result.files.size()) + " files" + cloudStoreNote(backend);
   return result;
 }
 

@@ -57,6 +57,7 @@ bool readParams(const ParamReader& r, GraphBackendParams& p, std::string* error)
   readParams(PrefixedParamReader(r, "line_matcher"), p.matcher);
   if (!readParams(r, p.schedule, error)) ok = false;
   if (!readDeclaredParams(r, p.grid, error)) ok = false;
+  if (!readDeclaredParams(r, p.cloud_store, error)) ok = false;
   return ok;
 }
 
