@@ -225,8 +225,9 @@ StoredCloud::StoredCloud(std::shared_ptr<CloudStore> store, uint64_t id,
   points_ = cloud->size();
 }
 
-size_t StoredCloud::size() const {
-  return points_;
+void StoredCloud::erase() {
+  if (store_) store_->erase(id_);
+  *this = StoredCloud();
 }
 
 PointCloudConstPtr StoredCloud::load(std::string* error) const {

@@ -19,8 +19,15 @@
 namespace osm_graph_slam {
 
 /// Inputs queued by the thread-safe add*() calls until the next update().
+/// A keyframe waiting for update(): its cloud already encoded in the back-end's store (under a
+/// key of its own until the keyframe is accepted), the input's cloud pointer released.
+struct PendingKeyframe {
+  KeyframeInput input;
+  StoredCloud cloud;
+};
+
 struct BackendQueues {
-  std::deque<KeyframeInput> keyframes;
+  std::deque<PendingKeyframe> keyframes;
   std::map<uint64_t, std::vector<LineSegment2>> segments;
   std::map<uint64_t, Eigen::Vector4d> floors;
   std::deque<LoopClosureInput> loops;

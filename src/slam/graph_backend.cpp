@@ -116,8 +116,12 @@ bool GraphBackend::hasOrigin() const {
 }
 
 void GraphBackend::addKeyframe(KeyframeInput keyframe) {
+  // Encoded here, on the caller's thread: keyframes that wait for a long update hold their
+  // encodings (~70-90 kB), not their PCL clouds (~400 kB).
+  StoredCloud cloud(clouds_, next_cloud_key_++, keyframe.cloud);
+  keyframe.cloud.reset();
   std::lock_guard<std::mutex> lock(queue_mutex_);
-  pending_->keyframes.push_back(std::move(keyframe));
+  pending_->keyframes.push_back({std::move(keyframe), std::move(cloud)});
 }
 
 void GraphBackend::addLineSegments(uint64_t keyframe_id, std::vector<LineSegment2> segments) {
@@ -210,24 +214,29 @@ void GraphBackend::reportOdometryScale() {
 }
 
 void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
-  std::deque<KeyframeInput> incoming;
+  std::deque<PendingKeyframe> incoming;
   std::map<uint64_t, std::vector<LineSegment2>> segments;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     incoming.swap(pending_->keyframes);
     segments.swap(pending_->segments);
   }
-  std::sort(incoming.begin(), incoming.end(),
-            [](const KeyframeInput& a, const KeyframeInput& b) { return a.id < b.id; });
+  std::stable_sort(incoming.begin(), incoming.end(),
+                   [](const PendingKeyframe& a, const PendingKeyframe& b) {
+                     return a.input.id < b.input.id;
+                   });
   const size_t gated_before = state_->gnss_gated;
-  for (auto& in : incoming) {
-    if (!acceptable(in)) continue;
+  for (auto& [in, cloud] : incoming) {
+    if (!acceptable(in)) {
+      cloud.erase();
+      continue;
+    }
     // A new session numbers its keyframes afresh: the ids between are not missing.
     if (state_->sessions.count(in.session))
       countMissing(in.id, report);
     else
       state_->keyframe_ids.restartAt(in.id);
-    insertKeyframe(in);
+    insertKeyframe(in, std::move(cloud));
     ++report.keyframes_added;
     state_->dirty = true;
   }
@@ -286,7 +295,7 @@ void GraphBackend::countMissing(uint64_t id, BackendUpdateReport& report) {
                         "from now on; logged once");
 }
 
-void GraphBackend::insertKeyframe(const KeyframeInput& in) {
+void GraphBackend::insertKeyframe(const KeyframeInput& in, StoredCloud cloud) {
   BackendState& s = *state_;
   KeyframeState kf;
   kf.id = in.id;
@@ -303,7 +312,7 @@ void GraphBackend::insertKeyframe(const KeyframeInput& in) {
   kf.gnss_std = in.gnss_std;
   kf.gnss_altitude = in.gnss_altitude;
   kf.ins_yaw = in.ins_yaw;
-  kf.cloud = StoredCloud(clouds_, in.id, in.cloud);
+  kf.cloud = std::move(cloud);
   if (in.floor) s.early_floors[in.id] = *in.floor;
   const auto session = s.sessions.find(in.session);
   if (s.keyframes.empty())

@@ -95,10 +95,13 @@ class StoredCloud {
 
   /// True when a cloud was given (even an empty one), as a shared_ptr is.
   explicit operator bool() const { return cloud_ != nullptr || store_ != nullptr; }
-  size_t size() const;
+  size_t size() const { return points_; }
   bool empty() const { return size() == 0; }
   /// The cloud; null when none was given or its spilled file cannot be read (*error says why).
   PointCloudConstPtr load(std::string* error = nullptr) const;
+  /// Removes the cloud from its store (a keyframe refused after it was stored) and empties the
+  /// handle. Other copies of the handle then load null.
+  void erase();
 
  private:
   PointCloudConstPtr cloud_;

@@ -5,6 +5,7 @@
 // prior constraints and runs the phased optimisation (doc/backend.md) plus overlap resolution.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <atomic>
 #include <deque>
 #include <map>
 #include <memory>
@@ -331,7 +332,7 @@ class GraphBackend {
   void flushKeyframes(BackendUpdateReport& report);
   void attachSegments(std::map<uint64_t, std::vector<LineSegment2>> segments);
   bool acceptable(const KeyframeInput& in) const;  ///< in order and in range, else logged once
-  void insertKeyframe(const KeyframeInput& in);
+  void insertKeyframe(const KeyframeInput& in, StoredCloud cloud);
   void countMissing(uint64_t id, BackendUpdateReport& report);  ///< ids skipped before `id`
   /// The first loop from the pass after a jump back in time to an earlier pass moves that pass
   /// to where the loop says (its provisional odometry link follows).
@@ -376,6 +377,7 @@ class GraphBackend {
   std::unique_ptr<OsmAssociation> osm_;               ///< robot<->building edges per OSM mode
   std::unique_ptr<BuildingConstraints> constraints_;  ///< gate, shared walls, overlaps
   std::shared_ptr<CloudStore> clouds_;                ///< the keyframes' clouds
+  std::atomic<uint64_t> next_cloud_key_{0};           ///< store keys, in arrival order
 };
 
 }  // namespace osm_graph_slam
