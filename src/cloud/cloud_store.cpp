@@ -230,7 +230,11 @@ void StoredCloud::erase() {
   *this = StoredCloud();
 }
 
+StoredCloud::StoredCloud(Reader read, size_t points)
+    : read_(std::make_shared<const Reader>(std::move(read))), points_(points) {}
+
 PointCloudConstPtr StoredCloud::load(std::string* error) const {
+  if (read_) return (*read_)(error);
   if (cloud_ || !store_) return cloud_;
   return store_->get(id_, error);
 }

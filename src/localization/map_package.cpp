@@ -183,11 +183,20 @@ bool loadMapPackage(const std::string& directory, MapPackage& package, std::stri
                              line + "'");
     kf.pose.linear() = m.topLeftCorner<3, 3>();
     kf.pose.translation() = m.topRightCorner<3, 1>();
-    auto cloud = std::make_shared<PointCloud>();
-    const fs::path cloud_path = dir / keyframeCloudName(kf.id);
-    if (!fs::exists(cloud_path) || pcl::io::loadPCDFile(cloud_path.string(), *cloud) != 0)
-      return fail(error, "map package '" + directory + "': cannot read " + cloud_path.string());
-    kf.cloud = cloud;
+    // Read once to check it, then read again where it is used: a package of a long drive does
+    // not hold every keyframe's cloud in memory (doc/long_drives.md).
+    PointCloud cloud;
+    const std::string cloud_path = (dir / keyframeCloudName(kf.id)).string();
+    if (!fs::exists(cloud_path) || pcl::io::loadPCDFile(cloud_path, cloud) != 0)
+      return fail(error, "map package '" + directory + "': cannot read " + cloud_path);
+    kf.cloud = StoredCloud(
+        [cloud_path](std::string* why) -> PointCloudConstPtr {
+          auto c = std::make_shared<PointCloud>();
+          if (pcl::io::loadPCDFile(cloud_path, *c) == 0) return c;
+          if (why) *why = "cannot read " + cloud_path;
+          return nullptr;
+        },
+        cloud.size());
     package.keyframes.push_back(std::move(kf));
   }
   if (package.keyframes.empty() ||
@@ -211,9 +220,12 @@ bool loadMapPackage(const std::string& directory, MapPackage& package, std::stri
     if (!is || id != package.keyframes[next].id) break;
     package.keyframes[next++].descriptor = scanContextFromCells(cells);
   }
-  for (; next < package.keyframes.size(); ++next)
-    package.keyframes[next].descriptor =
-        computeScanContext(*package.keyframes[next].cloud.load(), package.scan_context);
+  for (; next < package.keyframes.size(); ++next) {
+    std::string why;
+    const PointCloudConstPtr cloud = package.keyframes[next].cloud.load(&why);
+    if (!cloud) return fail(error, "map package '" + directory + "': " + why);
+    package.keyframes[next].descriptor = computeScanContext(*cloud, package.scan_context);
+  }
 
   const fs::path buildings_path = dir / "buildings_corrected.geojson";
   if (expected_buildings > 0 || fs::exists(buildings_path)) {

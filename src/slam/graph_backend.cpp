@@ -221,10 +221,9 @@ void GraphBackend::flushKeyframes(BackendUpdateReport& report) {
     incoming.swap(pending_->keyframes);
     segments.swap(pending_->segments);
   }
-  std::stable_sort(incoming.begin(), incoming.end(),
-                   [](const PendingKeyframe& a, const PendingKeyframe& b) {
-                     return a.input.id < b.input.id;
-                   });
+  std::stable_sort(
+      incoming.begin(), incoming.end(),
+      [](const PendingKeyframe& a, const PendingKeyframe& b) { return a.input.id < b.input.id; });
   const size_t gated_before = state_->gnss_gated;
   for (auto& [in, cloud] : incoming) {
     if (!acceptable(in)) {

@@ -98,6 +98,18 @@ TEST_F(BackendCloudStore, SpilledCloudsComeBackForTheMapAndTheSave) {
   EXPECT_EQ(backend_->cloudStoreStats().read_errors, 0u);
 }
 
+TEST_F(BackendCloudStore, ARefusedKeyframeLeavesNoCloudBehind) {
+  KeyframeInput duplicate;
+  duplicate.id = 3;  // not newer than the last one: refused
+  duplicate.cloud = scanAt(99);
+  backend_->addKeyframe(duplicate);
+  EXPECT_EQ(backend_->cloudStoreStats().clouds, size_t(kKeyframes + 1));  // encoded when queued
+  backend_->update();
+  EXPECT_EQ(backend_->cloudStoreStats().clouds, size_t(kKeyframes));
+  const std::vector<KeyframeState> keyframes = backend_->keyframes();
+  EXPECT_NEAR(keyframes[3].cloud.load()->points[0].x, scanAt(3)->points[0].x, 0.0051);
+}
+
 TEST_F(BackendCloudStore, ACorruptSpilledCloudIsLeftOutAndReported) {
   const fs::path victim = spilledFile(2);
   ASSERT_TRUE(fs::exists(victim)) << victim;

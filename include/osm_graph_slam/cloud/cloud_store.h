@@ -4,6 +4,7 @@
 // ones are written to disk, one file per cloud, and dropped from memory. A spilled cloud is read
 // back when asked for. Files are written atomically, so a crash leaves whole files or none.
 #include <cstdint>
+#include <functional>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -82,19 +83,22 @@ class CloudStore {
   mutable CloudStoreStats stats_;
 };
 
-/// A keyframe's cloud as held by the back-end: either a cloud held directly (dumps, tests) or
-/// an id in a shared CloudStore. Copies are cheap and share the cloud.
+/// A keyframe's cloud as held by the back-end: a cloud held directly (dumps, tests), an id in a
+/// shared CloudStore, or a file read when needed (a map package). Copies are cheap and share it.
 class StoredCloud {
  public:
   StoredCloud() = default;
   StoredCloud(PointCloudConstPtr cloud);   // NOLINT: a held cloud converts implicitly
   StoredCloud(const PointCloudPtr& cloud)  // NOLINT: as does a mutable one
       : StoredCloud(PointCloudConstPtr(cloud)) {}
+  /// Reads the cloud with `read` at each load() (nothing held in memory); points: its size.
+  using Reader = std::function<PointCloudConstPtr(std::string* error)>;
+  StoredCloud(Reader read, size_t points);
   /// Puts cloud into store under id (a null cloud gives an empty handle).
   StoredCloud(std::shared_ptr<CloudStore> store, uint64_t id, const PointCloudConstPtr& cloud);
 
   /// True when a cloud was given (even an empty one), as a shared_ptr is.
-  explicit operator bool() const { return cloud_ != nullptr || store_ != nullptr; }
+  explicit operator bool() const { return cloud_ || store_ || read_; }
   size_t size() const { return points_; }
   bool empty() const { return size() == 0; }
   /// The cloud; null when none was given or its spilled file cannot be read (*error says why).
@@ -105,6 +109,7 @@ class StoredCloud {
 
  private:
   PointCloudConstPtr cloud_;
+  std::shared_ptr<const Reader> read_;
   std::shared_ptr<CloudStore> store_;
   uint64_t id_ = 0;
   size_t points_ = 0;

@@ -4,8 +4,8 @@
 // dropped while an optimisation runs; update() moves them into the pose graph, adds the OSM
 // prior constraints and runs the phased optimisation (doc/backend.md) plus overlap resolution.
 #include <Eigen/Geometry>
-#include <cstdint>
 #include <atomic>
+#include <cstdint>
 #include <deque>
 #include <map>
 #include <memory>
