@@ -73,13 +73,17 @@ std::string missingText(size_t missing) {
 }
 
 /// map.pgm + map.yaml of `grid`, or of a grid built here from the keyframes. Returns a note for the
-/// Appended to a save's or dump's message when keyframe clouds could not be read back from the
-/// back-end's store (those keyframes' clouds are left out; the rest is written).
+/// Appended to a save's or dump's message: where the keyframe clouds are, and how many could not
+/// be read back from the back-end's store (those clouds are left out; the rest is written).
 std::string cloudStoreNote(const GraphBackend& backend) {
   const CloudStoreStats s = backend.cloudStoreStats();
-  if (s.read_errors == 0) return {};
-  return "; " + std::to_string(s.read_errors) +
-         " reads of keyframe clouds failed, those clouds left out (last: " + s.last_error + ")";
+  char where[128];
+  std::snprintf(where, sizeof(where), "; keyframe clouds: %zu on disk, %.0f MB in memory",
+                s.on_disk, s.resident_bytes / (1024.0 * 1024.0));
+  if (s.read_errors == 0) return where;
+  return where +
+         ("; " + std::to_string(s.read_errors) +
+          " reads of keyframe clouds failed, those clouds left out (last: " + s.last_error + ")");
 }
 
 /// save's message: the build's cost per keyframe, or why no grid was written.
