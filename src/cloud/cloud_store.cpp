@@ -111,6 +111,8 @@ bool CloudStore::ensureDirectory() {
       params_.directory.empty() ? fs::temp_directory_path(ec) : fs::path(params_.directory);
   const fs::path dir = parent / ("cloud_store_" + std::to_string(::getpid()) + "_" +
                                  std::to_string(counter.fetch_add(1)));
+  // A folder of this name is a crashed process's of the same pid: nothing reads it any more.
+  if (!ec && fs::exists(dir, ec)) fs::remove_all(dir, ec);
   if (ec || !fs::create_directories(dir, ec) || ec) {
     stats_.last_error = "cannot create '" + dir.string() + "': " + ec.message();
     return false;
