@@ -19,7 +19,8 @@ namespace {
 constexpr char kMagic[4] = {'O', 'G', 'S', 'C'};
 constexpr uint16_t kVersion = 1;
 constexpr uint16_t kDeflated = 1;
-constexpr int kPlanes = 4;  // x, y, z, intensity: 2 bytes each
+constexpr uint16_t kLossless = 2;  // float32 planes (resolution <= 0)
+constexpr int kPlanes = 4;         // x, y, z, intensity: 2 bytes each, or 4 when lossless
 
 class Writer {
  public:
@@ -75,6 +76,23 @@ bool isFinite(const PointT& p) {
          std::isfinite(p.intensity);
 }
 
+// Lossless planes: plane k holds the points' float bits, byte b of every point, then byte b + 1.
+void putFloat(std::vector<uint8_t>& planes, size_t n, int plane, size_t i, float v) {
+  uint32_t bits = 0;
+  std::memcpy(&bits, &v, sizeof(bits));
+  uint8_t* base = planes.data() + 4 * n * plane;
+  for (int b = 0; b < 4; ++b) base[b * n + i] = static_cast<uint8_t>(bits >> (8 * b));
+}
+
+float getFloat(const uint8_t* planes, size_t n, int plane, size_t i) {
+  const uint8_t* base = planes + 4 * n * plane;
+  uint32_t bits = 0;
+  for (int b = 0; b < 4; ++b) bits |= static_cast<uint32_t>(base[b * n + i]) << (8 * b);
+  float v = 0.f;
+  std::memcpy(&v, &bits, sizeof(v));
+  return v;
+}
+
 PointCloudPtr fail(std::string* error, const std::string& why) {
   if (error) *error = why;
   return nullptr;
@@ -99,13 +117,19 @@ std::string encodeCloud(const PointCloud& cloud, const CloudCodecParams& params)
   const Eigen::Vector3d origin = n ? Eigen::Vector3d(0.5 * (lo + hi)) : Eigen::Vector3d::Zero();
   // 65,534 steps span the widest axis: int16 from -32,767 to 32,767 around the box centre.
   const double extent = n ? (hi - lo).maxCoeff() : 0.0;
+  const bool lossless = params.resolution <= 0.0;
   const double resolution =
-      std::max(params.resolution > 0 ? params.resolution : 0.01, extent / 65534.0 * (1.0 + 1e-9));
+      lossless ? 0.0 : std::max(params.resolution, extent / 65534.0 * (1.0 + 1e-9));
   const double i_step = n && i_hi > i_lo ? (i_hi - i_lo) / 65535.0 : 0.0;
 
-  std::vector<uint8_t> planes(2 * kPlanes * n);
+  std::vector<uint8_t> planes((lossless ? 4 : 2) * kPlanes * n);
   for (size_t i = 0; i < n; ++i) {
     const PointT& p = *points[i];
+    if (lossless) {
+      const float values[kPlanes] = {p.x, p.y, p.z, p.intensity};
+      for (int k = 0; k < kPlanes; ++k) putFloat(planes, n, k, i, values[k]);
+      continue;
+    }
     const double xyz[3] = {p.x, p.y, p.z};
     for (int k = 0; k < 3; ++k) {
       const long q = std::lround((xyz[k] - origin[k]) / resolution);
@@ -116,7 +140,7 @@ std::string encodeCloud(const PointCloud& cloud, const CloudCodecParams& params)
   }
 
   std::string payload;
-  uint16_t flags = 0;
+  uint16_t flags = lossless ? kLossless : 0;
   if (params.deflate_level > 0 && !planes.empty()) {
     uLongf size = compressBound(planes.size());
     payload.resize(size);
@@ -176,7 +200,9 @@ PointCloudPtr decodeCloud(const std::string& bytes, std::string* error) {
                          r.get(raw_size) && r.get(payload_size) && r.take(payload_size, payload);
   if (!header_ok || r.pos() + sizeof(uint32_t) != bytes.size())
     return fail(error, "truncated or oversized encoding");
-  if (raw_size != 2ull * kPlanes * n) return fail(error, "payload size does not match points");
+  const bool lossless = flags & kLossless;
+  if (raw_size != (lossless ? 4ull : 2ull) * kPlanes * n)
+    return fail(error, "payload size does not match points");
 
   std::vector<uint8_t> planes(raw_size);
   if (flags & kDeflated) {
@@ -197,6 +223,13 @@ PointCloudPtr decodeCloud(const std::string& bytes, std::string* error) {
   cloud->resize(n);
   for (size_t i = 0; i < n; ++i) {
     PointT& p = cloud->points[i];
+    if (lossless) {
+      p.x = getFloat(planes.data(), n, 0, i);
+      p.y = getFloat(planes.data(), n, 1, i);
+      p.z = getFloat(planes.data(), n, 2, i);
+      p.intensity = getFloat(planes.data(), n, 3, i);
+      continue;
+    }
     p.x = static_cast<float>(origin[0] +
                              static_cast<int16_t>(getValue(planes.data(), n, 0, i)) * resolution);
     p.y = static_cast<float>(origin[1] +

@@ -77,6 +77,18 @@ TEST(CloudCodec, RoundTripsWithinTheQuantisationAndKeepsTheHeader) {
   }
 }
 
+TEST(CloudCodec, ResolutionZeroIsLossless) {
+  PointCloud cloud = ringCloud(5000, 80.0, 7);
+  cloud[3].x = 1.0e6f;  // any width
+  CloudCodecParams params;
+  params.resolution = 0.0;
+  const std::string bytes = encodeCloud(cloud, params);
+  const PointCloudPtr back = decodeCloud(bytes);
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(identical(cloud, *back));
+  EXPECT_LT(bytes.size(), cloud.size() * 16 + 200);
+}
+
 TEST(CloudCodec, AWideCloudGetsTheStepThatFitsIt) {
   PointCloud cloud = ringCloud(1000, 80.0, 2);
   cloud[0].x = 1500.0f;  // 1.58 km wide: beyond 65,534 steps of 1 cm

@@ -9,7 +9,7 @@ namespace osm_graph_slam {
 
 struct CloudCodecParams {
   /// [m] quantisation step. A cloud wider than 65,534 steps gets the step that fits it (stated in
-  /// the encoding), so an encoding never fails.
+  /// the encoding), so an encoding never fails. <= 0: lossless (float32 planes).
   double resolution = 0.01;
   /// zlib level 0-9 of the shuffled planes (0: stored as they are, 8 bytes a point). Level 1:
   /// 6.1 bytes a point on the real KITTI drive (doc/long_drives.md).
@@ -19,7 +19,8 @@ struct CloudCodecParams {
 struct CloudStoreParams {
   CloudCodecParams codec;
   /// [MB] encoded clouds kept in memory; the least recently used beyond it live only on disk.
-  /// 256 MB holds ~2,900 keyframes of the real KITTI drive (15k points, 89 kB encoded).
+  /// 256 MB holds ~1,350 keyframes of the real KITTI drive losslessly (15k points, 189 kB each),
+  /// ~2,900 at 1 cm (89 kB).
   double resident_mb = 256.0;
   /// Parent of the store's own directory (DIR/cloud_store_<pid>_<n>), removed with the store.
   /// Empty: the system's temporary directory.
@@ -31,7 +32,8 @@ struct CloudStoreParams {
       "[MB] encoded keyframe clouds kept in memory; older ones are spilled to disk");
     v("cloud_store_directory", directory,
       "where spilled keyframe clouds go (a folder of its own inside; \"\": the temp directory)");
-    v("cloud_store_resolution", codec.resolution, "[m] quantisation of stored keyframe clouds");
+    v("cloud_store_resolution", codec.resolution,
+      "[m] quantisation of stored keyframe clouds (0: lossless)");
     v("cloud_store_deflate_level", codec.deflate_level,
       "zlib level of stored keyframe clouds (0: none, 8 B a point; 1: 6.1 B on KITTI)");
   }
